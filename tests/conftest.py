@@ -1,0 +1,48 @@
+"""Shared fixtures: example inputs generated once per session, and a helper to run the CLI in-process."""
+
+from __future__ import annotations
+
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+from urdf_pipeline import cli
+from urdf_pipeline.examples import example_robot_data_share, prepare
+
+REPO = Path(__file__).resolve().parents[1]
+CONFIGS = REPO / "configs"
+SHARED = REPO.parent / "shared"
+
+
+@dataclass(frozen=True)
+class CliResult:
+    code: int
+    out: str
+    err: str
+
+
+@pytest.fixture(scope="session")
+def examples_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A scratch copy of configs/ with its generated inputs (robots/ and data/)."""
+    directory = tmp_path_factory.mktemp("examples")
+    for config in CONFIGS.glob("*.yaml"):
+        shutil.copy(config, directory / config.name)
+    prepare(directory, frames=300)
+    return directory
+
+
+@pytest.fixture(scope="session")
+def erd_share() -> Path:
+    return example_robot_data_share()
+
+
+@pytest.fixture
+def run_cli(capsys: pytest.CaptureFixture[str]):
+    def run(*args: str) -> CliResult:
+        code = cli.main(list(args))
+        captured = capsys.readouterr()
+        return CliResult(code, captured.out, captured.err)
+
+    return run

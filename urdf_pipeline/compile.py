@@ -1,0 +1,130 @@
+"""Config file -> frozen plan: parse, validate against the schema, then every check that needs the URDF."""
+
+from __future__ import annotations
+
+import math
+import string
+from pathlib import Path
+from typing import Any
+
+from .document import Document, load_document
+from .errors import Problems, UserError
+from .frame_graph import FrameEdge, check_frame_graph
+from .geometry import normalized_quaternion, quaternion_from_rpy
+from .plan import EdgePlan, OutputPlan, Plan, RobotPlan, SourcePlan
+from .robots import compile_robot
+from .schema import require_schema_valid
+from .sources import compile_source
+
+
+def compile_config(config_path: Path) -> Plan:
+    document = load_document(config_path)
+    require_schema_valid(document)
+    return compile_document(document)
+
+
+def compile_document(document: Document) -> Plan:
+    data: dict[str, Any] = document.data
+    problems = Problems()
+
+    sources: dict[str, SourcePlan] = {}
+    for name, spec in data["sources"].items():
+        try:
+            sources[name] = compile_source(name, spec, document)
+        except UserError as exc:
+            problems.extend(exc)
+
+    robots: list[RobotPlan] = []
+    for key, spec in data["robots"].items():
+        robot = compile_robot(key, spec, sources, document, problems)
+        if robot is not None:
+            robots.append(robot)
+
+    used = {spec["joints"]["source"] for spec in data["robots"].values()}
+    for name in data["sources"]:
+        if name not in used:
+            problems.add(f"source '{name}' is used by no robot; remove it or set a robot's joints.source to it", document.where("sources", name))
+
+    prefixes_unique = _check_unique_prefixes(data, document, problems)
+    edges = _compile_edges(data.get("edges", []), document, problems)
+    root = _root_frame(data, robots, document, problems)
+    if root is not None and prefixes_unique and len(robots) == len(data["robots"]):
+        check_frame_graph(_frame_edges(robots, edges), _urdf_frames(robots), root, document.where("frames", "root"), problems)
+    output = _compile_output(data["output"], document, problems)
+    problems.raise_if_any()
+    assert root is not None and output is not None
+    return Plan(document.file, tuple(sources.values()), tuple(robots), tuple(edges), root, output)
+
+
+def _check_unique_prefixes(data: dict[str, Any], document: Document, problems: Problems) -> bool:
+    before = len(problems.errors)
+    frame_prefixes: dict[str, str] = {}
+    entity_prefixes: dict[str, str] = {}
+    for key, spec in data["robots"].items():
+        frame_prefix = spec.get("frame_prefix", "")
+        if frame_prefix in frame_prefixes:
+            problems.add(
+                f"robots '{frame_prefixes[frame_prefix]}' and '{key}' share frame_prefix '{frame_prefix}'; their frames would cross-wire. Give each robot its own frame_prefix",
+                document.where("robots", key, "frame_prefix") if "frame_prefix" in spec else document.where("robots", key),
+            )
+        frame_prefixes.setdefault(frame_prefix, key)
+        entity_prefix = spec.get("entity_path_prefix", key).strip("/")
+        if entity_prefix in entity_prefixes:
+            problems.add(
+                f"robots '{entity_prefixes[entity_prefix]}' and '{key}' share entity_path_prefix '{entity_prefix}'",
+                document.where("robots", key, "entity_path_prefix"),
+            )
+        entity_prefixes.setdefault(entity_prefix, key)
+    return len(problems.errors) == before
+
+
+def _compile_edges(specs: list[dict[str, Any]], document: Document, problems: Problems) -> list[EdgePlan]:
+    edges: list[EdgePlan] = []
+    for index, spec in enumerate(specs):
+        where = document.where("edges", index)
+        if "quaternion_xyzw" in spec:
+            quaternion = normalized_quaternion(tuple(spec["quaternion_xyzw"]))
+            if quaternion is None:
+                problems.add("quaternion_xyzw is zero; write [0, 0, 0, 1] for no rotation", document.where("edges", index, "quaternion_xyzw"))
+                continue
+        else:
+            rpy = spec["rpy"] if "rpy" in spec else [math.radians(v) for v in spec["rpy_deg"]]
+            quaternion = quaternion_from_rpy(*rpy)
+        translation = tuple(float(v) for v in spec["translation"])
+        edges.append(EdgePlan(spec["parent"], spec["child"], translation, quaternion, where))  # type: ignore[arg-type]
+    return edges
+
+
+def _root_frame(data: dict[str, Any], robots: list[RobotPlan], document: Document, problems: Problems) -> str | None:
+    root = data.get("frames", {}).get("root")
+    if root is not None:
+        return str(root)
+    if len(data["robots"]) > 1:
+        problems.add("frames.root is required with more than one robot: name the frame every robot's calibration edge hangs from", document.where("frames"))
+        return None
+    return robots[0].frame_prefix + robots[0].root_link if robots else None
+
+
+def _frame_edges(robots: list[RobotPlan], edges: list[EdgePlan]) -> list[FrameEdge]:
+    result = [
+        FrameEdge(robot.frame_prefix + parent, robot.frame_prefix + child, f"URDF '{robot.robot_name}' joint '{joint}' of robot '{robot.key}'", robot.where)
+        for robot in robots
+        for joint, parent, child in robot.joint_links
+    ]
+    result += [FrameEdge(edge.parent, edge.child, f"edges[{index}] at line {edge.where.line}", edge.where) for index, edge in enumerate(edges)]
+    return result
+
+
+def _urdf_frames(robots: list[RobotPlan]) -> dict[str, Any]:
+    return {robot.frame_prefix + link: robot.where for robot in robots for link in robot.links}
+
+
+def _compile_output(spec: dict[str, Any], document: Document, problems: Problems) -> OutputPlan | None:
+    where = document.where("output", "path")
+    fields = [name for _, name, _, _ in string.Formatter().parse(spec["path"]) if name is not None]
+    unknown = [name for name in fields if name != "segment"]
+    if unknown:
+        problems.add(f"output.path uses unknown placeholder(s) {', '.join('{' + n + '}' for n in unknown)}; only {{segment}} is known", where)
+        return None
+    path = (document.file.parent / spec["path"].format(segment=spec["segment"])).resolve()
+    return OutputPlan(path, spec["application_id"], spec["segment"], document.where("output"))

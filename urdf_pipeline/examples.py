@@ -1,0 +1,141 @@
+"""Generate the example inputs that `configs/` refers to: robot descriptions from the installed
+`example-robot-data` package and joint trajectories within each robot's limits.
+
+Run by `make demo` and by the test suite (`python -m urdf_pipeline.examples DIR`), so a fresh clone needs no hand step.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from .urdf_model import UrdfModel, read_urdf
+
+PANDA_NAMES = ["j1", "j2", "j3", "j4", "j5", "j6", "j7", "finger"]
+SO101_NAMES = ["shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll", "gripper"]
+
+
+def example_robot_data_share() -> Path:
+    """The installed package's share folder (it installs under site-packages/cmeel.prefix)."""
+    for entry in map(Path, sys.path):
+        candidate = entry / "cmeel.prefix" / "share" / "example-robot-data"
+        if (candidate / "robots").is_dir():
+            return candidate
+    raise SystemExit("example-robot-data is not installed: pip install example-robot-data")
+
+
+def smooth_trajectory(model: UrdfModel, joints: list[str], frames: int, seed: int) -> np.ndarray:
+    """Sinusoids inside each joint's limits (URDF units), one column per joint."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(frames)[:, None] / 30.0
+    lower = np.array([model.joint(j).lower for j in joints])  # type: ignore[union-attr]
+    upper = np.array([model.joint(j).upper for j in joints])  # type: ignore[union-attr]
+    middle, half = (lower + upper) / 2, (upper - lower) / 2 * 0.8
+    phase = rng.uniform(0, 2 * math.pi, len(joints))
+    speed = rng.uniform(0.2, 0.6, len(joints))
+    return middle + half * np.sin(2 * math.pi * speed * t + phase)
+
+
+def panda_raw_values(frames: int, panda: UrdfModel, seed: int = 0) -> np.ndarray:
+    """Panda values in the contract config's units: degrees, j2 negated, j3 offset 0.1 rad, finger in mm."""
+    joints = [f"panda_joint{i}" for i in range(1, 8)] + ["panda_finger_joint1"]
+    q = smooth_trajectory(panda, joints, frames, seed)
+    raw = np.degrees(q[:, :7])
+    raw[:, 1] = -raw[:, 1]
+    raw[:, 2] = np.degrees(q[:, 2] - 0.1)
+    return np.concatenate([raw, q[:, 7:8] * 1000.0], axis=1)
+
+
+def write_joint_parquet(path: Path, values: np.ndarray, column: str = "observation.state") -> None:
+    frames, width = values.shape
+    path.parent.mkdir(parents=True, exist_ok=True)
+    table = pa.table(
+        {
+            "frame_index": pa.array(np.arange(frames), pa.int64()),
+            "timestamp": pa.array(np.arange(frames) / 30.0, pa.float64()),
+            column: pa.FixedSizeListArray.from_arrays(pa.array(values.astype(np.float32).reshape(-1)), width),
+        }
+    )
+    pq.write_table(table, path)
+
+
+def write_lerobot_dataset(root: Path, values: np.ndarray, names: list[str], fps: int = 30) -> None:
+    """A minimal LeRobot v2.1 dataset with one episode and no videos."""
+    frames, width = values.shape
+    data = root / "data" / "chunk-000" / "episode_000000.parquet"
+    data.parent.mkdir(parents=True, exist_ok=True)
+    (root / "meta").mkdir(parents=True, exist_ok=True)
+    pq.write_table(
+        pa.table(
+            {
+                "observation.state": pa.FixedSizeListArray.from_arrays(pa.array(values.astype(np.float32).reshape(-1)), width),
+                "timestamp": pa.array(np.arange(frames) / fps, pa.float32()),
+                "frame_index": pa.array(np.arange(frames), pa.int64()),
+                "episode_index": pa.array(np.zeros(frames), pa.int64()),
+                "index": pa.array(np.arange(frames), pa.int64()),
+                "task_index": pa.array(np.zeros(frames), pa.int64()),
+            }
+        ),
+        data,
+    )
+    scalar = {"dtype": "int64", "shape": [1], "names": None}
+    info = {
+        "codebase_version": "v2.1",
+        "robot_type": "so101",
+        "total_episodes": 1,
+        "total_frames": frames,
+        "total_tasks": 1,
+        "total_videos": 0,
+        "total_chunks": 1,
+        "chunks_size": 1000,
+        "fps": fps,
+        "splits": {"train": "0:1"},
+        "data_path": "data/chunk-{episode_chunk:03d}/episode_{episode_index:06d}.parquet",
+        "video_path": None,
+        "features": {
+            "observation.state": {"dtype": "float32", "shape": [width], "names": names},
+            "timestamp": {"dtype": "float32", "shape": [1], "names": None},
+            "frame_index": scalar,
+            "episode_index": scalar,
+            "index": scalar,
+            "task_index": scalar,
+        },
+    }
+    (root / "meta" / "info.json").write_text(json.dumps(info, indent=2))
+    (root / "meta" / "episodes.jsonl").write_text(json.dumps({"episode_index": 0, "tasks": ["wave"], "length": frames}) + "\n")
+    (root / "meta" / "tasks.jsonl").write_text(json.dumps({"task_index": 0, "task": "wave"}) + "\n")
+
+
+def _link(link: Path, target: Path) -> None:
+    if link.is_symlink() or link.exists():
+        if link.is_symlink() and link.resolve() == target.resolve():
+            return
+        link.unlink() if link.is_symlink() or link.is_file() else shutil.rmtree(link)
+    link.parent.mkdir(parents=True, exist_ok=True)
+    link.symlink_to(target, target_is_directory=True)
+
+
+def prepare(directory: Path, frames: int = 900) -> None:
+    """Create directory/robots and directory/data as the example configs expect them."""
+    share = example_robot_data_share()
+    robots = directory / "robots"
+    _link(robots / "share" / "example-robot-data", share)
+    panda_urdf = share / "robots" / "panda_description" / "urdf" / "panda.urdf"
+    shutil.copyfile(panda_urdf, robots / "panda.urdf")
+    _, panda = read_urdf(panda_urdf)
+    write_joint_parquet(directory / "data" / "episode_000.parquet", panda_raw_values(frames, panda))
+    left, right = panda_raw_values(frames, panda, seed=1), panda_raw_values(frames, panda, seed=2)
+    write_joint_parquet(directory / "data" / "bimanual_000.parquet", np.concatenate([left, right], axis=1))
+    _, so101 = read_urdf(share / "robots" / "so_arm_description" / "urdf" / "so101.urdf")
+    write_lerobot_dataset(directory / "data" / "so101_lerobot", np.degrees(smooth_trajectory(so101, SO101_NAMES, frames, seed=3)), SO101_NAMES)
+
+
+if __name__ == "__main__":
+    prepare(Path(sys.argv[1]) if len(sys.argv) > 1 else Path("configs"))

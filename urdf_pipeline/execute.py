@@ -1,0 +1,68 @@
+"""Run a plan: build the lazy streams, pull them once, check what the data pass found, then write."""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from .callbacks import CallbackErrors
+from .edges_stream import edges_stream
+from .errors import Problems
+from .fk_stream import JointTransformBatches, fk_stream
+from .joint_values import JointValueMapper
+from .limits_report import check_joint_statistics
+from .model_stream import load_tree, model_stream
+from .plan import Plan
+from .sources import module_for
+from .writer import write_atomically
+
+
+@dataclass(frozen=True)
+class RunResult:
+    output: Path
+    rows: dict[str, int]  # robot key -> rows of joint values
+    notes: tuple[str, ...]
+    seconds: float
+
+
+def progress(message: str) -> None:
+    print(f"urdf-pipeline: {message}", file=sys.stderr, flush=True)
+
+
+def execute(plan: Plan) -> RunResult:
+    from rerun.chunk import LazyChunkStream, OptimizationProfile
+
+    started = time.perf_counter()
+    errors = CallbackErrors()
+    mappers: list[JointValueMapper] = []
+    with tempfile.TemporaryDirectory(prefix="urdf-pipeline-") as workdir:
+        streams = []
+        trees = {robot.key: load_tree(robot, Path(workdir)) for robot in plan.robots}
+        for robot in plan.robots:
+            streams.append(model_stream(robot, trees[robot.key]))
+        for source in plan.sources:
+            opened = module_for(source).open_stream(source)
+            driven = []
+            for robot in plan.robots_for(source.name):
+                mapper = JointValueMapper(robot, source)
+                mappers.append(mapper)
+                driven.append((robot.key, robot.fk_entity, JointTransformBatches(mapper, trees[robot.key])))
+            streams.append(fk_stream(opened, driven, errors))
+        streams.append(edges_stream(plan.edges))
+        progress(f"reading {len(plan.sources)} source(s), computing forward kinematics for {len(plan.robots)} robot(s)")
+        try:
+            store = LazyChunkStream.merge(*streams).collect(optimize=OptimizationProfile.OBJECT_STORE)
+        except (RuntimeError, ValueError) as exc:
+            errors.reraise_original(exc)
+            raise
+        problems = Problems()
+        notes = [note for mapper in mappers for note in check_joint_statistics(mapper, problems)]
+        for note in notes:
+            print(f"note: {note}", file=sys.stderr)
+        problems.raise_if_any()
+        progress(f"writing {plan.output.path}")
+        written = write_atomically(store, plan.output)
+    return RunResult(written, {m.robot.key: m.stats.rows for m in mappers}, tuple(notes), time.perf_counter() - started)

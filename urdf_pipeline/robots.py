@@ -1,0 +1,93 @@
+"""Compile one robot: load its URDF, resolve every mesh, map its joints."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Any
+
+from .document import Document
+from .errors import Problems, UserError
+from .joint_mapping import compile_joints
+from .meshes import resolve_meshes, rewrite_mesh_uris
+from .plan import RobotPlan, SourcePlan
+from .urdf_model import UrdfModel, UrdfParseError, parse_urdf_text
+
+
+def load_urdf(key: str, spec: dict[str, Any], document: Document) -> tuple[Path, str, UrdfModel]:
+    where = document.where("robots", key, "urdf")
+    urdf = spec["urdf"]
+    path = (document.file.parent / urdf).resolve()
+    if path.name.endswith(".xacro"):
+        raise UserError(f"'{urdf}' is a xacro file, not a URDF; use the xacro form urdf: {{xacro: {urdf}, args: {{...}}}} instead", where)
+    if not path.is_file():
+        raise UserError(f"URDF file not found: {path} (paths are relative to the config file)", where)
+    try:
+        text = path.read_text(encoding="utf-8")
+        return path, text, parse_urdf_text(text, str(path))
+    except UrdfParseError as exc:
+        raise UserError(str(exc), where) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UserError(f"cannot read {path}: {exc}", where) from None
+
+
+def _check_mimics(model: UrdfModel, key: str, document: Document, problems: Problems) -> None:
+    names = {j.name for j in model.joints}
+    for joint in model.joints:
+        if joint.mimic is not None and joint.mimic.joint not in names:
+            problems.add(f"URDF joint '{joint.name}' mimics '{joint.mimic.joint}', which the URDF lacks", document.where("robots", key, "urdf"))
+
+
+def compile_robot(key: str, spec: dict[str, Any], sources: dict[str, SourcePlan], document: Document, problems: Problems) -> RobotPlan | None:
+    here = ("robots", key)
+    try:
+        urdf_path, text, model = load_urdf(key, spec, document)
+    except UserError as exc:
+        problems.extend(exc)
+        return None
+    _check_mimics(model, key, document, problems)
+    package_paths = {name: (document.file.parent / folder).resolve() for name, folder in spec.get("package_paths", {}).items()}
+    for name, folder in package_paths.items():
+        if not folder.is_dir():
+            problems.add(f"package '{name}' directory not found: {folder}", document.where(*here, "package_paths", name))
+    keep_collisions = spec.get("collision_geometries", "drop") == "keep"
+    # Resolve every mesh (so Rerun needs no ROS environment); only those that will be drawn must resolve.
+    resolution = resolve_meshes(model.meshes, package_paths, urdf_path.parent)
+    missing = [m for m in resolution.missing if m.kind == "visual" or keep_collisions]
+    if missing:
+        listing = "; ".join(f"{m.uri} ({m.kind} of link '{m.link}')" for m in missing[:5])
+        more = f" and {len(missing) - 5} more" if len(missing) > 5 else ""
+        message = f"{len(missing)} mesh(es) do not resolve: {listing}{more}"
+        if spec.get("allow_missing_meshes", False):
+            print(f"warning: {document.where(*here).prefix()}: robots.{key}: {message}; they will be invisible (allow_missing_meshes: true)", file=sys.stderr)
+        else:
+            problems.add(
+                f"{message}; set package_paths for the package, or allow_missing_meshes: true to draw the robot without them",
+                document.where(*here, "package_paths") if "package_paths" in spec else document.where(*here, "urdf"),
+            )
+
+    joints_spec = spec["joints"]
+    source = sources.get(joints_spec["source"])
+    if source is None:
+        problems.add(f"no source named '{joints_spec['source']}'; sources are: {', '.join(sources) or 'none'}", document.where(*here, "joints", "source"))
+        return None
+    channels, holds, mimics, on_violation = compile_joints(key, joints_spec, source.names, model, document, problems)
+    prefix = spec.get("entity_path_prefix", key).strip("/")
+    return RobotPlan(
+        key=key,
+        urdf_path=urdf_path,
+        urdf_text=rewrite_mesh_uris(text, resolution.resolved),
+        robot_name=model.name,
+        root_link=model.root_link,
+        links=model.links,
+        joint_links=tuple((j.name, j.parent, j.child) for j in model.joints),
+        entity_path_prefix=f"/{prefix}",
+        frame_prefix=spec.get("frame_prefix", ""),
+        keep_collisions=keep_collisions,
+        source=source.name,
+        channels=channels,
+        holds=holds,
+        mimics=mimics,
+        on_violation=on_violation,
+        where=document.where(*here),
+    )

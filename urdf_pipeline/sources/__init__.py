@@ -1,0 +1,41 @@
+"""Joint-value sources. Each kind compiles its config (metadata only) and opens a lazy Rerun stream.
+
+A new kind (MCAP, HDF5, RRD, ...) is one module with `compile_source` and `open_stream`, registered in KINDS.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+from ..document import Document
+from ..errors import UserError
+from ..plan import SourcePlan
+from . import lerobot, parquet
+
+KINDS: dict[str, ModuleType] = {"parquet": parquet, "lerobot": lerobot}
+
+
+def kind_of(spec: dict[str, Any]) -> str:
+    return next(kind for kind in KINDS if kind in spec)
+
+
+def compile_source(name: str, spec: dict[str, Any], document: Document) -> SourcePlan:
+    kind = kind_of(spec)
+    plan: SourcePlan = KINDS[kind].compile_source(name, spec, document, document.file.parent)
+    return plan
+
+
+def module_for(plan: SourcePlan) -> ModuleType:
+    return next(module for module in KINDS.values() if isinstance(plan, module.PLAN_TYPE))
+
+
+def resolve_input(document: Document, config_dir: Path, path: str, *where: str | int, directory: bool = False) -> Path:
+    """A path from the config, relative to the config file; it must exist."""
+    resolved = (config_dir / path).resolve() if not Path(path).is_absolute() else Path(path)
+    ok = resolved.is_dir() if directory else resolved.is_file()
+    if not ok:
+        kind = "directory" if directory else "file"
+        raise UserError(f"{kind} not found: {resolved} (paths are relative to the config file)", document.where(*where))
+    return resolved

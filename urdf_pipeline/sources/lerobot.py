@@ -1,0 +1,94 @@
+"""One episode of a LeRobot dataset (v2.x or v3), read with Rerun's LeRobotReader, video skipped."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pyarrow as pa
+
+from ..document import Document
+from ..errors import UserError
+from ..plan import LeRobotSourcePlan
+from .stream import SourceStream
+
+if TYPE_CHECKING:
+    from rerun.chunk import Chunk
+
+PLAN_TYPE = LeRobotSourcePlan
+VECTOR_COMPONENT = "urdf_pipeline:joint_values"
+
+
+def feature_names(feature: dict[str, Any]) -> list[str] | None:
+    """LeRobot writes names as a list, a list holding one list, or {"motors": [...]}; accept all three."""
+    names = feature.get("names")
+    if isinstance(names, dict) and len(names) == 1:
+        names = next(iter(names.values()))
+    if isinstance(names, list) and len(names) == 1 and isinstance(names[0], list):
+        names = names[0]
+    if isinstance(names, list) and all(isinstance(n, str) for n in names):
+        return names
+    return None
+
+
+def compile_source(name: str, spec: dict[str, Any], document: Document, config_dir: Path) -> LeRobotSourcePlan:
+    from . import resolve_input
+
+    here = ("sources", name)
+    root = resolve_input(document, config_dir, spec["lerobot"], *here, "lerobot", directory=True)
+    info_path = root / "meta" / "info.json"
+    try:
+        info = json.loads(info_path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise UserError(f"{root} is not a LeRobot dataset: {info_path} is missing", document.where(*here, "lerobot")) from None
+    except (OSError, json.JSONDecodeError) as exc:
+        raise UserError(f"cannot read {info_path}: {exc}", document.where(*here, "lerobot")) from None
+    version = str(info.get("codebase_version", ""))
+    if not (version.startswith("v2") or version.startswith("v3")):
+        raise UserError(f"LeRobot codebase_version '{version}' is not supported (v2.x or v3 only)", document.where(*here, "lerobot"))
+    feature_key = spec.get("feature", "observation.state")
+    features = info.get("features", {})
+    if feature_key not in features:
+        numeric = [k for k, f in features.items() if f.get("dtype") in ("float32", "float64")]
+        raise UserError(f"feature '{feature_key}' not in {info_path}; numeric features: {', '.join(numeric)}", document.where(*here, "feature"))
+    feature = features[feature_key]
+    shape = feature.get("shape") or [None]
+    width = shape[0] if len(shape) == 1 else None
+    names = tuple(spec["names"]) if "names" in spec else tuple(feature_names(feature) or ())
+    if not names:
+        raise UserError(f"feature '{feature_key}' has no names in {info_path}; give them with names: [...]", document.where(*here))
+    if width is not None and width != len(names):
+        raise UserError(f"feature '{feature_key}' holds {width} values per row but {len(names)} names are given", document.where(*here, "names" if "names" in spec else "feature"))
+    episode = int(spec.get("episode", 0))
+    total = info.get("total_episodes")
+    if isinstance(total, int) and episode >= total:
+        raise UserError(f"episode {episode} does not exist: the dataset has {total} episodes (0..{total - 1})", document.where(*here, "episode"))
+    return LeRobotSourcePlan(name, root, feature_key, episode, names, document.where(*here))
+
+
+def _one_vector_per_row(chunk: Chunk) -> Chunk:
+    """Scalars:scalars holds a row's values as instances; repack them as one list instance per row.
+
+    Rerun's lenses hand a selector the row values flattened, so per-row FK needs one vector instance per row.
+    """
+    from rerun.chunk import Chunk
+
+    batch = chunk.to_record_batch()
+    index = batch.schema.get_field_index("Scalars:scalars")
+    values = batch.column(index)
+    wrapped = pa.ListArray.from_arrays(pa.array(np.arange(len(values) + 1, dtype=np.int32)), values)
+    field = pa.field(VECTOR_COMPONENT, wrapped.type, metadata={b"rerun:kind": b"data", b"rerun:component": VECTOR_COMPONENT.encode()})
+    return Chunk.from_record_batch(batch.set_column(index, field, wrapped))
+
+
+def open_stream(plan: LeRobotSourcePlan) -> SourceStream:
+    from rerun.experimental import LeRobotReader
+
+    reader = LeRobotReader(plan.root)
+    if plan.episode not in reader.episodes():
+        raise UserError(f"episode {plan.episode} is not in {plan.root}", plan.where)
+    entity = f"/{plan.feature}"
+    stream = reader.stream(plan.episode, video_mode="skip").filter(content=entity, is_static=False, components="Scalars:scalars").map(_one_vector_per_row)
+    return SourceStream(stream, entity, VECTOR_COMPONENT, len(plan.names))

@@ -1,0 +1,83 @@
+"""A parquet file with one row per frame and a list<float> column of joint values."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from ..document import Document
+from ..errors import UserError
+from ..plan import IndexPlan, ParquetSourcePlan
+from .stream import SourceStream
+
+PLAN_TYPE = ParquetSourcePlan
+
+
+def compile_index(spec: Any) -> IndexPlan:
+    if isinstance(spec, str):
+        return IndexPlan(spec, "sequence", None)
+    if "sequence" in spec:
+        return IndexPlan(spec["sequence"], "sequence", None)
+    kind = "timestamp" if "timestamp" in spec else "duration"
+    return IndexPlan(spec[kind], kind, spec.get("unit", "s"))
+
+
+def _numeric_list_width(field_type: pa.DataType) -> int | None | bool:
+    """None for a variable-length numeric list, the width of a fixed-size one, False if not a numeric list."""
+    if pa.types.is_fixed_size_list(field_type) or pa.types.is_list(field_type) or pa.types.is_large_list(field_type):
+        value_type = field_type.value_type
+        if not (pa.types.is_floating(value_type) or pa.types.is_integer(value_type)):
+            return False
+        return field_type.list_size if pa.types.is_fixed_size_list(field_type) else None
+    return False
+
+
+def compile_source(name: str, spec: dict[str, Any], document: Document, config_dir: Path) -> ParquetSourcePlan:
+    from . import resolve_input
+
+    here = ("sources", name)
+    path = resolve_input(document, config_dir, spec["parquet"], *here, "parquet")
+    try:
+        schema = pq.read_schema(path)
+    except (pa.ArrowInvalid, OSError) as exc:
+        raise UserError(f"cannot read parquet schema of {path}: {exc}", document.where(*here, "parquet")) from None
+    column = spec["column"]
+    if column not in schema.names:
+        raise UserError(f"column '{column}' not in {path.name}; it has: {', '.join(schema.names)}", document.where(*here, "column"))
+    width = _numeric_list_width(schema.field(column).type)
+    if width is False:
+        raise UserError(f"column '{column}' is {schema.field(column).type}, not a list of numbers (one value per joint name)", document.where(*here, "column"))
+    names = tuple(spec["names"])
+    if width is not None and width != len(names):
+        raise UserError(f"column '{column}' holds {width} values per row but {len(names)} names are given", document.where(*here, "names"))
+    index = compile_index(spec["index"])
+    if index.column not in schema.names:
+        raise UserError(f"index column '{index.column}' not in {path.name}; it has: {', '.join(schema.names)}", document.where(*here, "index"))
+    index_type = schema.field(index.column).type
+    if index.kind == "sequence" and not pa.types.is_integer(index_type):
+        raise UserError(
+            f"index column '{index.column}' is {index_type}; a sequence timeline needs integers (use {{timestamp: {index.column}, unit: s}} for times)",
+            document.where(*here, "index"),
+        )
+    if index.kind != "sequence" and not (pa.types.is_integer(index_type) or pa.types.is_floating(index_type) or pa.types.is_timestamp(index_type)):
+        raise UserError(f"index column '{index.column}' is {index_type}, not a time", document.where(*here, "index"))
+    return ParquetSourcePlan(name, path, column, index, names, document.where(*here))
+
+
+def open_stream(plan: ParquetSourcePlan) -> SourceStream:
+    from rerun.chunk import IndexColumn
+    from rerun.experimental import ParquetReader
+
+    index = plan.index
+    if index.kind == "sequence":
+        index_column = IndexColumn.sequence(index.column)
+    elif index.kind == "timestamp":
+        index_column = IndexColumn.timestamp(index.column, input_unit=index.unit)  # type: ignore[arg-type]
+    else:
+        index_column = IndexColumn.duration(index.column, input_unit=index.unit)  # type: ignore[arg-type]
+    entity = f"/{plan.column}"
+    stream = ParquetReader(plan.path).stream(index_columns=[index_column], column_grouping="individual").filter(content=entity)
+    return SourceStream(stream, entity, plan.column, len(plan.names))
