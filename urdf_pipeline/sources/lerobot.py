@@ -68,7 +68,7 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
     return LeRobotSourcePlan(name, root, feature_key, episode, names, document.where(*here))
 
 
-def _one_vector_per_row(chunk: Chunk) -> Chunk:
+def _one_vector_per_row(chunk: Chunk) -> list[Chunk]:
     """Scalars:scalars holds a row's values as instances; repack them as one list instance per row.
 
     Rerun's lenses hand a selector the row values flattened, so per-row FK needs one vector instance per row.
@@ -90,5 +90,5 @@ def open_stream(plan: LeRobotSourcePlan) -> SourceStream:
     if plan.episode not in reader.episodes():
         raise UserError(f"episode {plan.episode} is not in {plan.root}", plan.where)
     entity = f"/{plan.feature}"
-    stream = reader.stream(plan.episode, video_mode="skip").filter(content=entity, is_static=False, components="Scalars:scalars").map(_one_vector_per_row)
+    stream = reader.stream(plan.episode, video_mode="skip").filter(content=entity, is_static=False, components="Scalars:scalars").flat_map(_one_vector_per_row)
     return SourceStream(stream, entity, VECTOR_COMPONENT, len(plan.names))
