@@ -39,7 +39,7 @@ def panda_contract_raw(q: np.ndarray) -> np.ndarray:
 
 
 def panda_joint_values(q_row: np.ndarray) -> dict[str, float]:
-    values = dict(zip(PANDA_ARM, q_row[:7]))
+    values = dict(zip(PANDA_ARM, q_row[:7], strict=False))
     values["panda_finger_joint1"] = q_row[7]
     values["panda_finger_joint2"] = q_row[7]  # <mimic joint="panda_finger_joint1"/>, multiplier 1, offset 0
     return values
@@ -61,7 +61,9 @@ def assert_poses_match(recorded_pose: np.ndarray, expected: np.ndarray, label: s
     assert angle_error < TOLERANCE_RAD, f"{label}: rotation off by {angle_error:.3g} rad"
 
 
-def check_robot(frames, times, reference: PinocchioRobot, values_per_frame, prefix: str, world_from_root: np.ndarray, root: str, checked_frames) -> int:
+def check_robot(
+    frames, times, reference: PinocchioRobot, values_per_frame, prefix: str, world_from_root: np.ndarray, root: str, checked_frames
+) -> int:
     compared = 0
     for frame in checked_frames:
         expected_links = reference.link_poses(values_per_frame[frame])
@@ -82,7 +84,9 @@ def test_panda_contract_config_matches_pinocchio(examples_dir: Path, run_cli) ->
     frames = read_frames(Path(result.out.strip()), "frame_index")
     world_from_base = np.eye(4)
     world_from_base[:3, 3] = [0.0, 0.0, 0.5]  # the contract's calibration edge
-    compared = check_robot(frames, list(range(64)), reference, [panda_joint_values(row) for row in q], "", world_from_base, "world", [0, 1, 31, 63])
+    compared = check_robot(
+        frames, list(range(64)), reference, [panda_joint_values(row) for row in q], "", world_from_base, "world", [0, 1, 31, 63]
+    )
     assert compared == 4 * 13
 
 
@@ -96,7 +100,7 @@ def test_so101_lerobot_matches_pinocchio(examples_dir: Path, run_cli, erd_share:
     assert result.code == 0, result.err
     frames = read_frames(Path(result.out.strip()), "frame_index")
     root = reference.model.frames[1].name  # the URDF root link: with one robot and no frames.root, it is the root
-    values = [dict(zip(SO101_JOINTS, row)) for row in q]
+    values = [dict(zip(SO101_JOINTS, row, strict=False)) for row in q]
     assert check_robot(frames, list(range(40)), reference, values, "", np.eye(4), root, [0, 7, 39]) > 0
 
 
@@ -105,8 +109,15 @@ def test_bimanual_prefixed_robots_with_rotated_edges_match_pinocchio(examples_di
     joints = [*PANDA_ARM, "panda_finger_joint1"]
     left = random_within_limits(reference, joints, frames=30, seed=13)
     right = random_within_limits(reference, joints, frames=30, seed=14)
-    write_joint_parquet(examples_dir / "data" / "random_bimanual.parquet", np.concatenate([panda_contract_raw(left), panda_contract_raw(right)], axis=1))
-    config = variant(examples_dir, "bimanual_pandas.yaml", "fk_bimanual", lambda d: d["sources"]["both_arms"].update(parquet="data/random_bimanual.parquet"))
+    write_joint_parquet(
+        examples_dir / "data" / "random_bimanual.parquet", np.concatenate([panda_contract_raw(left), panda_contract_raw(right)], axis=1)
+    )
+    config = variant(
+        examples_dir,
+        "bimanual_pandas.yaml",
+        "fk_bimanual",
+        lambda d: d["sources"]["both_arms"].update(parquet="data/random_bimanual.parquet"),
+    )
     result = run_cli("run", str(config))
     assert result.code == 0, result.err
     frames = read_frames(Path(result.out.strip()), "timestamp")

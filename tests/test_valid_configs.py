@@ -65,7 +65,9 @@ def test_g1_real_recording_matches_pinocchio(valid_dir: Path, run_cli) -> None:
     g1 = spec["robots"]["g1"]
     urdf = (valid_dir / g1["urdf"]).resolve()
     names = _feature_names(G1_DATA)
-    values = np.array(pq.read_table(G1_DATA / "data" / "chunk-000" / "episode_000000.parquet", columns=["observation.state"]).column(0).to_pylist())
+    values = np.array(
+        pq.read_table(G1_DATA / "data" / "chunk-000" / "episode_000000.parquet", columns=["observation.state"]).column(0).to_pylist()
+    )
     reference = PinocchioRobot(urdf)
     frames = read_frames(Path(result.out.strip()), "frame_index")
     root = _urdf_root(urdf)

@@ -43,7 +43,9 @@ def compile_document(document: Document) -> Plan:
     used = {spec["joints"]["source"] for spec in data["robots"].values()}
     for name in data["sources"]:
         if name not in used:
-            problems.add(f"source '{name}' is used by no robot; remove it or set a robot's joints.source to it", document.where("sources", name))
+            problems.add(
+                f"source '{name}' is used by no robot; remove it or set a robot's joints.source to it", document.where("sources", name)
+            )
 
     prefixes_unique = _check_unique_prefixes(data, document, problems)
     edges = _compile_edges(data.get("edges", []), document, problems)
@@ -85,7 +87,9 @@ def _compile_edges(specs: list[dict[str, Any]], document: Document, problems: Pr
         if "quaternion_xyzw" in spec:
             quaternion = normalized_quaternion(tuple(spec["quaternion_xyzw"]))
             if quaternion is None:
-                problems.add("quaternion_xyzw is zero; write [0, 0, 0, 1] for no rotation", document.where("edges", index, "quaternion_xyzw"))
+                problems.add(
+                    "quaternion_xyzw is zero; write [0, 0, 0, 1] for no rotation", document.where("edges", index, "quaternion_xyzw")
+                )
                 continue
         else:
             rpy = spec["rpy"] if "rpy" in spec else [math.radians(v) for v in spec["rpy_deg"]]
@@ -100,18 +104,28 @@ def _root_frame(data: dict[str, Any], robots: list[RobotPlan], document: Documen
     if root is not None:
         return str(root)
     if len(data["robots"]) > 1:
-        problems.add("frames.root is required with more than one robot: name the frame every robot's calibration edge hangs from", document.where("frames"))
+        problems.add(
+            "frames.root is required with more than one robot: name the frame every robot's calibration edge hangs from",
+            document.where("frames"),
+        )
         return None
     return robots[0].frame_prefix + robots[0].root_link if robots else None
 
 
 def _frame_edges(robots: list[RobotPlan], edges: list[EdgePlan]) -> list[FrameEdge]:
     result = [
-        FrameEdge(robot.frame_prefix + parent, robot.frame_prefix + child, f"URDF '{robot.robot_name}' joint '{joint}' of robot '{robot.key}'", robot.where)
+        FrameEdge(
+            robot.frame_prefix + parent,
+            robot.frame_prefix + child,
+            f"URDF '{robot.robot_name}' joint '{joint}' of robot '{robot.key}'",
+            robot.where,
+        )
         for robot in robots
         for joint, parent, child in robot.joint_links
     ]
-    result += [FrameEdge(edge.parent, edge.child, f"edges[{index}] at line {edge.where.line}", edge.where) for index, edge in enumerate(edges)]
+    result += [
+        FrameEdge(edge.parent, edge.child, f"edges[{index}] at line {edge.where.line}", edge.where) for index, edge in enumerate(edges)
+    ]
     return result
 
 
@@ -124,7 +138,9 @@ def _compile_output(spec: dict[str, Any], document: Document, problems: Problems
     fields = [name for _, name, _, _ in string.Formatter().parse(spec["path"]) if name is not None]
     unknown = [name for name in fields if name != "segment"]
     if unknown:
-        problems.add(f"output.path uses unknown placeholder(s) {', '.join('{' + n + '}' for n in unknown)}; only {{segment}} is known", where)
+        problems.add(
+            f"output.path uses unknown placeholder(s) {', '.join('{' + n + '}' for n in unknown)}; only {{segment}} is known", where
+        )
         return None
     path = (document.file.parent / spec["path"].format(segment=spec["segment"])).resolve()
     return OutputPlan(path, spec["application_id"], spec["segment"], document.where("output"))

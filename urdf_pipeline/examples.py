@@ -134,7 +134,9 @@ def prepare(directory: Path, frames: int = 900) -> None:
     left, right = panda_raw_values(frames, panda, seed=1), panda_raw_values(frames, panda, seed=2)
     write_joint_parquet(directory / "data" / "bimanual_000.parquet", np.concatenate([left, right], axis=1))
     _, so101 = read_urdf(share / "robots" / "so_arm_description" / "urdf" / "so101.urdf")
-    write_lerobot_dataset(directory / "data" / "so101_lerobot", np.degrees(smooth_trajectory(so101, SO101_NAMES, frames, seed=3)), SO101_NAMES)
+    write_lerobot_dataset(
+        directory / "data" / "so101_lerobot", np.degrees(smooth_trajectory(so101, SO101_NAMES, frames, seed=3)), SO101_NAMES
+    )
 
 
 if __name__ == "__main__":

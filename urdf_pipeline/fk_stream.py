@@ -47,7 +47,9 @@ class JointTransformBatches:
         return self.tree.compute_joint_transform_batches(self._names_for_rows(rows), value_lists)
 
 
-def fk_lenses(robot_key: str, fk_entity: str, batch_entity: str, source: SourceStream, batches: JointTransformBatches, errors: CallbackErrors) -> tuple[DeriveLens, DeriveLens]:
+def fk_lenses(
+    robot_key: str, fk_entity: str, batch_entity: str, source: SourceStream, batches: JointTransformBatches, errors: CallbackErrors
+) -> tuple[DeriveLens, DeriveLens]:
     import rerun as rr
     from rerun.chunk import DeriveLens, Selector
 

@@ -60,7 +60,9 @@ def check_frame_graph(edges: list[FrameEdge], urdf_frames: dict[str, Where], roo
             continue
         if frame != current:
             continue  # report only the top of each disconnected tree
-        problems.add(_disconnected_message(current, root, urdf_frames, edges), urdf_frames.get(current) or _where_for(current, edges, root_where))
+        problems.add(
+            _disconnected_message(current, root, urdf_frames, edges), urdf_frames.get(current) or _where_for(current, edges, root_where)
+        )
 
 
 def _disconnected_message(frame: str, root: str, urdf_frames: dict[str, Where], edges: list[FrameEdge]) -> str:

@@ -46,7 +46,10 @@ def compile_joints(
         spec = {"joint": entry} if isinstance(entry, str) else entry
         joint_name = spec["joint"]
         if source_name not in names:
-            problems.add(f"'{source_name}' is not a name of source '{source}'{_hint(source_name, list(names))}; its names are: {', '.join(names)}", where)
+            problems.add(
+                f"'{source_name}' is not a name of source '{source}'{_hint(source_name, list(names))}; its names are: {', '.join(names)}",
+                where,
+            )
             continue
         joint = model.joint(joint_name)
         if joint is None:
@@ -101,7 +104,10 @@ def compile_joints(
         elif joint_name in covered:
             problems.add(f"joint '{joint_name}' is both held and driven by {covered[joint_name]}; keep one", where)
         elif joint.has_limits and not (joint.lower <= value <= joint.upper):  # type: ignore[operator]
-            problems.add(f"hold value {value} for '{joint_name}' is outside its URDF limits [{joint.lower}, {joint.upper}] {urdf_unit(joint.angular)}", where)
+            problems.add(
+                f"hold value {value} for '{joint_name}' is outside its URDF limits [{joint.lower}, {joint.upper}] {urdf_unit(joint.angular)}",
+                where,
+            )
         else:
             covered[joint_name] = "hold"
             holds.append(HeldJoint(joint_name, float(value)))

@@ -19,7 +19,7 @@ def check_joint_statistics(mapper: JointValueMapper, problems: Problems) -> list
     if mapper.stats.rows == 0:
         problems.add(f"source '{mapper.source.name}' yielded zero rows for robot '{robot.key}'; nothing would move", mapper.source.where)
         return notes
-    for channel, stats in zip(robot.channels, mapper.stats.channels):
+    for channel, stats in zip(robot.channels, mapper.stats.channels, strict=False):
         label = f"robot '{robot.key}' joint '{channel.joint}' (source value '{channel.source_name}')"
         slack = channel.slack / channel.factor
         if stats.nonfinite_rows:
@@ -35,7 +35,9 @@ def check_joint_statistics(mapper: JointValueMapper, problems: Problems) -> list
                 f"by more than slack {slack:g} {channel.source_unit}; worst value {stats.beyond_worst_raw:.6g} {channel.source_unit}"
             )
             if robot.on_violation == "error":
-                problems.add(f"{text}. Check this entry's joint, unit, sign and offset, or set joints.limits.on_violation: clamp", channel.where)
+                problems.add(
+                    f"{text}. Check this entry's joint, unit, sign and offset, or set joints.limits.on_violation: clamp", channel.where
+                )
             elif robot.on_violation == "clamp":
                 notes.append(f"{text}; clamped (on_violation: clamp)")
             else:

@@ -13,7 +13,9 @@ def _robot_lines(robot: RobotPlan) -> list[str]:
     ]
     for c in robot.channels:
         limits = f"[{c.lower:g}, {c.upper:g}]" if c.lower is not None else "none"
-        lines.append(f"    {c.source_name}[{c.source_index}] -> {c.joint}: x {c.factor:g} ({c.source_unit}) x {c.sign:g} + {c.offset:g}; limits {limits}, slack {c.slack:g}")
+        lines.append(
+            f"    {c.source_name}[{c.source_index}] -> {c.joint}: x {c.factor:g} ({c.source_unit}) x {c.sign:g} + {c.offset:g}; limits {limits}, slack {c.slack:g}"
+        )
     lines += [f"    hold {h.joint} = {h.value:g}" for h in robot.holds]
     lines += [f"    mimic {m.joint} = {m.driver} * {m.multiplier:g} + {m.offset:g}" for m in robot.mimics]
     lines.append(f"  beyond-slack values: {robot.on_violation}")

@@ -35,10 +35,14 @@ def _check_mimics(model: UrdfModel, key: str, document: Document, problems: Prob
     names = {j.name for j in model.joints}
     for joint in model.joints:
         if joint.mimic is not None and joint.mimic.joint not in names:
-            problems.add(f"URDF joint '{joint.name}' mimics '{joint.mimic.joint}', which the URDF lacks", document.where("robots", key, "urdf"))
+            problems.add(
+                f"URDF joint '{joint.name}' mimics '{joint.mimic.joint}', which the URDF lacks", document.where("robots", key, "urdf")
+            )
 
 
-def compile_robot(key: str, spec: dict[str, Any], sources: dict[str, SourcePlan], document: Document, problems: Problems) -> RobotPlan | None:
+def compile_robot(
+    key: str, spec: dict[str, Any], sources: dict[str, SourcePlan], document: Document, problems: Problems
+) -> RobotPlan | None:
     here = ("robots", key)
     try:
         urdf_path, text, model = load_urdf(key, spec, document)
@@ -59,7 +63,10 @@ def compile_robot(key: str, spec: dict[str, Any], sources: dict[str, SourcePlan]
         more = f" and {len(missing) - 5} more" if len(missing) > 5 else ""
         message = f"{len(missing)} mesh(es) do not resolve: {listing}{more}"
         if spec.get("allow_missing_meshes", False):
-            print(f"warning: {document.where(*here).prefix()}: robots.{key}: {message}; they will be invisible (allow_missing_meshes: true)", file=sys.stderr)
+            print(
+                f"warning: {document.where(*here).prefix()}: robots.{key}: {message}; they will be invisible (allow_missing_meshes: true)",
+                file=sys.stderr,
+            )
         else:
             problems.add(
                 f"{message}; set package_paths for the package, or allow_missing_meshes: true to draw the robot without them",
@@ -69,7 +76,10 @@ def compile_robot(key: str, spec: dict[str, Any], sources: dict[str, SourcePlan]
     joints_spec = spec["joints"]
     source = sources.get(joints_spec["source"])
     if source is None:
-        problems.add(f"no source named '{joints_spec['source']}'; sources are: {', '.join(sources) or 'none'}", document.where(*here, "joints", "source"))
+        problems.add(
+            f"no source named '{joints_spec['source']}'; sources are: {', '.join(sources) or 'none'}",
+            document.where(*here, "joints", "source"),
+        )
         return None
     channels, holds, mimics, on_violation = compile_joints(key, joints_spec, source.names, model, document, problems)
     prefix = spec.get("entity_path_prefix", key).strip("/")

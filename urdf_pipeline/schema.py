@@ -32,7 +32,9 @@ def validate_document(document: Document, subschema: str | None = None) -> None:
     target = root if subschema is None else {"$ref": f"#/$defs/{subschema}", "$defs": root["$defs"]}
     validator = jsonschema.Draft202012Validator(target)
     problems = Problems()
-    errors = sorted(validator.iter_errors(document.data), key=lambda e: (document.where(*e.absolute_path).line, list(map(str, e.absolute_path))))
+    errors = sorted(
+        validator.iter_errors(document.data), key=lambda e: (document.where(*e.absolute_path).line, list(map(str, e.absolute_path)))
+    )
     for error in errors:
         path, message = _explain(error)
         problems.add(message, document.where(*path))
@@ -64,7 +66,10 @@ def _explain(error: ValidationError) -> tuple[tuple[str | int, ...], str]:
         choices = ", ".join(json.dumps(v) for v in error.validator_value)
         return path, f"{json.dumps(error.instance)} is not one of {choices}"
     if error.validator == "type":
-        return path, f"wrong type: expected {error.validator_value}, got {type(error.instance).__name__} {json.dumps(error.instance, default=str)}"
+        return (
+            path,
+            f"wrong type: expected {error.validator_value}, got {type(error.instance).__name__} {json.dumps(error.instance, default=str)}",
+        )
     if error.validator == "pattern" and error.schema.get("description"):
         return path, f"{json.dumps(error.instance)} is not valid here: {error.schema['description']}"
     return path, error.message

@@ -52,7 +52,9 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
     features = info.get("features", {})
     if feature_key not in features:
         numeric = [k for k, f in features.items() if f.get("dtype") in ("float32", "float64")]
-        raise UserError(f"feature '{feature_key}' not in {info_path}; numeric features: {', '.join(numeric)}", document.where(*here, "feature"))
+        raise UserError(
+            f"feature '{feature_key}' not in {info_path}; numeric features: {', '.join(numeric)}", document.where(*here, "feature")
+        )
     feature = features[feature_key]
     shape = feature.get("shape") or [None]
     width = shape[0] if len(shape) == 1 else None
@@ -60,11 +62,16 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
     if not names:
         raise UserError(f"feature '{feature_key}' has no names in {info_path}; give them with names: [...]", document.where(*here))
     if width is not None and width != len(names):
-        raise UserError(f"feature '{feature_key}' holds {width} values per row but {len(names)} names are given", document.where(*here, "names" if "names" in spec else "feature"))
+        raise UserError(
+            f"feature '{feature_key}' holds {width} values per row but {len(names)} names are given",
+            document.where(*here, "names" if "names" in spec else "feature"),
+        )
     episode = int(spec.get("episode", 0))
     total = info.get("total_episodes")
     if isinstance(total, int) and episode >= total:
-        raise UserError(f"episode {episode} does not exist: the dataset has {total} episodes (0..{total - 1})", document.where(*here, "episode"))
+        raise UserError(
+            f"episode {episode} does not exist: the dataset has {total} episodes (0..{total - 1})", document.where(*here, "episode")
+        )
     return LeRobotSourcePlan(name, root, feature_key, episode, names, document.where(*here))
 
 
@@ -90,5 +97,9 @@ def open_stream(plan: LeRobotSourcePlan) -> SourceStream:
     if plan.episode not in reader.episodes():
         raise UserError(f"episode {plan.episode} is not in {plan.root}", plan.where)
     entity = f"/{plan.feature}"
-    stream = reader.stream(plan.episode, video_mode="skip").filter(content=entity, is_static=False, components="Scalars:scalars").flat_map(_one_vector_per_row)
+    stream = (
+        reader.stream(plan.episode, video_mode="skip")
+        .filter(content=entity, is_static=False, components="Scalars:scalars")
+        .flat_map(_one_vector_per_row)
+    )
     return SourceStream(stream, entity, VECTOR_COMPONENT, len(plan.names))

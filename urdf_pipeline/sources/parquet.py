@@ -22,7 +22,7 @@ def compile_index(spec: Any) -> IndexPlan:
     if "sequence" in spec:
         return IndexPlan(spec["sequence"], "sequence", None)
     kind = "timestamp" if "timestamp" in spec else "duration"
-    return IndexPlan(spec[kind], kind, spec.get("unit", "s"))
+    return IndexPlan(spec[kind], "timestamp" if kind == "timestamp" else "duration", spec.get("unit", "s"))
 
 
 def _numeric_list_width(field_type: pa.DataType) -> int | None | bool:
@@ -49,20 +49,27 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
         raise UserError(f"column '{column}' not in {path.name}; it has: {', '.join(schema.names)}", document.where(*here, "column"))
     width = _numeric_list_width(schema.field(column).type)
     if width is False:
-        raise UserError(f"column '{column}' is {schema.field(column).type}, not a list of numbers (one value per joint name)", document.where(*here, "column"))
+        raise UserError(
+            f"column '{column}' is {schema.field(column).type}, not a list of numbers (one value per joint name)",
+            document.where(*here, "column"),
+        )
     names = tuple(spec["names"])
     if width is not None and width != len(names):
         raise UserError(f"column '{column}' holds {width} values per row but {len(names)} names are given", document.where(*here, "names"))
     index = compile_index(spec["index"])
     if index.column not in schema.names:
-        raise UserError(f"index column '{index.column}' not in {path.name}; it has: {', '.join(schema.names)}", document.where(*here, "index"))
+        raise UserError(
+            f"index column '{index.column}' not in {path.name}; it has: {', '.join(schema.names)}", document.where(*here, "index")
+        )
     index_type = schema.field(index.column).type
     if index.kind == "sequence" and not pa.types.is_integer(index_type):
         raise UserError(
             f"index column '{index.column}' is {index_type}; a sequence timeline needs integers (use {{timestamp: {index.column}, unit: s}} for times)",
             document.where(*here, "index"),
         )
-    if index.kind != "sequence" and not (pa.types.is_integer(index_type) or pa.types.is_floating(index_type) or pa.types.is_timestamp(index_type)):
+    if index.kind != "sequence" and not (
+        pa.types.is_integer(index_type) or pa.types.is_floating(index_type) or pa.types.is_timestamp(index_type)
+    ):
         raise UserError(f"index column '{index.column}' is {index_type}, not a time", document.where(*here, "index"))
     return ParquetSourcePlan(name, path, column, index, names, document.where(*here))
 

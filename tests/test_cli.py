@@ -1,0 +1,67 @@
+"""Exit codes and output shape: user errors exit 1 with one line each, bugs exit 70 with a traceback."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+from urdf_pipeline import cli
+
+
+def test_user_error_is_one_line_without_traceback(tmp_path: Path, run_cli) -> None:
+    config = tmp_path / "c.yaml"
+    config.write_text("version: 1\nsources: [\n")
+    result = run_cli("run", str(config))
+    assert result.code == 1
+    assert result.err.startswith(f"error: {config}:") and "Traceback" not in result.err
+    assert len(result.err.strip().splitlines()) == 1
+
+
+def test_missing_config_file(run_cli, tmp_path: Path) -> None:
+    result = run_cli("validate", str(tmp_path / "nope.yaml"))
+    assert result.code == 1 and "config file not found" in result.err
+
+
+def test_a_bug_exits_70_with_a_traceback(monkeypatch, run_cli, examples_dir: Path) -> None:
+    def broken(plan):
+        raise ZeroDivisionError("boom")
+
+    import urdf_pipeline.execute
+
+    monkeypatch.setattr(urdf_pipeline.execute, "execute", broken)
+    result = run_cli("run", str(examples_dir / "demo.yaml"))
+    assert result.code == cli.EXIT_BUG == 70
+    assert "Traceback" in result.err and "ZeroDivisionError" in result.err
+
+
+def test_validate_reports_every_config(run_cli, examples_dir: Path, tmp_path: Path) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("version: 1\n")
+    result = run_cli("validate", str(examples_dir / "demo.yaml"), str(bad))
+    assert result.code == 1 and "ok: " in result.out and "bad.yaml:1" in result.err
+
+
+def test_validate_and_plan_do_not_import_rerun(examples_dir: Path) -> None:
+    code = (
+        "import sys; from urdf_pipeline import cli; "
+        f"rc = cli.main(['validate', {str(examples_dir / 'demo.yaml')!r}]); "
+        f"rc |= cli.main(['plan', {str(examples_dir / 'demo.yaml')!r}]); "
+        "assert rc == 0; assert 'rerun' not in sys.modules, 'rerun imported'"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+
+
+def test_plan_shows_conversion_order_and_mimic(run_cli, examples_dir: Path) -> None:
+    result = run_cli("plan", str(examples_dir / "demo.yaml"))
+    assert result.code == 0
+    assert "unit factor) * sign + offset" in result.out
+    assert "mimic panda_finger_joint2 = panda_finger_joint1 * 1 + 0" in result.out
+
+
+def test_module_entry_point(examples_dir: Path) -> None:
+    result = subprocess.run(
+        [sys.executable, "-m", "urdf_pipeline", "validate", str(examples_dir / "demo.yaml")], capture_output=True, text=True
+    )
+    assert result.returncode == 0, result.stderr
