@@ -128,6 +128,16 @@ def run_hand(workdir: Path) -> Path:
 # ---------------------------------------------------------------------------------------------
 
 
+def peak_rss_kib() -> int:
+    """This process's own peak RSS. VmHWM, not ru_maxrss: Linux carries ru_maxrss over execve from the
+    forked parent's memory, so a child of a big parent would report at least the parent's size."""
+    try:
+        with open("/proc/self/status") as status:
+            return next(int(line.split()[1]) for line in status if line.startswith("VmHWM:"))
+    except (OSError, StopIteration):
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss  # KiB on Linux, bytes on macOS
+
+
 def child(variant: str, workdir: Path) -> None:
     import numpy  # noqa: F401  (imports are not timed)
     import pyarrow  # noqa: F401
@@ -138,21 +148,23 @@ def child(variant: str, workdir: Path) -> None:
     import urdf_pipeline.compile  # noqa: F401
     import urdf_pipeline.execute  # noqa: F401
 
-    baseline_kib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    baseline_kib = peak_rss_kib()
     started = time.perf_counter()
     output = (run_config if variant == "config" else run_hand)(workdir)
     seconds = time.perf_counter() - started
-    peak_kib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss  # KiB on Linux
+    peak_kib = peak_rss_kib()
     print(json.dumps({"seconds": seconds, "peak_kib": peak_kib, "baseline_kib": baseline_kib, "output": str(output), "bytes": output.stat().st_size}))
 
 
 def run_child(variant: str, workdir: Path) -> dict:
     done = subprocess.run(
         [sys.executable, str(Path(__file__).resolve()), "--variant", variant, "--workdir", str(workdir)],
-        stdout=subprocess.PIPE,
+        capture_output=True,
         text=True,
-        check=True,
     )
+    if done.returncode != 0:
+        sys.stderr.write(done.stderr)
+        raise SystemExit(f"variant {variant} failed with exit code {done.returncode}")
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 

@@ -9,6 +9,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 import yaml
+from rerun.chunk import RrdReader
 
 from urdf_pipeline.examples import prepare
 
@@ -41,6 +42,10 @@ def test_shipped_config_validates_and_runs(config: Path, examples_dir: Path, run
     assert result.code == 0, result.err
     written = Path(result.out.strip())
     assert written.is_file() and written.stat().st_size > 0
+    output = yaml.safe_load(copy.read_text())["output"]
+    (store,) = RrdReader(written).recordings()
+    assert (store.application_id, store.recording_id) == (output["application_id"], output["segment"])
+    assert not list(written.parent.glob(".*partial*")), "no partial files are left behind"
 
 
 @pytest.mark.parametrize("config", sorted(VALID.glob("*.yaml")), ids=lambda p: p.name)

@@ -36,7 +36,7 @@ def compile_document(document: Document) -> Plan:
 
     robots: list[RobotPlan] = []
     for key, spec in data["robots"].items():
-        robot = compile_robot(key, spec, sources, document, problems)
+        robot = compile_robot(key, spec, sources, set(data["sources"]), document, problems)
         if robot is not None:
             robots.append(robot)
 

@@ -51,9 +51,9 @@ def load_document(file: Path) -> Document:
     try:
         text = file.read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise UserError(f"config file not found: {file}") from None
+        raise UserError("config file not found", Where(file, 0)) from None
     except (OSError, UnicodeDecodeError) as exc:
-        raise UserError(f"cannot read {file}: {exc}") from None
+        raise UserError(f"cannot read the config file: {exc}", Where(file, 0)) from None
     return parse_document(text, file)
 
 

@@ -15,7 +15,8 @@ class Where:
     path: str = ""
 
     def prefix(self) -> str:
-        return f"{self.file}:{self.line}"
+        """`FILE:LINE`, or just `FILE` when the problem is the file as a whole (line 0)."""
+        return f"{self.file}:{self.line}" if self.line else str(self.file)
 
 
 class UserError(Exception):

@@ -38,9 +38,6 @@ def check_frame_graph(edges: list[FrameEdge], urdf_frames: dict[str, Where], roo
         problems.add(f"root frame '{root}' must have no parent, but {edge.origin} gives it parent '{edge.parent}'", edge.where)
         return
     frames = set(urdf_frames) | {e.parent for e in edges} | {e.child for e in edges}
-    if root not in frames:
-        problems.add(f"root frame '{root}' appears in no URDF and no edge; add an edge from '{root}' to each robot's root link", root_where)
-        return
     reported_cycles: set[str] = set()
     for frame in sorted(frames):
         seen: list[str] = []
@@ -56,7 +53,9 @@ def check_frame_graph(edges: list[FrameEdge], urdf_frames: dict[str, Where], roo
             if key not in reported_cycles:
                 reported_cycles.add(key)
                 chain = " -> ".join([*cycle, current])
-                problems.add(f"frames form a cycle: {chain}; remove one of these edges", parent_of[current].where)
+                in_cycle = [parent_of[frame] for frame in cycle]
+                culprit = next((e for e in in_cycle if e.origin.startswith("edges[")), in_cycle[0])
+                problems.add(f"frames form a cycle: {chain}; remove one of these edges", culprit.where)
             continue
         if frame != current:
             continue  # report only the top of each disconnected tree
@@ -70,7 +69,7 @@ def _disconnected_message(frame: str, root: str, urdf_frames: dict[str, Where], 
     if frame in urdf_frames:
         message += f"; add a calibration edge with parent: {root} (or a frame that reaches it) and child: {frame}"
         strays = [e.child for e in edges if e.child not in urdf_frames and e.origin.startswith("edges[")]
-        close = difflib.get_close_matches(frame, strays, n=1, cutoff=0.6)
+        close = difflib.get_close_matches(frame, strays, n=1, cutoff=0.85)
         if close:
             message += f" (edge child '{close[0]}' is in no URDF: a typo for '{frame}'?)"
     else:

@@ -41,10 +41,12 @@ def compile_joints(
 
     channels: list[JointChannel] = []
     covered: dict[str, str] = {}  # joint -> how ("map entry 'j1'", "hold")
+    attempted: set[str] = set()  # joints named by a rejected entry: already reported, not "not driven" too
     for source_name, entry in joints_spec["map"].items():
         where = document.where(*here, "map", source_name)
         spec = {"joint": entry} if isinstance(entry, str) else entry
         joint_name = spec["joint"]
+        attempted.add(joint_name)
         if source_name not in names:
             problems.add(
                 f"'{source_name}' is not a name of source '{source}'{_hint(source_name, list(names))}; its names are: {', '.join(names)}",
@@ -95,6 +97,7 @@ def compile_joints(
     for joint_name, value in joints_spec.get("hold", {}).items():
         where = document.where(*here, "hold", joint_name)
         joint = model.joint(joint_name)
+        attempted.add(joint_name)
         if joint is None:
             problems.add(f"URDF '{model.name}' has no joint '{joint_name}'{_hint(joint_name, all_joints)}", where)
         elif not joint.moving:
@@ -127,7 +130,7 @@ def compile_joints(
             document.where(*here, "map"),
         )
     mimics = _order_mimics(model, mimic_joints)
-    uncovered = [j for j in moving if j not in covered and j not in mimic_joints]
+    uncovered = [j for j in moving if j not in covered and j not in mimic_joints and j not in attempted]
     if uncovered:
         problems.add(
             f"URDF joints not driven by any source value: {', '.join(uncovered)}; add each to map, or to hold with a fixed value",

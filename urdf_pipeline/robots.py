@@ -19,7 +19,11 @@ def load_urdf(key: str, spec: dict[str, Any], document: Document) -> tuple[Path,
     urdf = spec["urdf"]
     path = (document.file.parent / urdf).resolve()
     if path.name.endswith(".xacro"):
-        raise UserError(f"'{urdf}' is a xacro file, not a URDF; use the xacro form urdf: {{xacro: {urdf}, args: {{...}}}} instead", where)
+        raise UserError(
+            f"'{urdf}' is a xacro file, not a URDF; use the xacro form urdf: {{xacro: {urdf}, args: {{...}}}} "
+            f"(coming in the next release; until then expand it with `xacro {urdf} > robot.urdf` and name the result)",
+            where,
+        )
     if not path.is_file():
         raise UserError(f"URDF file not found: {path} (paths are relative to the config file)", where)
     try:
@@ -41,8 +45,9 @@ def _check_mimics(model: UrdfModel, key: str, document: Document, problems: Prob
 
 
 def compile_robot(
-    key: str, spec: dict[str, Any], sources: dict[str, SourcePlan], document: Document, problems: Problems
+    key: str, spec: dict[str, Any], sources: dict[str, SourcePlan], defined: set[str], document: Document, problems: Problems
 ) -> RobotPlan | None:
+    """`sources` holds the sources that compiled; `defined` every name in the config (a broken source is reported once)."""
     here = ("robots", key)
     try:
         urdf_path, text, model = load_urdf(key, spec, document)
@@ -76,6 +81,8 @@ def compile_robot(
     joints_spec = spec["joints"]
     source = sources.get(joints_spec["source"])
     if source is None:
+        if joints_spec["source"] in defined:
+            return None  # the source itself is broken and already reported
         problems.add(
             f"no source named '{joints_spec['source']}'; sources are: {', '.join(sources) or 'none'}",
             document.where(*here, "joints", "source"),

@@ -48,7 +48,7 @@ def _explain(error: ValidationError) -> tuple[tuple[str | int, ...], str]:
         if special:
             return tuple(error.absolute_path), special
         if error.context:
-            return _explain(best_match(error.context))
+            return _explain(best_match(_branches_of_the_right_type(error)))
     path = tuple(error.absolute_path)
     if error.validator == "additionalProperties" and isinstance(error.instance, dict):
         allowed = set(error.schema.get("properties", {}))
@@ -70,9 +70,18 @@ def _explain(error: ValidationError) -> tuple[tuple[str | int, ...], str]:
             path,
             f"wrong type: expected {error.validator_value}, got {type(error.instance).__name__} {json.dumps(error.instance, default=str)}",
         )
+    if error.validator == "pattern" and error.validator_value == "\\.rrd$":
+        return path, f"{json.dumps(error.instance)} must end in .rrd"
     if error.validator == "pattern" and error.schema.get("description"):
         return path, f"{json.dumps(error.instance)} is not valid here: {error.schema['description']}"
     return path, error.message
+
+
+def _branches_of_the_right_type(error: ValidationError) -> list[ValidationError]:
+    """Errors from the oneOf branches whose type fits the instance: a mapping is judged by the mapping branch."""
+    wrong_type = {e.relative_schema_path[0] for e in error.context if e.validator == "type" and not e.relative_path}
+    fitting = [e for e in error.context if e.relative_schema_path[0] not in wrong_type]
+    return fitting or list(error.context)
 
 
 def _rotation_choice(error: ValidationError) -> str | None:
