@@ -149,11 +149,14 @@ def child(variant: str, workdir: Path) -> None:
     import urdf_pipeline.execute  # noqa: F401
 
     baseline_kib = peak_rss_kib()
+    before = resource.getrusage(resource.RUSAGE_SELF)
+    cpu_before = before.ru_utime + before.ru_stime
     started = time.perf_counter()
     output = (run_config if variant == "config" else run_hand)(workdir)
     seconds = time.perf_counter() - started
     peak_kib = peak_rss_kib()
-    print(json.dumps({"seconds": seconds, "peak_kib": peak_kib, "baseline_kib": baseline_kib, "output": str(output), "bytes": output.stat().st_size}))
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    print(json.dumps({"seconds": seconds, "cpu": usage.ru_utime + usage.ru_stime - cpu_before, "peak_kib": peak_kib, "baseline_kib": baseline_kib, "output": str(output), "bytes": output.stat().st_size}))
 
 
 def run_child(variant: str, workdir: Path) -> dict:

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
 from rerun.chunk import RrdReader
 
 Edge = tuple[str, np.ndarray]  # parent frame, 4x4 pose of child in parent
@@ -65,6 +66,10 @@ def read_frames(path: Path, timeline: str) -> RecordedFrames:
         batch = chunk.to_record_batch()
         if "Transform3D:child_frame" not in batch.schema.names:
             continue
+        if timeline in batch.schema.names and pa.types.is_timestamp(batch.schema.field(timeline).type):
+            # Nanosecond timestamps as integers: no pandas needed to read them back.
+            index = batch.schema.get_field_index(timeline)
+            batch = batch.set_column(index, timeline, batch.column(index).cast(pa.int64()))
         rows = batch.to_pylist()
         for row in rows:
             child = row["Transform3D:child_frame"][0]
