@@ -16,6 +16,7 @@ from .joint_values import JointValueMapper
 from .limits_report import check_joint_statistics
 from .model_stream import load_tree, model_stream
 from .plan import Plan
+from .progress import RowProgress, say
 from .sources import module_for
 from .writer import write_atomically
 
@@ -26,10 +27,6 @@ class RunResult:
     rows: dict[str, int]  # robot key -> rows of joint values
     notes: tuple[str, ...]
     seconds: float
-
-
-def progress(message: str) -> None:
-    print(f"urdf-pipeline: {message}", file=sys.stderr, flush=True)
 
 
 def execute(plan: Plan) -> RunResult:
@@ -49,10 +46,10 @@ def execute(plan: Plan) -> RunResult:
             for robot in plan.robots_for(source.name):
                 mapper = JointValueMapper(robot, source)
                 mappers.append(mapper)
-                driven.append((robot.key, robot.fk_entity, JointTransformBatches(mapper, trees[robot.key])))
+                driven.append((robot.key, robot.fk_entity, JointTransformBatches(mapper, trees[robot.key], RowProgress(f"robot {robot.key}"))))
             streams.append(fk_stream(opened, driven, errors))
         streams.append(edges_stream(plan.edges))
-        progress(f"reading {len(plan.sources)} source(s), computing forward kinematics for {len(plan.robots)} robot(s)")
+        say(f"reading {len(plan.sources)} source(s), computing forward kinematics for {len(plan.robots)} robot(s)")
         try:
             store = LazyChunkStream.merge(*streams).collect(optimize=OptimizationProfile.OBJECT_STORE)
         except (RuntimeError, ValueError) as exc:
@@ -63,6 +60,6 @@ def execute(plan: Plan) -> RunResult:
         for note in notes:
             print(f"note: {note}", file=sys.stderr)
         problems.raise_if_any()
-        progress(f"writing {plan.output.path}")
+        say(f"writing {plan.output.path}")
         written = write_atomically(store, plan.output)
     return RunResult(written, {m.robot.key: m.stats.rows for m in mappers}, tuple(notes), time.perf_counter() - started)

@@ -10,6 +10,7 @@ import pyarrow as pa
 
 from .callbacks import CallbackErrors
 from .joint_values import JointValueMapper
+from .progress import RowProgress
 
 if TYPE_CHECKING:
     from rerun.chunk import DeriveLens, LazyChunkStream
@@ -25,8 +26,9 @@ def _batch_component(robot_key: str) -> str:
 class JointTransformBatches:
     """The first lens's function: joint vectors -> per-row batches of joint transforms (Rerun's URDF FK)."""
 
-    def __init__(self, mapper: JointValueMapper, tree: UrdfTree) -> None:
+    def __init__(self, mapper: JointValueMapper, tree: UrdfTree, progress: RowProgress | None = None) -> None:
         self.mapper = mapper
+        self.progress = progress
         self.tree = tree
         self.names = pa.array(mapper.joint_names, pa.string())
         self._names_for_rows = lru_cache(maxsize=8)(self._build_names)
@@ -44,7 +46,10 @@ class JointTransformBatches:
         # Fresh float64 arrays per call: zero-copy slices of one big array make Rerun's FK quadratic.
         offsets = pa.array(np.arange(rows + 1, dtype=np.int32) * count)
         value_lists = pa.ListArray.from_arrays(offsets, pa.array(values.reshape(-1)))
-        return self.tree.compute_joint_transform_batches(self._names_for_rows(rows), value_lists)
+        batches = self.tree.compute_joint_transform_batches(self._names_for_rows(rows), value_lists)
+        if self.progress is not None:
+            self.progress.add(rows)
+        return batches
 
 
 def fk_lenses(
