@@ -21,8 +21,12 @@ class PinocchioRobot:
             joint = self.model.joints[joint_id]
             if name not in joint_values:
                 continue
-            assert joint.nq == 1, f"{name}: only 1-dof joints are used in these tests"
-            q[joint.idx_q] = joint_values[name]
+            value = joint_values[name]
+            if joint.nq == 2 and joint.nv == 1:  # continuous joint: pinocchio stores (cos, sin)
+                q[joint.idx_q : joint.idx_q + 2] = [np.cos(value), np.sin(value)]
+            else:
+                assert joint.nq == 1, f"{name}: only 1-dof joints are used in these tests"
+                q[joint.idx_q] = value
         pin.forwardKinematics(self.model, self.data, q)
         pin.updateFramePlacements(self.model, self.data)
         return {

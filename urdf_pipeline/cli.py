@@ -22,6 +22,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .execute import execute
 
     plan = compile_config(Path(args.config))
+    for robot in plan.robots:
+        print(f"urdf-pipeline: robot {robot.key}: URDF sha256 {robot.urdf_sha256} from {robot.urdf_origin}", file=sys.stderr)
     result = execute(plan)
     rows = ", ".join(f"{key}: {count} rows" for key, count in result.rows.items())
     print(f"urdf-pipeline: {rows} in {result.seconds:.1f} s", file=sys.stderr)

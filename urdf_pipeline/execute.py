@@ -17,6 +17,7 @@ from .limits_report import check_joint_statistics
 from .model_stream import load_tree, model_stream
 from .plan import Plan
 from .progress import RowProgress, say
+from .provenance import provenance_stream
 from .sources import module_for
 from .writer import write_atomically
 
@@ -49,6 +50,7 @@ def execute(plan: Plan) -> RunResult:
                 driven.append((robot.key, robot.fk_entity, JointTransformBatches(mapper, trees[robot.key], RowProgress(f"robot {robot.key}"))))
             streams.append(fk_stream(opened, driven, errors))
         streams.append(edges_stream(plan.edges))
+        streams.append(provenance_stream(plan))
         say(f"reading {len(plan.sources)} source(s), computing forward kinematics for {len(plan.robots)} robot(s)")
         try:
             store = LazyChunkStream.merge(*streams).collect(optimize=OptimizationProfile.OBJECT_STORE)

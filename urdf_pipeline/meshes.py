@@ -21,7 +21,7 @@ class MeshResolution:
     missing: tuple[MeshRef, ...]
 
 
-def _env_package_roots(package: str) -> list[Path]:
+def package_roots(package: str) -> list[Path]:
     """ROS_PACKAGE_PATH entries (the entry itself or entry/NAME) and AMENT_PREFIX_PATH prefixes (prefix/share/NAME)."""
     roots: list[Path] = []
     for entry in filter(None, os.environ.get("ROS_PACKAGE_PATH", "").split(os.pathsep)):
@@ -39,7 +39,7 @@ def candidates(uri: str, package_paths: Mapping[str, Path], urdf_dir: Path) -> l
         roots: list[Path] = []
         if package in package_paths:
             roots.append(package_paths[package])
-        roots += _env_package_roots(package)
+        roots += package_roots(package)
         roots += [ancestor for ancestor in (urdf_dir, *urdf_dir.parents) if ancestor.name == package]
         roots.append(urdf_dir)
         return [root / unquote(rest) for root in roots]

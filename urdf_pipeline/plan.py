@@ -81,8 +81,10 @@ class HeldJoint:
 @dataclass(frozen=True)
 class RobotPlan:
     key: str
-    urdf_path: Path  # the file the user named
+    urdf_path: Path  # the URDF (or xacro) file the text came from
     urdf_text: str  # URDF text with every resolved mesh URI replaced by an absolute path
+    urdf_origin: str  # "file robots/panda.urdf", "xacro ... args", "robot_descriptions NAME @ COMMIT: path"
+    urdf_sha256: str  # of the URDF text before mesh paths were made absolute: equal across machines
     robot_name: str
     root_link: str
     links: tuple[str, ...]

@@ -12,27 +12,15 @@ from .joint_mapping import compile_joints
 from .meshes import resolve_meshes, rewrite_mesh_uris
 from .plan import RobotPlan, SourcePlan
 from .urdf_model import UrdfModel, UrdfParseError, parse_urdf_text
+from .urdf_sources import LoadedUrdf, load_urdf_source
 
 
-def load_urdf(key: str, spec: dict[str, Any], document: Document) -> tuple[Path, str, UrdfModel]:
-    where = document.where("robots", key, "urdf")
-    urdf = spec["urdf"]
-    path = (document.file.parent / urdf).resolve()
-    if path.name.endswith(".xacro"):
-        raise UserError(
-            f"'{urdf}' is a xacro file, not a URDF; use the xacro form urdf: {{xacro: {urdf}, args: {{...}}}} "
-            f"(coming in the next release; until then expand it with `xacro {urdf} > robot.urdf` and name the result)",
-            where,
-        )
-    if not path.is_file():
-        raise UserError(f"URDF file not found: {path} (paths are relative to the config file)", where)
+def load_urdf(key: str, spec: dict[str, Any], package_paths: dict[str, Path], document: Document) -> tuple[LoadedUrdf, UrdfModel]:
+    loaded = load_urdf_source(key, spec["urdf"], package_paths, document)
     try:
-        text = path.read_text(encoding="utf-8")
-        return path, text, parse_urdf_text(text, str(path))
+        return loaded, parse_urdf_text(loaded.text, str(loaded.path))
     except UrdfParseError as exc:
-        raise UserError(str(exc), where) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UserError(f"cannot read {path}: {exc}", where) from None
+        raise UserError(str(exc), document.where("robots", key, "urdf")) from None
 
 
 def _check_mimics(model: UrdfModel, key: str, document: Document, problems: Problems) -> None:
@@ -49,16 +37,18 @@ def compile_robot(
 ) -> RobotPlan | None:
     """`sources` holds the sources that compiled; `defined` every name in the config (a broken source is reported once)."""
     here = ("robots", key)
-    try:
-        urdf_path, text, model = load_urdf(key, spec, document)
-    except UserError as exc:
-        problems.extend(exc)
-        return None
-    _check_mimics(model, key, document, problems)
     package_paths = {name: (document.file.parent / folder).resolve() for name, folder in spec.get("package_paths", {}).items()}
     for name, folder in package_paths.items():
         if not folder.is_dir():
             problems.add(f"package '{name}' directory not found: {folder}", document.where(*here, "package_paths", name))
+    try:
+        loaded, model = load_urdf(key, spec, package_paths, document)
+    except UserError as exc:
+        problems.extend(exc)
+        return None
+    _check_mimics(model, key, document, problems)
+    urdf_path = loaded.path
+    package_paths = {**loaded.package_paths, **package_paths}  # the config's own entries win
     keep_collisions = spec.get("collision_geometries", "drop") == "keep"
     # Resolve every mesh (so Rerun needs no ROS environment); only those that will be drawn must resolve.
     resolution = resolve_meshes(model.meshes, package_paths, urdf_path.parent)
@@ -93,7 +83,9 @@ def compile_robot(
     return RobotPlan(
         key=key,
         urdf_path=urdf_path,
-        urdf_text=rewrite_mesh_uris(text, resolution.resolved),
+        urdf_text=rewrite_mesh_uris(loaded.text, resolution.resolved),
+        urdf_origin=loaded.origin,
+        urdf_sha256=loaded.sha256,
         robot_name=model.name,
         root_link=model.root_link,
         links=model.links,
