@@ -72,6 +72,8 @@ def read_frames(path: Path, timeline: str) -> RecordedFrames:
             batch = batch.set_column(index, timeline, batch.column(index).cast(pa.int64()))
         rows = batch.to_pylist()
         for row in rows:
+            if row["Transform3D:child_frame"] is None:  # a row left out (joints.nan: drop_row)
+                continue
             child = row["Transform3D:child_frame"][0]
             parent = row["Transform3D:parent_frame"][0]
             translation = (row.get("Transform3D:translation") or [None])[0]

@@ -56,7 +56,7 @@ def test_validate_and_plan_do_not_import_rerun(examples_dir: Path) -> None:
 def test_plan_shows_conversion_order_and_mimic(run_cli, examples_dir: Path) -> None:
     result = run_cli("plan", str(examples_dir / "demo.yaml"))
     assert result.code == 0
-    assert "unit factor) * sign + offset" in result.out
+    assert "(value * unit factor * scale) * sign + offset" in result.out
     assert "mimic panda_finger_joint2 = panda_finger_joint1 * 1 + 0" in result.out
 
 

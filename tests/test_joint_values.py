@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -33,7 +34,7 @@ def channel(
     )
 
 
-def mapper(channels, holds=(), mimics=(), on_violation="error", width=3) -> JointValueMapper:
+def mapper(channels, holds=(), mimics=(), on_violation="error", width=3, nan_policy="error") -> JointValueMapper:
     source = ParquetSourcePlan(
         "src", Path("x.parquet"), "col", IndexPlan("frame_index", "sequence", None), tuple(f"s{i}" for i in range(width)), HERE
     )
@@ -56,20 +57,21 @@ def mapper(channels, holds=(), mimics=(), on_violation="error", width=3) -> Join
         mimics=tuple(mimics),
         on_violation=on_violation,
         where=HERE,
+        nan_policy=nan_policy,
     )
     return JointValueMapper(robot, source)
 
 
 def test_conversion_order_is_unit_then_sign_then_offset() -> None:
     m = mapper([channel("a", 0, sign=-1, offset=0.1, lower=None, upper=None)], width=1)
-    values = m.urdf_values(np.array([[10.0]]))
+    values, _ = m.urdf_values(np.array([[10.0]]))
     assert values[0, 0] == pytest.approx(-math.radians(10) + 0.1)
 
 
 def test_within_slack_is_clamped_and_reported_once_per_joint() -> None:
     m = mapper([channel("a", 0, lower=0.0, upper=math.radians(90))], width=1)
     raw = np.array([[91.0], [91.5], [45.0], [-1.0]])
-    values = m.urdf_values(raw)
+    values, _ = m.urdf_values(raw)
     assert values[:, 0].tolist() == pytest.approx([math.radians(90), math.radians(90), math.radians(45), 0.0])
     problems = Problems()
     notes = check_joint_statistics(m, problems)
@@ -92,7 +94,7 @@ def test_beyond_slack_is_an_error_naming_joint_rows_worst_value_and_limit() -> N
 @pytest.mark.parametrize("mode, expected", [("clamp", math.radians(90)), ("ignore", math.radians(120))])
 def test_on_violation_clamp_and_ignore(mode: str, expected: float) -> None:
     m = mapper([channel("a", 0, lower=0.0, upper=math.radians(90))], on_violation=mode, width=1)
-    assert m.urdf_values(np.array([[120.0]]))[0, 0] == pytest.approx(expected)
+    assert m.urdf_values(np.array([[120.0]]))[0][0, 0] == pytest.approx(expected)
     problems = Problems()
     notes = check_joint_statistics(m, problems)
     assert not problems.errors and mode in notes[0]
@@ -106,7 +108,7 @@ def test_holds_and_mimic_joints_are_appended() -> None:
         width=1,
     )
     assert m.joint_names == ("driver", "held", "follower")
-    values = m.urdf_values(np.array([[10.0]]))
+    values, _ = m.urdf_values(np.array([[10.0]]))
     assert values[0].tolist() == pytest.approx([0.01, 0.25, -0.01])
 
 
@@ -123,9 +125,59 @@ def test_nan_values_are_an_error_naming_the_joint() -> None:
     problems = Problems()
     check_joint_statistics(m, problems)
     assert "joint 'a'" in problems.errors[0].message and "1 of 2 rows are NaN" in problems.errors[0].message
+    assert "the first at row 0" in problems.errors[0].message
 
 
 def test_zero_rows_is_an_error() -> None:
     problems = Problems()
     check_joint_statistics(mapper([channel("a", 0)], width=1), problems)
     assert "yielded zero rows" in problems.errors[0].message
+
+
+def test_first_nan_row_counts_across_batches() -> None:
+    m = mapper([channel("a", 0, lower=None, upper=None)], width=1)
+    m.urdf_values(np.zeros((5, 1)))
+    m.urdf_values(np.array([[0.0], [0.0], [np.inf]]))
+    problems = Problems()
+    check_joint_statistics(m, problems)
+    assert "the first at row 7 of the source" in problems.errors[0].message
+
+
+def test_drop_row_leaves_rows_out_and_reports_the_count() -> None:
+    m = mapper([channel("a", 0, lower=None, upper=None), channel("b", 1, lower=None, upper=None)], width=2, nan_policy="drop_row")
+    values, left_out = m.urdf_values(np.array([[1.0, 2.0], [np.nan, 2.0], [1.0, 2.0]]))
+    assert left_out.tolist() == [False, True, False]
+    problems = Problems()
+    notes = check_joint_statistics(m, problems)
+    assert not problems.errors and "left out 1 of 3 rows" in notes[0]
+
+
+def test_hold_last_fills_from_the_previous_batch_and_drops_leading_nans() -> None:
+    m = mapper([channel("a", 0, unit="rad", lower=None, upper=None)], width=1, nan_policy="hold_last")
+    values, left_out = m.urdf_values(np.array([[np.nan], [1.0], [np.nan]]))
+    assert left_out.tolist() == [True, False, False] and values[2, 0] == 1.0
+    values, left_out = m.urdf_values(np.array([[np.nan], [3.0]]))
+    assert left_out is None and values[:, 0].tolist() == [1.0, 3.0]
+    notes = check_joint_statistics(m, Problems())
+    assert any("filled 2 of 5 rows" in n for n in notes) and any("left out 1 of 5" in n for n in notes)
+
+
+def test_wrap_lands_values_in_the_period_around_the_middle_of_the_range() -> None:
+    c = replace(channel("servo", 0, lower=-math.pi, upper=math.pi), wrap=360.0, wrap_center=0.0)
+    m = mapper([c], width=1)
+    values, _ = m.urdf_values(np.array([[350.0], [10.0], [190.0], [-200.0]]))
+    assert values[:, 0].tolist() == pytest.approx(np.radians([-10.0, 10.0, -170.0, 160.0]).tolist())
+
+
+def test_source_range_maps_percent_onto_the_joint_limits() -> None:
+    c = replace(channel("gripper", 0, lower=0.0, upper=0.04), source_range=(0.0, 100.0), target_range=(0.0, 0.04))
+    m = mapper([c], width=1)
+    values, _ = m.urdf_values(np.array([[0.0], [50.0], [100.0]]))
+    assert values[:, 0].tolist() == pytest.approx([0.0, 0.02, 0.04])
+    assert c.to_source_unit(0.04) == pytest.approx(100.0)
+
+
+def test_scale_applies_after_unit_and_before_sign_and_offset() -> None:
+    c = replace(channel("a", 0, unit="deg", sign=-1.0, offset=0.5, lower=None, upper=None), scale=0.5)
+    values, _ = mapper([c], width=1).urdf_values(np.array([[90.0]]))
+    assert values[0, 0] == pytest.approx(-math.radians(45.0) + 0.5)

@@ -19,6 +19,7 @@ from .plan import Plan
 from .progress import RowProgress, say
 from .provenance import provenance_stream
 from .sources import module_for
+from .temporal_edges import check_temporal_edges, temporal_edge_streams
 from .writer import write_atomically
 
 
@@ -51,6 +52,9 @@ def execute(plan: Plan) -> RunResult:
             streams.append(fk_stream(opened, driven, errors))
         streams.append(edges_stream(plan.edges))
         streams.append(provenance_stream(plan))
+        # Temporal edges (a mobile base, a floating pelvis): their sources are opened again, see temporal_edges.py.
+        temporal_streams, temporal_values = temporal_edge_streams(plan, errors)
+        streams += temporal_streams
         say(f"reading {len(plan.sources)} source(s), computing forward kinematics for {len(plan.robots)} robot(s)")
         try:
             store = LazyChunkStream.merge(*streams).collect(optimize=OptimizationProfile.OBJECT_STORE)
@@ -59,6 +63,7 @@ def execute(plan: Plan) -> RunResult:
             raise
         problems = Problems()
         notes = [note for mapper in mappers for note in check_joint_statistics(mapper, problems)]
+        check_temporal_edges(temporal_values, problems)
         for note in notes:
             print(f"note: {note}", file=sys.stderr)
         problems.raise_if_any()

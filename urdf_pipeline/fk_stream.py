@@ -10,6 +10,7 @@ import pyarrow as pa
 
 from .callbacks import CallbackErrors
 from .joint_values import JointValueMapper
+from .named_rows import is_named_rows, named_matrix
 from .progress import RowProgress
 
 if TYPE_CHECKING:
@@ -40,13 +41,18 @@ class JointTransformBatches:
         return pa.ListArray.from_arrays(offsets, values)
 
     def __call__(self, vectors: pa.Array) -> pa.Array:
-        raw = self.mapper.matrix(vectors)
-        values = self.mapper.urdf_values(raw)
+        if is_named_rows(vectors):  # rows that name their values (MCAP JointState): mapped by name, row by row
+            raw = named_matrix(vectors, self.mapper.source, self.mapper.columns, f"robot '{self.mapper.robot.key}'")
+        else:
+            raw = self.mapper.matrix(vectors)
+        values, left_out = self.mapper.urdf_values(raw)
         rows, count = values.shape
         # Fresh float64 arrays per call: zero-copy slices of one big array make Rerun's FK quadratic.
         offsets = pa.array(np.arange(rows + 1, dtype=np.int32) * count)
         value_lists = pa.ListArray.from_arrays(offsets, pa.array(values.reshape(-1)))
         batches = self.tree.compute_joint_transform_batches(self._names_for_rows(rows), value_lists)
+        if left_out is not None:  # a null batch scatters to a row with no transform: nothing logged at that time
+            batches = pa.ListArray.from_arrays(batches.offsets, batches.values, mask=pa.array(left_out))
         if self.progress is not None:
             self.progress.add(rows)
         return batches

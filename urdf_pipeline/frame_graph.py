@@ -15,8 +15,9 @@ from .errors import Problems, Where
 class FrameEdge:
     parent: str
     child: str
-    origin: str  # "URDF 'panda' joint 'panda_joint1' (robot arm)" or "edges[0]"
+    origin: str  # "URDF 'panda' joint 'panda_joint1' (robot arm)" or "edges[0] at line 3"
     where: Where
+    configured: bool = False  # written in the config (or a sidecar, or frames.assume_identity), not taken from a URDF
 
 
 def check_frame_graph(edges: list[FrameEdge], urdf_frames: dict[str, Where], root: str, root_where: Where, problems: Problems) -> None:
@@ -54,7 +55,7 @@ def check_frame_graph(edges: list[FrameEdge], urdf_frames: dict[str, Where], roo
                 reported_cycles.add(key)
                 chain = " -> ".join([*cycle, current])
                 in_cycle = [parent_of[frame] for frame in cycle]
-                culprit = next((e for e in in_cycle if e.origin.startswith("edges[")), in_cycle[0])
+                culprit = next((e for e in in_cycle if e.configured), in_cycle[0])
                 problems.add(f"frames form a cycle: {chain}; remove one of these edges", culprit.where)
             continue
         if frame != current:
@@ -68,7 +69,7 @@ def _disconnected_message(frame: str, root: str, urdf_frames: dict[str, Where], 
     message = f"no edge connects frame '{frame}' to root '{root}'"
     if frame in urdf_frames:
         message += f"; add a calibration edge with parent: {root} (or a frame that reaches it) and child: {frame}"
-        strays = [e.child for e in edges if e.child not in urdf_frames and e.origin.startswith("edges[")]
+        strays = [e.child for e in edges if e.child not in urdf_frames and e.configured]
         close = difflib.get_close_matches(frame, strays, n=1, cutoff=0.85)
         if close:
             message += f" (edge child '{close[0]}' is in no URDF: a typo for '{frame}'?)"
@@ -80,6 +81,49 @@ def _disconnected_message(frame: str, root: str, urdf_frames: dict[str, Where], 
 
 def _where_for(frame: str, edges: list[FrameEdge], fallback: Where) -> Where:
     for edge in edges:
-        if edge.parent == frame and edge.origin.startswith("edges["):
+        if edge.parent == frame and edge.configured:
             return edge.where
     return fallback
+
+
+def check_assume_identity(
+    frames: list[tuple[str, Where]], edges: list[FrameEdge], urdf_frames: dict[str, Where], root: str, problems: Problems
+) -> list[str]:
+    """The frames of `frames.assume_identity` that may get an identity edge from the root; problems for the others.
+
+    A listed frame must be named by a URDF or an edge, must not be the root and must have no parent yet: a frame
+    that already reaches the root needs no assumption, and one hanging from a disconnected tree needs its tree's top listed.
+    """
+    parent_of: dict[str, FrameEdge] = {}
+    for edge in edges:
+        parent_of.setdefault(edge.child, edge)
+    named = set(urdf_frames) | {e.parent for e in edges} | {e.child for e in edges}
+    accepted: list[str] = []
+    for frame, where in frames:
+        if frame == root:
+            problems.add(f"'{frame}' is the root frame; frames.assume_identity lists frames to hang from it", where)
+        elif frame not in named:
+            close = difflib.get_close_matches(frame, sorted(named), n=1, cutoff=0.6)
+            hint = f" (did you mean '{close[0]}'?)" if close else ""
+            problems.add(f"frame '{frame}' is named by no URDF and no edge; remove it from frames.assume_identity{hint}", where)
+        elif frame in parent_of:
+            edge = parent_of[frame]
+            top, seen = frame, [frame]
+            while top in parent_of and parent_of[top].parent not in seen:
+                top = parent_of[top].parent
+                seen.append(top)
+            if top == root:
+                problems.add(
+                    f"frame '{frame}' already reaches root '{root}' (its parent is '{edge.parent}', {edge.origin}); "
+                    "remove it from frames.assume_identity",
+                    where,
+                )
+            else:
+                problems.add(
+                    f"frame '{frame}' already has parent '{edge.parent}' ({edge.origin}); assume_identity hangs a frame without "
+                    f"a parent from the root: list '{top}', the top of its tree, instead",
+                    where,
+                )
+        else:
+            accepted.append(frame)
+    return accepted

@@ -7,10 +7,11 @@ Conversion order: unit conversion, then sign, then offset: urdf = (raw * factor)
 from __future__ import annotations
 
 import difflib
+from dataclasses import replace
 from typing import Any
 
 from .document import Document
-from .errors import Problems
+from .errors import Problems, Where
 from .plan import HeldJoint, JointChannel, MimicJoint, OnViolation
 from .units import FACTORS, fits, urdf_unit
 from .urdf_model import UrdfModel
@@ -32,9 +33,9 @@ def compile_joints(
     here = ("robots", robot_key, "joints")
     source = joints_spec["source"]
     default_unit = joints_spec.get("unit", "rad")
-    limits = joints_spec.get("limits", {})
-    slack_source = float(limits.get("slack", 0.0))
-    on_violation: OnViolation = limits.get("on_violation", "error")
+    limit_spec = joints_spec.get("limits", {})
+    slack_source = float(limit_spec.get("slack", 0.0))
+    on_violation: OnViolation = limit_spec.get("on_violation", "error")
     moving = [j.name for j in model.joints if j.moving]
     all_joints = [j.name for j in model.joints]
     mimic_joints = {j.name for j in model.joints if j.mimic is not None}
@@ -45,53 +46,23 @@ def compile_joints(
     for source_name, entry in joints_spec["map"].items():
         where = document.where(*here, "map", source_name)
         spec = {"joint": entry} if isinstance(entry, str) else entry
-        joint_name = spec["joint"]
-        attempted.add(joint_name)
+        joint_names = spec["joint"] if isinstance(spec["joint"], list) else [spec["joint"]]
+        attempted.update(joint_names)
         if source_name not in names:
             problems.add(
                 f"'{source_name}' is not a name of source '{source}'{_hint(source_name, list(names))}; its names are: {', '.join(names)}",
                 where,
             )
             continue
-        joint = model.joint(joint_name)
-        if joint is None:
-            problems.add(f"URDF '{model.name}' has no joint '{joint_name}'{_hint(joint_name, all_joints)}", where)
+        if not _corrections_consistent(spec, where, problems):
             continue
-        if not joint.moving:
-            problems.add(f"joint '{joint_name}' is {joint.type}; only revolute, continuous and prismatic joints can be driven", where)
-            continue
-        if joint.mimic is not None:
-            problems.add(f"joint '{joint_name}' is a <mimic> of '{joint.mimic.joint}' and is computed from it; remove it from map", where)
-            continue
-        if joint_name in covered:
-            problems.add(f"joint '{joint_name}' is driven twice: by {covered[joint_name]} and by map entry '{source_name}'", where)
-            continue
-        unit = spec.get("unit", default_unit)
-        if not fits(unit, joint.angular):
-            origin = "its map entry" if "unit" in spec else "joints.unit"
-            problems.add(
-                f"joint '{joint_name}' is {joint.type} (URDF unit {urdf_unit(joint.angular)}) but its source unit is {unit} (from {origin}); "
-                f"set unit: {'rad or deg' if joint.angular else 'm or mm'} on this entry",
-                where,
+        for joint_name in joint_names:
+            channel = _channel(
+                source_name, names.index(source_name), joint_name, spec, default_unit, slack_source, model, where, problems, covered
             )
-            continue
-        covered[joint_name] = f"map entry '{source_name}'"
-        factor = FACTORS[unit]
-        channels.append(
-            JointChannel(
-                joint=joint_name,
-                source_name=source_name,
-                source_index=names.index(source_name),
-                source_unit=unit,
-                factor=factor,
-                sign=float(spec.get("sign", 1)),
-                offset=float(spec.get("offset", 0.0)),
-                lower=joint.lower if joint.has_limits else None,
-                upper=joint.upper if joint.has_limits else None,
-                slack=slack_source * factor,
-                where=where,
-            )
-        )
+            if channel is not None:
+                covered[joint_name] = f"map entry '{source_name}'"
+                channels.append(channel)
 
     holds: list[HeldJoint] = []
     for joint_name, value in joints_spec.get("hold", {}).items():
@@ -137,6 +108,91 @@ def compile_joints(
             document.where(*here, "map"),
         )
     return tuple(channels), tuple(holds), mimics, on_violation
+
+
+def _corrections_consistent(spec: dict[str, Any], where: Where, problems: Problems) -> bool:
+    """source_range maps straight into URDF units, so it cannot be combined with the unit path's corrections."""
+    if "joint_range" in spec and "source_range" not in spec:
+        problems.add("joint_range needs source_range (the source values mapped onto it)", where)
+        return False
+    if "source_range" in spec:
+        mixed = [key for key in ("unit", "scale", "sign", "offset") if key in spec]
+        if mixed:
+            problems.add(
+                f"source_range maps values straight onto the joint's range; remove {', '.join(mixed)} (write source_range: [max, min] to flip)",
+                where,
+            )
+            return False
+        low, high = spec["source_range"]
+        if low == high:
+            problems.add(f"source_range [{low}, {high}] is empty", where)
+            return False
+    return True
+
+
+def _channel(
+    source_name: str,
+    source_index: int,
+    joint_name: str,
+    spec: dict[str, Any],
+    default_unit: str,
+    slack_source: float,
+    model: UrdfModel,
+    where: Where,
+    problems: Problems,
+    covered: dict[str, str],
+) -> JointChannel | None:
+    """One (source value, URDF joint) pair, or None after reporting why it cannot be."""
+    joint = model.joint(joint_name)
+    all_joints = [j.name for j in model.joints]
+    if joint is None:
+        problems.add(f"URDF '{model.name}' has no joint '{joint_name}'{_hint(joint_name, all_joints)}", where)
+        return None
+    if not joint.moving:
+        problems.add(f"joint '{joint_name}' is {joint.type}; only revolute, continuous and prismatic joints can be driven", where)
+        return None
+    if joint.mimic is not None:
+        problems.add(f"joint '{joint_name}' is a <mimic> of '{joint.mimic.joint}' and is computed from it; remove it from map", where)
+        return None
+    if joint_name in covered:
+        problems.add(f"joint '{joint_name}' is driven twice: by {covered[joint_name]} and by map entry '{source_name}'", where)
+        return None
+    limits = (float(joint.lower), float(joint.upper)) if joint.has_limits and joint.lower is not None and joint.upper is not None else None
+    source_range = tuple(float(v) for v in spec["source_range"]) if "source_range" in spec else None
+    target_range = tuple(float(v) for v in spec.get("joint_range", limits or ())) or None
+    if source_range is not None and target_range is None:
+        problems.add(
+            f"joint '{joint_name}' has no URDF limits to map source_range onto; give joint_range: [low, high] in URDF units", where
+        )
+        return None
+    unit = "source_range" if source_range is not None else spec.get("unit", default_unit)
+    if source_range is None and not fits(unit, joint.angular):
+        origin = "its map entry" if "unit" in spec else "joints.unit"
+        problems.add(
+            f"joint '{joint_name}' is {joint.type} (URDF unit {urdf_unit(joint.angular)}) but its source unit is {unit} (from {origin}); "
+            f"set unit: {'rad or deg' if joint.angular else 'm or mm'} on this entry",
+            where,
+        )
+        return None
+    channel = JointChannel(
+        joint=joint_name,
+        source_name=source_name,
+        source_index=source_index,
+        source_unit=unit if source_range is None else "source units",
+        factor=FACTORS.get(unit, 1.0),
+        sign=float(spec.get("sign", 1)),
+        offset=float(spec.get("offset", 0.0)),
+        lower=limits[0] if limits else None,
+        upper=limits[1] if limits else None,
+        slack=0.0,
+        where=where,
+        scale=float(spec.get("scale", 1.0)),
+        source_range=source_range,  # type: ignore[arg-type]
+        target_range=target_range,  # type: ignore[arg-type]
+    )
+    wrap = spec.get("wrap")
+    center = channel.to_source_unit((limits[0] + limits[1]) / 2) if limits else channel.to_source_unit(0.0)
+    return replace(channel, slack=slack_source * abs(channel.gain), wrap=float(wrap) if wrap else None, wrap_center=center)
 
 
 def _order_mimics(model: UrdfModel, mimic_joints: set[str]) -> tuple[MimicJoint, ...]:

@@ -19,11 +19,23 @@ def check_joint_statistics(mapper: JointValueMapper, problems: Problems) -> list
     if mapper.stats.rows == 0:
         problems.add(f"source '{mapper.source.name}' yielded zero rows for robot '{robot.key}'; nothing would move", mapper.source.where)
         return notes
+    if mapper.stats.dropped_rows:
+        notes.append(
+            f"robot '{robot.key}': left out {mapper.stats.dropped_rows} of {mapper.stats.rows} rows with NaN or infinite values (joints.nan: {robot.nan_policy})"
+        )
+    if mapper.stats.filled_rows:
+        notes.append(
+            f"robot '{robot.key}': filled {mapper.stats.filled_rows} of {mapper.stats.rows} rows with the last valid values (joints.nan: hold_last)"
+        )
     for channel, stats in zip(robot.channels, mapper.stats.channels, strict=False):
         label = f"robot '{robot.key}' joint '{channel.joint}' (source value '{channel.source_name}')"
-        slack = channel.slack / channel.factor
+        slack = channel.slack / abs(channel.gain)
         if stats.nonfinite_rows:
-            problems.add(f"{label}: {stats.nonfinite_rows} of {mapper.stats.rows} rows are NaN or infinite", channel.where)
+            problems.add(
+                f"{label}: {stats.nonfinite_rows} of {mapper.stats.rows} rows are NaN or infinite, the first at row {stats.first_nonfinite_row} "
+                "of the source; set joints.nan: drop_row or hold_last to accept them",
+                channel.where,
+            )
         if stats.clamped_rows:
             notes.append(
                 f"{label}: clamped {stats.clamped_rows} of {mapper.stats.rows} rows within slack {slack:g} {channel.source_unit} "

@@ -9,6 +9,7 @@ from typing import Literal
 from .errors import Where
 
 OnViolation = Literal["error", "clamp", "ignore"]
+NanPolicy = Literal["error", "drop_row", "hold_last"]
 TimelineKind = Literal["sequence", "timestamp", "duration"]
 
 
@@ -39,12 +40,55 @@ class LeRobotSourcePlan:
     where: Where
 
 
-SourcePlan = ParquetSourcePlan | LeRobotSourcePlan
+@dataclass(frozen=True)
+class McapSourcePlan:
+    """ROS 2 sensor_msgs/msg/JointState messages of one topic; every message names its values (mapped by name per row)."""
+
+    name: str
+    path: Path
+    topic: str
+    timeline: str  # the one timeline kept: "ros2_timestamp" (header stamp), "message_log_time" or "message_publish_time"
+    names: tuple[str, ...]  # the names the messages may carry, from the config or the first message
+    where: Where
+
+
+@dataclass(frozen=True)
+class Hdf5SourcePlan:
+    """A 2-D HDF5 dataset [rows, values] (e.g. ALOHA's /observations/qpos)."""
+
+    name: str
+    path: Path
+    dataset: str  # absolute path inside the file, "/observations/qpos"
+    index: IndexPlan | None  # a 1-D dataset path as column; None: Rerun's generated `row_index` sequence
+    rows: int
+    names: tuple[str, ...]
+    where: Where
+
+
+@dataclass(frozen=True)
+class RrdSourcePlan:
+    """Joint values already in a Rerun recording: one component of one entity."""
+
+    name: str
+    path: Path
+    entity: str
+    component: str
+    named_rows: bool  # each row carries its own SeriesLines:names: values are mapped by name per row
+    names: tuple[str, ...]
+    where: Where
+
+
+SourcePlan = ParquetSourcePlan | LeRobotSourcePlan | McapSourcePlan | Hdf5SourcePlan | RrdSourcePlan
 
 
 @dataclass(frozen=True)
 class JointChannel:
-    """One source value driving one URDF joint: urdf = (raw * factor) * sign + offset."""
+    """One source value driving one URDF joint.
+
+    Corrections, in this order: wrap (source units) -> linear map -> limits. The linear map is
+    either (value * unit factor * scale) * sign + offset, or, with source_range, the source range
+    mapped linearly onto the joint's range; both reduce to urdf = value * gain + bias.
+    """
 
     joint: str
     source_name: str
@@ -57,9 +101,27 @@ class JointChannel:
     upper: float | None
     slack: float  # URDF units
     where: Where
+    scale: float = 1.0
+    wrap: float | None = None  # period in source units, e.g. 360 for a servo reporting 0..360 deg
+    wrap_center: float = 0.0  # wrapped values land in [center - wrap/2, center + wrap/2), source units
+    source_range: tuple[float, float] | None = None
+    target_range: tuple[float, float] | None = None  # URDF units; the joint's limits unless joint_range is given
+
+    @property
+    def gain(self) -> float:
+        if self.source_range is not None and self.target_range is not None:
+            (s0, s1), (t0, t1) = self.source_range, self.target_range
+            return (t1 - t0) / (s1 - s0)
+        return self.factor * self.scale * self.sign
+
+    @property
+    def bias(self) -> float:
+        if self.source_range is not None and self.target_range is not None:
+            return self.target_range[0] - self.source_range[0] * self.gain
+        return self.offset
 
     def to_source_unit(self, urdf_value: float) -> float:
-        return (urdf_value - self.offset) / (self.factor * self.sign)
+        return (urdf_value - self.bias) / self.gain
 
 
 @dataclass(frozen=True)
@@ -98,6 +160,7 @@ class RobotPlan:
     mimics: tuple[MimicJoint, ...]  # ordered so a driver is computed before its mimic
     on_violation: OnViolation
     where: Where
+    nan_policy: NanPolicy = "error"
 
     @property
     def fk_entity(self) -> str:
@@ -112,12 +175,46 @@ class RobotPlan:
         return f"{self.entity_path_prefix}/{self.robot_name}/collision_geometries/**"
 
 
+EdgeKind = Literal["static", "fixed_chain", "assume_identity"]
+
+
+@dataclass(frozen=True)
+class FixedChain:
+    """Where a fixed_chain edge's transform comes from: the URDF's fixed joints from `start` down to `end`."""
+
+    robot: str  # key of the robot whose URDF holds both frames
+    start: str  # prefixed frame names, as written in the config
+    end: str
+    joints: tuple[str, ...]  # the fixed joints composed, top down
+
+
 @dataclass(frozen=True)
 class EdgePlan:
+    """A static edge logged on /calibration: a calibration, a fixed chain copied from a URDF, or an assumed identity."""
+
     parent: str
     child: str
     translation: tuple[float, float, float]
     quaternion_xyzw: tuple[float, float, float, float]
+    where: Where
+    kind: EdgeKind = "static"
+    label: str = ""  # "edges[2]", "calib/extrinsics.yaml[0]", "frames.assume_identity[0]"
+    fixed_chain: FixedChain | None = None
+
+
+@dataclass(frozen=True)
+class TemporalEdgePlan:
+    """An edge read from a source row by row: named values give the translation and the quaternion."""
+
+    parent: str
+    child: str
+    source: str
+    translation_names: tuple[str, str, str]
+    quaternion_names: tuple[str, str, str, str]  # x, y, z, w
+    translation_indices: tuple[int, int, int]  # positions in the source's value vector
+    quaternion_indices: tuple[int, int, int, int]
+    entity: str  # "/calibration/temporal/<child>"
+    label: str
     where: Where
 
 
@@ -137,6 +234,7 @@ class Plan:
     edges: tuple[EdgePlan, ...]
     root_frame: str
     output: OutputPlan
+    temporal_edges: tuple[TemporalEdgePlan, ...] = ()
 
     def source(self, name: str) -> SourcePlan:
         return next(s for s in self.sources if s.name == name)

@@ -2,24 +2,62 @@
 
 from __future__ import annotations
 
-from .plan import Plan, RobotPlan
+from .plan import JointChannel, Plan, RobotPlan
+
+
+def _channel_text(c: JointChannel) -> str:
+    steps = [f"wrap {c.wrap:g} around {c.wrap_center:g}"] if c.wrap else []
+    if c.source_range is not None and c.target_range is not None:
+        steps.append(f"source_range {list(c.source_range)} onto {[round(v, 9) for v in c.target_range]}")
+    else:
+        steps.append(f"x {c.factor:g} ({c.source_unit})" + (f" x {c.scale:g}" if c.scale != 1 else "") + f" x {c.sign:g} + {c.offset:g}")
+    limits = f"[{c.lower:g}, {c.upper:g}]" if c.lower is not None else "none"
+    steps.append(f"limits {limits}, slack {c.slack:g}")
+    return "; ".join(steps)
 
 
 def _robot_lines(robot: RobotPlan) -> list[str]:
     lines = [
         f"robot {robot.key}: URDF '{robot.robot_name}' from {robot.urdf_path}",
         f"  entity {robot.entity_path_prefix}, frame prefix '{robot.frame_prefix}', root link {robot.frame_prefix}{robot.root_link}, collisions {'kept' if robot.keep_collisions else 'dropped'}",
-        f"  joints from source '{robot.source}' (urdf = (value * unit factor) * sign + offset; then limits; then mimic):",
+        f"  joints from source '{robot.source}', NaN policy {robot.nan_policy}; per value, in this order:",
+        "    wrap (source units) -> (value * unit factor * scale) * sign + offset, or source_range onto the joint's range"
+        " -> limits (clamp within slack) -> mimic joints",
     ]
     for c in robot.channels:
-        limits = f"[{c.lower:g}, {c.upper:g}]" if c.lower is not None else "none"
-        lines.append(
-            f"    {c.source_name}[{c.source_index}] -> {c.joint}: x {c.factor:g} ({c.source_unit}) x {c.sign:g} + {c.offset:g}; limits {limits}, slack {c.slack:g}"
-        )
+        lines.append(f"    {c.source_name}[{c.source_index}] -> {c.joint}: {_channel_text(c)}")
     lines += [f"    hold {h.joint} = {h.value:g}" for h in robot.holds]
     lines += [f"    mimic {m.joint} = {m.driver} * {m.multiplier:g} + {m.offset:g}" for m in robot.mimics]
     lines.append(f"  beyond-slack values: {robot.on_violation}")
     return lines
+
+
+def _edge_lines(plan: Plan) -> list[str]:
+    lines = []
+    for edge in plan.edges:
+        pose = f"t={[round(v, 9) for v in edge.translation]} q_xyzw={[round(v, 9) for v in edge.quaternion_xyzw]}"
+        origin = f" ({edge.label}, line {edge.where.line})" if edge.label else ""
+        if edge.kind == "fixed_chain" and edge.fixed_chain is not None:
+            chain = edge.fixed_chain
+            joints = ", ".join(chain.joints) or "none: from and to are the same link"
+            lines.append(f"edge {edge.parent} -> {edge.child}: fixed chain {chain.start} -> {chain.end} of robot {chain.robot}{origin}")
+            lines.append(f"  fixed joints composed: {joints}; {pose}")
+        elif edge.kind == "assume_identity":
+            lines.append(f"edge {edge.parent} -> {edge.child}: identity ASSUMED, not calibrated{origin}")
+        else:
+            lines.append(f"edge {edge.parent} -> {edge.child}: {pose}{origin}")
+    for temporal in plan.temporal_edges:
+        lines.append(
+            f"temporal edge {temporal.parent} -> {temporal.child} on {temporal.entity} ({temporal.label}, "
+            f"line {temporal.where.line}): per row of source '{temporal.source}', "
+            f"translation {_named(temporal.translation_names, temporal.translation_indices)}, "
+            f"quaternion_xyzw {_named(temporal.quaternion_names, temporal.quaternion_indices)} (normalised per row)"
+        )
+    return lines
+
+
+def _named(names: tuple[str, ...], indices: tuple[int, ...]) -> str:
+    return "[" + ", ".join(f"{name}[{index}]" for name, index in zip(names, indices, strict=True)) + "]"
 
 
 def describe_plan(plan: Plan) -> str:
@@ -28,7 +66,6 @@ def describe_plan(plan: Plan) -> str:
         lines.append(f"source {source.name}: {type(source).__name__.removesuffix('SourcePlan').lower()} with {len(source.names)} names")
     for robot in plan.robots:
         lines += _robot_lines(robot)
-    for edge in plan.edges:
-        lines.append(f"edge {edge.parent} -> {edge.child}: t={list(edge.translation)} q_xyzw={[round(v, 9) for v in edge.quaternion_xyzw]}")
+    lines += _edge_lines(plan)
     lines.append(f"output {plan.output.path} (application_id {plan.output.application_id}, recording_id {plan.output.recording_id})")
     return "\n".join(lines)

@@ -25,4 +25,4 @@ def provenance_stream(plan: Plan) -> LazyChunkStream:
     import rerun as rr
     from rerun.chunk import Chunk, LazyChunkStream
 
-    return LazyChunkStream.from_iter([Chunk.from_property(PROPERTY_NAME, rr.AnyValues(**provenance_fields(plan)))])
+    return LazyChunkStream.from_iter([Chunk.from_property(PROPERTY_NAME, rr.AnyValues(**provenance_fields(plan))  # type: ignore[arg-type])])

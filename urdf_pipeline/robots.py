@@ -99,4 +99,5 @@ def compile_robot(
         mimics=mimics,
         on_violation=on_violation,
         where=document.where(*here),
+        nan_policy=joints_spec.get("nan", "error"),
     )

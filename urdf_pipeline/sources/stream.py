@@ -6,14 +6,33 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from rerun.chunk import LazyChunkStream
+    from rerun.chunk import IndexColumn, LazyChunkStream
+
+    from ..plan import IndexPlan
 
 
 @dataclass(frozen=True)
 class SourceStream:
-    """A lazy stream whose `component` on `entity` holds one joint-value vector per row."""
+    """A lazy stream whose `component` on `entity` holds one instance per row.
+
+    The instance is either a joint-value vector (a list of `width` numbers, in the order of the source's names), or,
+    when `named` is true, a struct {name: list<string>, position: list<double>} whose values are mapped by name, row
+    by row (see `urdf_pipeline.named_rows`): MCAP JointState messages and recordings with per-row names.
+    """
 
     stream: LazyChunkStream
     entity: str
     component: str
     width: int  # values per row, equal to the number of names
+    named: bool = False
+
+
+def index_column(index: IndexPlan) -> IndexColumn:
+    """The Rerun timeline a reader builds from an index column (parquet column, HDF5 dataset)."""
+    from rerun.chunk import IndexColumn
+
+    if index.kind == "sequence":
+        return IndexColumn.sequence(index.column)
+    if index.kind == "timestamp":
+        return IndexColumn.timestamp(index.column, input_unit=index.unit)  # type: ignore[arg-type]
+    return IndexColumn.duration(index.column, input_unit=index.unit)  # type: ignore[arg-type]

@@ -1,0 +1,70 @@
+"""`edges: - file: calib/extrinsics.yaml`: a sidecar list of edges, spliced in at the entry's position.
+
+A sidecar holds a YAML (or JSON) list of edges in the same form as inline ones and is validated against the same
+schema (`#/$defs/edges_file`); every error points at the sidecar's own file and line. Its path is relative to the
+config file. A sidecar cannot include another sidecar, so there is no recursion to guard against.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from .document import Document, PathKey, load_document
+from .errors import Problems, UserError, Where
+from .schema import validate_document
+
+
+@dataclass(frozen=True)
+class EdgeSpec:
+    """One edge as written, in the config or in a sidecar, with the document that locates its errors."""
+
+    spec: dict[str, Any]
+    document: Document
+    path: PathKey  # the edge's YAML path inside `document`: ("edges", 2) or (0,)
+    label: str  # "edges[2]" or "calib/extrinsics.yaml[0]"
+
+    def where(self, *sub: str | int) -> Where:
+        return self.document.where(*self.path, *sub)
+
+
+def expand_edge_specs(specs: list[dict[str, Any]], document: Document, problems: Problems) -> list[EdgeSpec]:
+    """Inline edges and the edges of every sidecar, in order. Broken sidecars are reported and contribute nothing."""
+    result: list[EdgeSpec] = []
+    for index, spec in enumerate(specs):
+        if "file" in spec:
+            result += _sidecar_specs(spec["file"], document, ("edges", index, "file"), problems)
+        else:
+            result.append(EdgeSpec(spec, document, ("edges", index), f"edges[{index}]"))
+    return result
+
+
+def _sidecar_specs(name: str, document: Document, here: PathKey, problems: Problems) -> list[EdgeSpec]:
+    path = document.file.parent / name
+    if not path.is_file():
+        problems.add(f"edges file not found: {path.resolve()} (paths are relative to the config file)", document.where(*here))
+        return []
+    try:
+        sidecar = load_document(path)
+    except UserError as exc:  # YAML syntax errors and duplicate keys, at the sidecar's line
+        problems.extend(exc)
+        return []
+    if sidecar.data is None:
+        problems.add(f"edges file {name} is empty; it must hold a list of edges", Where(sidecar.file, 1))
+        return []
+    if isinstance(sidecar.data, list):
+        nested = [index for index, item in enumerate(sidecar.data) if isinstance(item, dict) and "file" in item]
+        for index in nested:
+            problems.add(
+                f"edges file {name} includes another edges file ({sidecar.data[index]['file']}); a sidecar holds edges only: "
+                "list the other file in the config's edges instead",
+                sidecar.where(index, "file"),
+            )
+        if nested:
+            return []
+    try:
+        validate_document(sidecar, "edges_file")
+    except UserError as exc:
+        problems.extend(exc)
+        return []
+    return [EdgeSpec(item, sidecar, (index,), f"{name}[{index}]") for index, item in enumerate(sidecar.data)]
