@@ -25,4 +25,5 @@ def provenance_stream(plan: Plan) -> LazyChunkStream:
     import rerun as rr
     from rerun.chunk import Chunk, LazyChunkStream
 
-    return LazyChunkStream.from_iter([Chunk.from_property(PROPERTY_NAME, rr.AnyValues(**provenance_fields(plan))  # type: ignore[arg-type])])
+    values = rr.AnyValues(**provenance_fields(plan))  # type: ignore[arg-type]
+    return LazyChunkStream.from_iter([Chunk.from_property(PROPERTY_NAME, values)])
