@@ -1,6 +1,7 @@
 """Thin command line: one function per subcommand, each returning an exit code; one exit point for errors.
 
 Exit status: 0 success, 1 a user error (one `error: FILE:LINE: message` line each), 2 bad command-line usage,
+3 (`check` only) some joint's sampled values do not fit its limits with the config's corrections,
 70 an internal bug (with a traceback: please report it).
 """
 
@@ -46,6 +47,19 @@ def cmd_validate(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_check(args: argparse.Namespace) -> int:
+    import json
+
+    from .check import as_json, as_text, check_plan, exit_code, read_sample
+    from .compile import compile_config
+
+    plan = compile_config(Path(args.config))
+    sample = {source.name: read_sample(source, args.rows) for source in plan.sources if plan.robots_for(source.name)}
+    reports = check_plan(plan, sample)
+    print(json.dumps(as_json(reports), indent=2) if args.format == "json" else as_text(reports))
+    return exit_code(reports)
+
+
 def cmd_plan(args: argparse.Namespace) -> int:
     from .compile import compile_config
     from .plan_report import describe_plan
@@ -70,6 +84,13 @@ def build_parser() -> argparse.ArgumentParser:
     validate = commands.add_parser("validate", help="check configs against the schema, URDFs and source metadata (no joint values read)")
     validate.add_argument("configs", nargs="+", metavar="CONFIG")
     validate.set_defaults(handler=cmd_validate)
+    check = commands.add_parser(
+        "check", help="read a sample of each source and say which corrections put every mapped joint inside its URDF limits"
+    )
+    check.add_argument("config")
+    check.add_argument("--format", choices=("text", "json"), default="text")
+    check.add_argument("--rows", type=int, default=100_000, help="rows to sample from the start of each source (default 100000)")
+    check.set_defaults(handler=cmd_check)
     plan = commands.add_parser("plan", help="validate CONFIG and print what a run would do")
     plan.add_argument("config")
     plan.set_defaults(handler=cmd_plan)

@@ -61,13 +61,14 @@ def compile_document(document: Document) -> Plan:
     # Frame names can be traced to robots only when every robot compiled and their frame prefixes differ.
     frames_known = prefixes_unique and len(robots) == len(data["robots"])
     models = _UrdfModels()
-    edges, temporal = _compile_edges(edge_specs, robots if frames_known else None, models, sources, set(data["sources"]), problems)
+    edges, temporal, broken = _compile_edges(edge_specs, robots if frames_known else None, models, sources, set(data["sources"]), problems)
     root = _root_frame(data, robots, document, problems)
     if root is not None and frames_known:
-        edges += _assumed_identity_edges(data, document, robots, edges, temporal, models, root, problems)
-        check_frame_graph(
-            _frame_edges(robots, edges, temporal, models), _urdf_frames(robots), root, document.where("frames", "root"), problems
-        )
+        graph = _frame_edges(robots, edges, temporal, models, broken)
+        identity = _assumed_identity_edges(data, document, robots, graph, root, problems)
+        edges += identity
+        graph += _frame_edges([], identity, [], models)
+        check_frame_graph(graph, _urdf_frames(robots), root, document.where("frames", "root"), problems)
     output = _compile_output(data["output"], document, problems)
     problems.raise_if_any()
     assert root is not None and output is not None
@@ -118,11 +119,13 @@ def _compile_edges(
     sources: dict[str, SourcePlan],
     defined_sources: set[str],
     problems: Problems,
-) -> tuple[list[EdgePlan], list[TemporalEdgePlan]]:
-    """Static and fixed_chain edges (logged on /calibration) and temporal edges. `robots` is None when frame names
-    cannot be traced to robots (a robot failed, or prefixes collide): fixed chains are then skipped, already in error."""
+) -> tuple[list[EdgePlan], list[TemporalEdgePlan], list[EdgeSpec]]:
+    """Static and fixed_chain edges (logged on /calibration), temporal edges, and the edges that failed (reported; they
+    still count in the frame graph so one mistake is one error). `robots` is None when frame names cannot be traced to
+    robots (a robot failed, or prefixes collide): fixed chains are then skipped, already in error."""
     edges: list[EdgePlan] = []
     temporal: list[TemporalEdgePlan] = []
+    broken: list[EdgeSpec] = []
     taken_entities: set[str] = set()
     for edge in specs:
         spec = edge.spec
@@ -130,24 +133,34 @@ def _compile_edges(
             compiled = compile_temporal_edge(edge, sources, defined_sources, taken_entities, problems)
             if compiled is not None:
                 temporal.append(compiled)
+            else:
+                broken.append(edge)
             continue
         if "fixed_chain" in spec:
-            if robots is not None:
-                chained = _fixed_chain_edge(edge, robots, models, problems)
-                if chained is not None:
-                    edges.append(chained)
+            chained = _fixed_chain_edge(edge, robots, models, problems) if robots is not None else None
+            if chained is not None:
+                edges.append(chained)
+            else:
+                broken.append(edge)
+            continue
+        nonfinite = [key for key in ("translation", "quaternion_xyzw", "rpy", "rpy_deg") if not all(map(math.isfinite, spec.get(key, ())))]
+        if nonfinite:  # YAML .nan / .inf, JSON NaN / Infinity
+            for key in nonfinite:
+                problems.add(f"{key} holds a NaN or infinite value", edge.where(key))
+            broken.append(edge)
             continue
         if "quaternion_xyzw" in spec:
             quaternion = normalized_quaternion(tuple(spec["quaternion_xyzw"]))
             if quaternion is None:
                 problems.add("quaternion_xyzw is zero; write [0, 0, 0, 1] for no rotation", edge.where("quaternion_xyzw"))
+                broken.append(edge)
                 continue
         else:
             rpy = spec["rpy"] if "rpy" in spec else [math.radians(v) for v in spec["rpy_deg"]]
             quaternion = quaternion_from_rpy(*rpy)
         translation = tuple(float(v) for v in spec["translation"])
         edges.append(EdgePlan(spec["parent"], spec["child"], translation, quaternion, edge.where(), label=edge.label))  # type: ignore[arg-type]
-    return edges, temporal
+    return edges, temporal, broken
 
 
 def _owner(frame: str, robots: list[RobotPlan]) -> RobotPlan | None:
@@ -204,23 +217,14 @@ def _fixed_chain_edge(edge: EdgeSpec, robots: list[RobotPlan], models: _UrdfMode
 
 
 def _assumed_identity_edges(
-    data: dict[str, Any],
-    document: Document,
-    robots: list[RobotPlan],
-    edges: list[EdgePlan],
-    temporal: list[TemporalEdgePlan],
-    models: _UrdfModels,
-    root: str,
-    problems: Problems,
+    data: dict[str, Any], document: Document, robots: list[RobotPlan], graph: list[FrameEdge], root: str, problems: Problems
 ) -> list[EdgePlan]:
     """frames.assume_identity: an identity edge root -> frame for each listed frame, with a warning naming it."""
     listed = data.get("frames", {}).get("assume_identity", [])
     if not listed:
         return []
     wheres = {frame: document.where("frames", "assume_identity", index) for index, frame in enumerate(listed)}
-    accepted = check_assume_identity(
-        list(wheres.items()), _frame_edges(robots, edges, temporal, models), _urdf_frames(robots), root, problems
-    )
+    accepted = check_assume_identity(list(wheres.items()), graph, _urdf_frames(robots), root, problems)
     result = []
     for frame in accepted:
         where = wheres[frame]
@@ -247,7 +251,13 @@ def _root_frame(data: dict[str, Any], robots: list[RobotPlan], document: Documen
     return robots[0].frame_prefix + robots[0].root_link if robots else None
 
 
-def _frame_edges(robots: list[RobotPlan], edges: list[EdgePlan], temporal: list[TemporalEdgePlan], models: _UrdfModels) -> list[FrameEdge]:
+def _frame_edges(
+    robots: list[RobotPlan],
+    edges: list[EdgePlan],
+    temporal: list[TemporalEdgePlan],
+    models: _UrdfModels,
+    broken: list[EdgeSpec] | None = None,
+) -> list[FrameEdge]:
     # A temporal edge may drive the child of a URDF floating/planar joint (a floating pelvis) when it has the joint's
     # parent: like the FK over a moving joint's rest pose, the temporal value overrides the joint's static identity.
     driven = {(edge.parent, edge.child) for edge in temporal}
@@ -271,6 +281,10 @@ def _frame_edges(robots: list[RobotPlan], edges: list[EdgePlan], temporal: list[
     result += [FrameEdge(edge.parent, edge.child, f"{edge.label} at line {edge.where.line}", edge.where, True) for edge in edges]
     result += [
         FrameEdge(edge.parent, edge.child, f"temporal {edge.label} at line {edge.where.line}", edge.where, True) for edge in temporal
+    ]
+    result += [
+        FrameEdge(edge.spec["parent"], edge.spec["child"], f"{edge.label} at line {edge.where().line}", edge.where(), True)
+        for edge in broken or []
     ]
     return result
 

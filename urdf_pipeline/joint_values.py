@@ -38,6 +38,35 @@ class RobotStats:
     channels: list[ChannelStats] = field(default_factory=list)
 
 
+def vector_matrix(source: SourcePlan, vectors: pa.Array) -> np.ndarray:
+    """(rows x names) float64 from one list of values per row; every row holds exactly one value per name."""
+    width = len(source.names)
+    if vectors.null_count:
+        raise UserError(f"source '{source.name}' has {vectors.null_count} rows without values", source.where)
+    if isinstance(vectors, pa.FixedSizeListArray):
+        found = vectors.type.list_size
+        lengths_ok = found == width
+    else:
+        lengths = vectors.value_lengths().to_numpy(zero_copy_only=False)
+        lengths_ok = bool(np.all(lengths == width))
+        found = int(lengths[lengths != width][0]) if not lengths_ok else width
+    if not lengths_ok:
+        raise UserError(
+            f"source '{source.name}' has rows of {found} values but {width} names; names and values must match one to one", source.where
+        )
+    flat = vectors.flatten().to_numpy(zero_copy_only=False).astype(np.float64, copy=False)
+    return flat.reshape(len(vectors), width)
+
+
+def raw_matrix(source: SourcePlan, rows: pa.Array) -> np.ndarray:
+    """Any source's rows (vectors, or rows naming their values) as a (rows x names) matrix; unread names may be NaN."""
+    from .named_rows import is_named_rows, named_matrix
+
+    if is_named_rows(rows):
+        return named_matrix(rows, source, np.empty(0, dtype=np.intp), f"source '{source.name}'")
+    return vector_matrix(source, rows)
+
+
 class JointValueMapper:
     """Turns (rows x source width) matrices into (rows x joints) URDF values for one robot."""
 
@@ -72,22 +101,7 @@ class JointValueMapper:
 
     def matrix(self, vectors: pa.Array) -> np.ndarray:
         """One row per vector; every row must hold exactly one value per source name."""
-        if vectors.null_count:
-            raise UserError(f"source '{self.source.name}' has {vectors.null_count} rows without values", self.source.where)
-        if isinstance(vectors, pa.FixedSizeListArray):
-            lengths_ok = vectors.type.list_size == self.width
-            found = vectors.type.list_size
-        else:
-            lengths = vectors.value_lengths().to_numpy(zero_copy_only=False)
-            lengths_ok = bool(np.all(lengths == self.width))
-            found = int(lengths[lengths != self.width][0]) if not lengths_ok else self.width
-        if not lengths_ok:
-            raise UserError(
-                f"source '{self.source.name}' has rows of {found} values but {self.width} names; names and values must match one to one",
-                self.source.where,
-            )
-        flat = vectors.flatten().to_numpy(zero_copy_only=False).astype(np.float64, copy=False)
-        return flat.reshape(len(vectors), self.width)
+        return vector_matrix(self.source, vectors)
 
     def urdf_values(self, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         """(rows x width) raw values -> ((rows x joints) URDF values, mask of rows to leave out or None).

@@ -7,10 +7,12 @@ config file. A sidecar cannot include another sidecar, so there is no recursion 
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
-from .document import Document, PathKey, load_document
+from .document import Document, PathKey, load_document, parse_document
 from .errors import Problems, UserError, Where
 from .schema import validate_document
 
@@ -45,8 +47,8 @@ def _sidecar_specs(name: str, document: Document, here: PathKey, problems: Probl
         problems.add(f"edges file not found: {path.resolve()} (paths are relative to the config file)", document.where(*here))
         return []
     try:
-        sidecar = load_document(path)
-    except UserError as exc:  # YAML syntax errors and duplicate keys, at the sidecar's line
+        sidecar = _load_json(path) if path.suffix == ".json" else load_document(path)
+    except UserError as exc:  # syntax errors and duplicate keys, at the sidecar's line
         problems.extend(exc)
         return []
     if sidecar.data is None:
@@ -68,3 +70,23 @@ def _sidecar_specs(name: str, document: Document, here: PathKey, problems: Probl
         problems.extend(exc)
         return []
     return [EdgeSpec(item, sidecar, (index,), f"{name}[{index}]") for index, item in enumerate(sidecar.data)]
+
+
+def _load_json(path: Path) -> Document:
+    """JSON read as JSON (YAML 1.1 would read 1e-05 as a string and refuse tab indentation), lines taken from the
+    same text parsed as YAML: the structure is identical, and raw tabs can only be whitespace in valid JSON."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UserError(f"cannot read the edges file: {exc}", Where(path, 0)) from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise UserError(f"JSON syntax error: {exc.msg} (column {exc.colno})", Where(path, exc.lineno)) from None
+    try:
+        lines = parse_document(text.replace("\t", " "), path).lines
+    except UserError as exc:
+        if exc.message.startswith("duplicate key"):
+            raise
+        lines = {}  # valid JSON that PyYAML cannot follow: errors then point at line 1
+    return Document(path, data, lines)

@@ -1,6 +1,7 @@
 """Joint-value sources. Each kind compiles its config (metadata only) and opens a lazy Rerun stream.
 
-A new kind (MCAP, HDF5, RRD, ...) is one module with `compile_source` and `open_stream`, registered in KINDS.
+A kind is one module with `compile_source` (metadata only) and `open_stream` (a lazy SourceStream), registered in
+KINDS under the config key that selects it.
 """
 
 from __future__ import annotations
@@ -12,9 +13,9 @@ from typing import Any
 from ..document import Document
 from ..errors import UserError
 from ..plan import SourcePlan
-from . import lerobot, parquet
+from . import hdf5, lerobot, mcap, parquet, rrd
 
-KINDS: dict[str, ModuleType] = {"parquet": parquet, "lerobot": lerobot}
+KINDS: dict[str, ModuleType] = {"parquet": parquet, "lerobot": lerobot, "mcap": mcap, "hdf5": hdf5, "rrd": rrd}
 
 
 def kind_of(spec: dict[str, Any]) -> str:

@@ -1,0 +1,116 @@
+"""A 2-D HDF5 dataset [rows, values] (e.g. ALOHA's /observations/qpos, both arms in one vector), read with Rerun's Hdf5Reader.
+
+Validation opens the file with h5py and reads metadata only: the dataset's shape and type, the index dataset's.
+At run time every other dataset of the file (camera images, ...) is ignored, so only these two are loaded.
+"""
+
+from __future__ import annotations
+
+import posixpath
+from pathlib import Path
+from typing import Any
+
+from ..document import Document
+from ..errors import UserError
+from ..plan import Hdf5SourcePlan, IndexPlan
+from .parquet import compile_index
+from .stream import SourceStream, index_column
+
+PLAN_TYPE = Hdf5SourcePlan
+
+
+def dataset_path(path: str) -> str:
+    return "/" + path.strip("/")
+
+
+def entity_and_component(dataset: str) -> tuple[str, str]:
+    """Rerun's Hdf5Reader: a group becomes an entity, each of its datasets a component named after the dataset."""
+    group, leaf = posixpath.split(dataset)
+    return group or "/", leaf
+
+
+def _datasets_of_rank(file: Any, rank: int) -> list[str]:
+    import h5py
+
+    found: list[str] = []
+    file.visititems(lambda name, node: found.append("/" + name) if isinstance(node, h5py.Dataset) and node.ndim == rank else None)
+    return found
+
+
+def _listing(paths: list[str]) -> str:
+    return ", ".join(paths[:12]) + (f" and {len(paths) - 12} more" if len(paths) > 12 else "") if paths else "none"
+
+
+def compile_source(name: str, spec: dict[str, Any], document: Document, config_dir: Path) -> Hdf5SourcePlan:
+    import h5py
+
+    from . import resolve_input
+
+    here = ("sources", name)
+    path = resolve_input(document, config_dir, spec["hdf5"], *here, "hdf5")
+    dataset = dataset_path(spec["dataset"])
+    names = tuple(spec["names"])
+    index: IndexPlan | None = None
+    if "index" in spec:
+        parsed = compile_index(spec["index"])
+        index = IndexPlan(dataset_path(parsed.column), parsed.kind, parsed.unit)
+    try:
+        file = h5py.File(path, "r")
+    except OSError as exc:
+        raise UserError(f"cannot open HDF5 file {path}: {exc}", document.where(*here, "hdf5")) from None
+    with file:
+        node = file.get(dataset)
+        if not isinstance(node, h5py.Dataset):
+            raise UserError(
+                f"no dataset '{dataset}' in {path.name}; its 2-D datasets: {_listing(_datasets_of_rank(file, 2))}",
+                document.where(*here, "dataset"),
+            )
+        if node.ndim != 2:
+            raise UserError(
+                f"dataset '{dataset}' has shape {list(node.shape)}; a joint source needs [rows, values] (2-D)", document.where(*here, "dataset")
+            )
+        if node.dtype.kind not in "fiu":
+            raise UserError(f"dataset '{dataset}' holds {node.dtype}, not numbers", document.where(*here, "dataset"))
+        rows, width = node.shape
+        if width != len(names):
+            raise UserError(f"dataset '{dataset}' holds {width} values per row but {len(names)} names are given", document.where(*here, "names"))
+        if rows == 0:
+            raise UserError(f"dataset '{dataset}' has zero rows; nothing would move", document.where(*here, "dataset"))
+        if index is not None:
+            _check_index(file, index, rows, path, document, here)
+    return Hdf5SourcePlan(name, path, dataset, index, rows, names, document.where(*here))
+
+
+def _check_index(file: Any, index: IndexPlan, rows: int, path: Path, document: Document, here: tuple[str, str]) -> None:
+    import h5py
+
+    where = document.where(*here, "index")
+    node = file.get(index.column)
+    if not isinstance(node, h5py.Dataset):
+        raise UserError(f"no index dataset '{index.column}' in {path.name}; its 1-D datasets: {_listing(_datasets_of_rank(file, 1))}", where)
+    if node.ndim != 1:
+        raise UserError(f"index dataset '{index.column}' has shape {list(node.shape)}; an index is 1-D, one value per row", where)
+    if len(node) != rows:
+        raise UserError(f"index dataset '{index.column}' has {len(node)} values but the joint dataset has {rows} rows", where)
+    if index.kind == "sequence" and node.dtype.kind not in "iu":
+        raise UserError(
+            f"index dataset '{index.column}' holds {node.dtype}; a sequence timeline needs integers (use {{timestamp: {index.column}, unit: s}} for times)",
+            where,
+        )
+    if node.dtype.kind not in "fiu":
+        raise UserError(f"index dataset '{index.column}' holds {node.dtype}, not a time", where)
+
+
+def open_stream(plan: Hdf5SourcePlan) -> SourceStream:
+    from rerun.experimental import Hdf5Reader
+
+    reader = Hdf5Reader(plan.path)
+    keep = {plan.dataset} | ({plan.index.column} if plan.index is not None else set())
+    ignored = [info.path for info in reader.datasets() if info.path not in keep]
+    entity, component = entity_and_component(plan.dataset)
+    stream = reader.stream(
+        index_column=index_column(plan.index) if plan.index is not None else None,
+        ignore_datasets=ignored or None,
+        use_structs=False,
+    ).filter(content=entity, is_static=False, components=component)
+    return SourceStream(stream, entity, component, len(plan.names))

@@ -1,0 +1,126 @@
+"""ROS 2 sensor_msgs/msg/JointState messages of one MCAP topic, decoded by Rerun's McapReader (ros2_reflection).
+
+Every message carries its own names, in an order that may change from message to message: values are mapped by
+name, row by row (`urdf_pipeline.named_rows`), never by position. Validation reads the file's summary only (topic,
+schema, message count); when the config gives no `names`, the first message of the topic is read for them.
+"""
+
+from __future__ import annotations
+
+import re
+from functools import partial
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+
+from ..document import Document
+from ..errors import UserError, Where
+from ..named_rows import NAME_FIELD, NAMED_COMPONENT, VALUE_FIELD, named_rows_column
+from ..plan import McapSourcePlan
+from .stream import SourceStream
+
+if TYPE_CHECKING:
+    from rerun.chunk import Chunk, LazyChunkStream
+
+PLAN_TYPE = McapSourcePlan
+JOINT_STATE = "sensor_msgs/msg/JointState"
+MESSAGE_COMPONENT = "sensor_msgs.msg.JointState:message"  # what the ros2_reflection decoder emits per message
+TIMELINES = {"header": "ros2_timestamp", "log_time": "message_log_time", "publish_time": "message_publish_time"}
+ALL_TIMELINES = tuple(TIMELINES.values())
+
+
+def topic_entity(topic: str) -> str:
+    return topic if topic.startswith("/") else f"/{topic}"
+
+
+def _messages(path: Path, topic: str) -> LazyChunkStream:
+    """The topic's messages, one struct per row; nothing else of the file is decoded."""
+    from rerun.chunk import McapReader
+
+    entity = topic_entity(topic)
+    reader = McapReader(path, decoders=["ros2_reflection"], include_topic_regex=[f"^{re.escape(entity)}$"])
+    return reader.stream().filter(content=entity, is_static=False, components=MESSAGE_COMPONENT)
+
+
+def _first_message_names(path: Path, topic: str, where: Where) -> tuple[str, ...]:
+    for chunk in _messages(path, topic):
+        batch = chunk.to_record_batch()
+        messages = batch.column(batch.schema.get_field_index(MESSAGE_COMPONENT)).flatten()
+        if len(messages):
+            names = pc.struct_field(messages, NAME_FIELD)[0].as_py()
+            if not names:
+                raise UserError(f"the first message on '{topic}' names no joints; give the names with names: [...]", where)
+            if len(set(names)) != len(names):
+                raise UserError(f"the first message on '{topic}' names a joint twice: {', '.join(names)}", where)
+            return tuple(names)
+    raise UserError(f"topic '{topic}' has no messages Rerun's MCAP reader can decode; a source with zero rows", where)
+
+
+def compile_source(name: str, spec: dict[str, Any], document: Document, config_dir: Path) -> McapSourcePlan:
+    from rerun.chunk import McapReader
+
+    from . import resolve_input
+
+    here = ("sources", name)
+    path = resolve_input(document, config_dir, spec["mcap"], *here, "mcap")
+    try:
+        info = McapReader(path).info()
+    except (ValueError, OSError, RuntimeError) as exc:
+        raise UserError(f"cannot read MCAP file {path}: {exc}", document.where(*here, "mcap")) from None
+    topic = topic_entity(spec["topic"])
+    channels = [c for c in info.channels if topic_entity(c.topic) == topic]
+    if not channels:
+        joint_topics = sorted({c.topic for c in info.channels if c.schema is not None and c.schema.name == JOINT_STATE})
+        listed = ", ".join(joint_topics) if joint_topics else f"none (topics: {', '.join(sorted({c.topic for c in info.channels})) or 'none'})"
+        raise UserError(f"topic '{spec['topic']}' not in {path.name}; its {JOINT_STATE} topics: {listed}", document.where(*here, "topic"))
+    for channel in channels:
+        schema = channel.schema.name if channel.schema is not None else "no schema"
+        if schema != JOINT_STATE or channel.message_encoding != "cdr":
+            raise UserError(
+                f"topic '{channel.topic}' carries {schema} ({channel.message_encoding}), not ROS 2 {JOINT_STATE} (cdr)",
+                document.where(*here, "topic"),
+            )
+    counts = [channel.message_count for channel in channels]
+    if all(count is not None for count in counts) and sum(counts) == 0:  # type: ignore[arg-type]
+        raise UserError(f"topic '{spec['topic']}' has no messages in {path.name}; a source with zero rows", document.where(*here, "topic"))
+    timeline = TIMELINES[spec.get("timeline", "header")]
+    names = tuple(spec["names"]) if "names" in spec else _first_message_names(path, topic, document.where(*here, "topic"))
+    return McapSourcePlan(name, path, topic, timeline, names, document.where(*here))
+
+
+def _named_rows(plan: McapSourcePlan, chunk: Chunk) -> list[Chunk]:
+    """Keep the plan's timeline only and repack each message as {name, position}; refuse unset header stamps."""
+    from rerun.chunk import Chunk
+
+    batch = chunk.to_record_batch()
+    index = batch.schema.get_field_index(MESSAGE_COMPONENT)
+    if index < 0 or not batch.num_rows:
+        return []
+    if plan.timeline not in batch.schema.names:
+        raise UserError(f"messages on '{plan.topic}' have no {plan.timeline} timeline", plan.where)
+    if plan.timeline == "ros2_timestamp":
+        stamps = batch.column(batch.schema.get_field_index(plan.timeline)).cast(pa.int64()).to_numpy(zero_copy_only=False)
+        zero = int(np.count_nonzero(stamps == 0))
+        if zero:
+            raise UserError(
+                f"{zero} of {len(stamps)} messages on '{plan.topic}' (in one batch) have a zero header stamp, so they would all sit "
+                f"at time 0; set sources.{plan.name}.timeline: log_time to use the time the messages were recorded",
+                plan.where,
+            )
+    messages = batch.column(index)
+    if not pc.all(pc.equal(messages.value_lengths(), 1)).as_py():
+        raise UserError(f"rows on '{plan.topic}' do not hold exactly one message each", plan.where)
+    structs = messages.flatten()
+    column = named_rows_column(pc.struct_field(structs, NAME_FIELD), pc.struct_field(structs, VALUE_FIELD))
+    field = pa.field(NAMED_COMPONENT, column.type, metadata={b"rerun:kind": b"data", b"rerun:component": NAMED_COMPONENT.encode()})
+    batch = batch.set_column(index, field, column)
+    batch = batch.drop_columns([name for name in ALL_TIMELINES if name != plan.timeline and name in batch.schema.names])
+    return Chunk.from_record_batch(batch)
+
+
+def open_stream(plan: McapSourcePlan) -> SourceStream:
+    stream = _messages(plan.path, plan.topic).flat_map(partial(_named_rows, plan))
+    return SourceStream(stream, plan.topic, NAMED_COMPONENT, len(plan.names), named=True)

@@ -1,0 +1,192 @@
+"""Joint values already in a Rerun recording (.rrd): one component of one entity, read with Rerun's RrdReader.
+
+Validation reads the recording's manifest (entities, components, types) and, for names, the entity's static
+`SeriesLines:names` (as Rerun's LeRobot importer writes it). When the names are per row instead (Rerun's MCAP
+importer writes `SeriesLines:names` with every message, in the message's order), values are mapped by name, row by row.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+
+from ..document import Document
+from ..errors import UserError
+from ..named_rows import NAMED_COMPONENT, named_rows_column
+from ..plan import RrdSourcePlan
+from .lerobot import VECTOR_COMPONENT
+from .stream import SourceStream
+
+if TYPE_CHECKING:
+    from rerun.chunk import Chunk, LazyStore
+
+PLAN_TYPE = RrdSourcePlan
+NAMES_COMPONENT = "SeriesLines:names"
+DEFAULT_COMPONENT = "Scalars:scalars"
+
+
+def entity_path(entity: str) -> str:
+    return "/" + entity.strip("/")
+
+
+def _is_number(value_type: pa.DataType) -> bool:
+    return pa.types.is_floating(value_type) or pa.types.is_integer(value_type)
+
+
+def _is_list(value_type: pa.DataType) -> bool:
+    return pa.types.is_list(value_type) or pa.types.is_large_list(value_type) or pa.types.is_fixed_size_list(value_type)
+
+
+def layout_of(column_type: pa.DataType) -> str | None:
+    """'scalars': a row's instances are its values (Scalars); 'vector': one instance per row holding all values."""
+    if not _is_list(column_type):
+        return None
+    instance = column_type.value_type
+    if _is_number(instance):
+        return "scalars"
+    if _is_list(instance) and _is_number(instance.value_type):
+        return "vector"
+    return None
+
+
+def _open_store(path: Path, document: Document, where: tuple[str, ...]) -> LazyStore:
+    from rerun.chunk import RrdReader
+
+    try:
+        return RrdReader(path).store()
+    except (ValueError, OSError, RuntimeError) as exc:
+        raise UserError(f"cannot read recording {path}: {exc}", document.where(*where)) from None
+
+
+def _static_names(store: LazyStore, entity: str) -> tuple[str, ...]:
+    names: tuple[str, ...] = ()
+    for chunk in store.stream().filter(content=entity, is_static=True, components=NAMES_COMPONENT).to_chunks():
+        batch = chunk.to_record_batch()
+        column = batch.column(batch.schema.get_field_index(NAMES_COMPONENT))
+        for row in reversed(range(len(column))):  # a static component's last row is the one in effect
+            if column[row].is_valid:
+                names = tuple(column[row].as_py())
+                break
+    return names
+
+
+def _first_row_names(store: LazyStore, entity: str) -> tuple[str, ...]:
+    for chunk in store.stream().filter(content=entity, is_static=False, components=NAMES_COMPONENT):
+        batch = chunk.to_record_batch()
+        column = batch.column(batch.schema.get_field_index(NAMES_COMPONENT)).drop_null()
+        if len(column):
+            return tuple(column[0].as_py())
+    return ()
+
+
+def compile_source(name: str, spec: dict[str, Any], document: Document, config_dir: Path) -> RrdSourcePlan:
+    from . import resolve_input
+
+    here = ("sources", name)
+    path = resolve_input(document, config_dir, spec["rrd"], *here, "rrd")
+    store = _open_store(path, document, (*here, "rrd"))
+    schema = store.schema()
+    entity = entity_path(spec["entity"])
+    component = spec.get("component", DEFAULT_COMPONENT)
+    if entity not in schema.entity_paths():
+        numeric = sorted({c.entity_path for c in schema.component_columns() if c.component == DEFAULT_COMPONENT})
+        raise UserError(
+            f"entity '{entity}' not in {path.name}; entities with {DEFAULT_COMPONENT}: {', '.join(numeric) or 'none'}",
+            document.where(*here, "entity"),
+        )
+    column = schema.column_for(entity, component)
+    if column is None:
+        present = sorted(c.component for c in schema.columns_for(entity_path=entity))
+        raise UserError(f"entity '{entity}' has no component '{component}'; it has: {', '.join(present)}", document.where(*here, "component"))
+    if column.is_static:
+        raise UserError(f"'{entity}' {component} is static: it has no rows over time", document.where(*here, "component"))
+    column_type = schema.to_arrow().field(column.name).type
+    layout = layout_of(column_type)
+    if layout is None:
+        raise UserError(
+            f"'{entity}' {component} is {column_type}: neither numbers per row (like Scalars) nor one list of numbers per row",
+            document.where(*here, "component"),
+        )
+    names_column = schema.column_for(entity, NAMES_COMPONENT) if component != NAMES_COMPONENT else None
+    named_rows = names_column is not None and not names_column.is_static
+    if named_rows and layout != "scalars":
+        raise UserError(
+            f"'{entity}' has per-row {NAMES_COMPONENT} but {component} holds one list per row; per-row names need one value per instance",
+            document.where(*here, "component"),
+        )
+    given = tuple(spec["names"]) if "names" in spec else None
+    recorded = _static_names(store, entity) if names_column is not None and names_column.is_static else ()
+    if given is not None and recorded and given != recorded:
+        raise UserError(
+            f"names differ from the {NAMES_COMPONENT} recorded on '{entity}' ({', '.join(recorded)}); remove names: or make them equal",
+            document.where(*here, "names"),
+        )
+    names = given or recorded or (_first_row_names(store, entity) if named_rows else ())
+    if not names:
+        raise UserError(f"'{entity}' carries no {NAMES_COMPONENT}; give the names with names: [...]", document.where(*here))
+    if len(set(names)) != len(names):
+        raise UserError(f"the names recorded on '{entity}' name a value twice: {', '.join(names)}", document.where(*here))
+    return RrdSourcePlan(name, path, entity, component, named_rows, names, document.where(*here))
+
+
+def _component_field(name: str, column: pa.Array) -> pa.Field:
+    return pa.field(name, column.type, metadata={b"rerun:kind": b"data", b"rerun:component": name.encode()})
+
+
+def _one_instance_per_row(plan: RrdSourcePlan, chunk: Chunk) -> list[Chunk]:
+    """Repack the rows that hold values: a vector per row, or {name, position} per row when the names are per row."""
+    from rerun.chunk import Chunk
+
+    batch = chunk.to_record_batch()
+    index = batch.schema.get_field_index(plan.component)
+    if index < 0:
+        return []
+    holds_values = batch.column(index).is_valid()
+    if not pc.all(holds_values).as_py():  # rows of other components in the same chunk
+        batch = batch.filter(holds_values)
+    if not batch.num_rows:
+        return []
+    values = batch.column(index)
+    if plan.named_rows:
+        names_index = batch.schema.get_field_index(NAMES_COMPONENT)
+        names = batch.column(names_index) if names_index >= 0 else pa.nulls(batch.num_rows, pa.list_(pa.string()))
+        if names.null_count:
+            raise UserError(
+                f"'{plan.entity}' has {names.null_count} rows of {plan.component} without {NAMES_COMPONENT} (in one batch); "
+                "rows with per-row names must all carry them",
+                plan.where,
+            )
+        column, component = named_rows_column(names, values), NAMED_COMPONENT
+        batch = batch.set_column(index, _component_field(component, column), column).remove_column(names_index)
+    elif layout_of(values.type) == "scalars":
+        column = pa.ListArray.from_arrays(pa.array(np.arange(len(values) + 1, dtype=np.int32)), values)
+        batch = batch.set_column(index, _component_field(VECTOR_COMPONENT, column), column)
+    else:
+        counts = values.value_lengths().to_numpy(zero_copy_only=False)
+        if np.any(counts != 1):
+            raise UserError(
+                f"'{plan.entity}' {plan.component} has rows of {int(counts[counts != 1][0])} lists; one list of values per row is needed",
+                plan.where,
+            )
+        batch = batch.set_column(index, _component_field(VECTOR_COMPONENT, values), values)
+    return Chunk.from_record_batch(batch)
+
+
+def open_stream(plan: RrdSourcePlan) -> SourceStream:
+    from rerun.chunk import RrdReader
+
+    components = [plan.component, NAMES_COMPONENT] if plan.named_rows else plan.component
+    stream = (
+        RrdReader(plan.path)
+        .store()
+        .stream()
+        .filter(content=plan.entity, is_static=False, components=components)
+        .flat_map(partial(_one_instance_per_row, plan))
+    )
+    component = NAMED_COMPONENT if plan.named_rows else VECTOR_COMPONENT
+    return SourceStream(stream, plan.entity, component, len(plan.names), named=plan.named_rows)
