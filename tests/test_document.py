@@ -30,3 +30,8 @@ def test_duplicate_keys_are_refused_instead_of_silently_overwritten() -> None:
 
 def test_format_path() -> None:
     assert format_path(("edges", 0, "child")) == "edges[0].child"
+
+
+def test_scientific_notation_is_a_number_as_in_json() -> None:
+    doc = parse_document("t: [1e-3, -2E+4, 1, 0.5, 1e3x]\n", Path("f.yaml"))
+    assert doc.data == {"t": [0.001, -20000.0, 1, 0.5, "1e3x"]}

@@ -25,6 +25,8 @@ import pytest
 from urdf_pipeline.examples import panda_raw_values, write_joint_parquet
 from urdf_pipeline.urdf_model import read_urdf
 
+from .source_inputs import write_source_inputs
+
 CASES_DIR = Path(__file__).resolve().parent / "configs" / "invalid"
 ERROR_LINE = re.compile(r"^error: .+:\d+: ")
 FRAMES = 300
@@ -128,6 +130,8 @@ def invalid_dir(examples_dir: Path) -> Path:
     nan = panda_raw_values(FRAMES, panda)
     nan[50:53, 3] = np.nan
     write_joint_parquet(data / "nan_values.parquet", nan)
+    # MCAP, HDF5 and RRD inputs of the mcap_*, hdf5_* and rrd_* cases.
+    write_source_inputs(data, panda_raw_values(FRAMES, panda))
 
     text = panda_urdf.read_text(encoding="utf-8")
     original = "package://example-robot-data/robots/panda_description/meshes/visual/link3.dae"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -46,6 +47,17 @@ class Document:
         return node
 
 
+class _Loader(yaml.SafeLoader):
+    """YAML 1.1 as PyYAML reads it, except that 1e-3 is a number (as in YAML 1.2 and JSON), not the string '1e-3'."""
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+    list("-+0123456789"),
+)
+
+
 def load_document(file: Path) -> Document:
     """Read and parse a YAML (or JSON) file; syntax errors and duplicate keys are user errors with a line."""
     try:
@@ -58,7 +70,7 @@ def load_document(file: Path) -> Document:
 
 
 def parse_document(text: str, file: Path) -> Document:
-    loader = yaml.SafeLoader(text)
+    loader = _Loader(text)
     try:
         root = loader.get_single_node()
     except yaml.MarkedYAMLError as exc:
@@ -71,7 +83,7 @@ def parse_document(text: str, file: Path) -> Document:
     if root is None:
         return Document(file, None, {})
     lines: dict[PathKey, int] = {(): root.start_mark.line + 1}
-    data = _convert(root, (), lines, file, yaml.SafeLoader(""))
+    data = _convert(root, (), lines, file, _Loader(""))
     return Document(file, data, lines)
 
 

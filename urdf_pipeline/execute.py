@@ -43,13 +43,14 @@ def execute(plan: Plan) -> RunResult:
         for robot in plan.robots:
             streams.append(model_stream(robot, trees[robot.key]))
         for source in plan.sources:
-            opened = module_for(source).open_stream(source)
             driven = []
             for robot in plan.robots_for(source.name):
                 mapper = JointValueMapper(robot, source)
                 mappers.append(mapper)
-                driven.append((robot.key, robot.fk_entity, JointTransformBatches(mapper, trees[robot.key], RowProgress(f"robot {robot.key}"))))
-            streams.append(fk_stream(opened, driven, errors))
+                batches = JointTransformBatches(mapper, trees[robot.key], RowProgress(f"robot {robot.key}"))
+                driven.append((robot.key, robot.fk_entity, batches))
+            if driven:  # a source used only by temporal edges is read there
+                streams.append(fk_stream(module_for(source).open_stream(source), driven, errors))
         streams.append(edges_stream(plan.edges))
         streams.append(provenance_stream(plan))
         # Temporal edges (a mobile base, a floating pelvis): their sources are opened again, see temporal_edges.py.

@@ -91,7 +91,7 @@ def named_matrix(rows: pa.Array, source: SourcePlan, required: Sequence[int] | n
         described = ", ".join(f"'{name}' from {n}" for name, n in lacking)
         raise UserError(
             f"{label} rows lack names that {consumer} maps: {described} of {count} rows in one batch; "
-            f"every row must carry each mapped name (ignore a name in joints.ignore if it is not needed)",
+            f"every row must carry each mapped name (for a joint the data lacks, use joints.hold instead of mapping it)",
             source.where,
         )
     matrix = np.full((count, width), np.nan)

@@ -67,13 +67,16 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
             )
         if node.ndim != 2:
             raise UserError(
-                f"dataset '{dataset}' has shape {list(node.shape)}; a joint source needs [rows, values] (2-D)", document.where(*here, "dataset")
+                f"dataset '{dataset}' has shape {list(node.shape)}; a joint source needs [rows, values] (2-D)",
+                document.where(*here, "dataset"),
             )
         if node.dtype.kind not in "fiu":
             raise UserError(f"dataset '{dataset}' holds {node.dtype}, not numbers", document.where(*here, "dataset"))
         rows, width = node.shape
         if width != len(names):
-            raise UserError(f"dataset '{dataset}' holds {width} values per row but {len(names)} names are given", document.where(*here, "names"))
+            raise UserError(
+                f"dataset '{dataset}' holds {width} values per row but {len(names)} names are given", document.where(*here, "names")
+            )
         if rows == 0:
             raise UserError(f"dataset '{dataset}' has zero rows; nothing would move", document.where(*here, "dataset"))
         if index is not None:
@@ -87,7 +90,9 @@ def _check_index(file: Any, index: IndexPlan, rows: int, path: Path, document: D
     where = document.where(*here, "index")
     node = file.get(index.column)
     if not isinstance(node, h5py.Dataset):
-        raise UserError(f"no index dataset '{index.column}' in {path.name}; its 1-D datasets: {_listing(_datasets_of_rank(file, 1))}", where)
+        raise UserError(
+            f"no index dataset '{index.column}' in {path.name}; its 1-D datasets: {_listing(_datasets_of_rank(file, 1))}", where
+        )
     if node.ndim != 1:
         raise UserError(f"index dataset '{index.column}' has shape {list(node.shape)}; an index is 1-D, one value per row", where)
     if len(node) != rows:

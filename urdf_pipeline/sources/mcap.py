@@ -74,7 +74,9 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
     channels = [c for c in info.channels if topic_entity(c.topic) == topic]
     if not channels:
         joint_topics = sorted({c.topic for c in info.channels if c.schema is not None and c.schema.name == JOINT_STATE})
-        listed = ", ".join(joint_topics) if joint_topics else f"none (topics: {', '.join(sorted({c.topic for c in info.channels})) or 'none'})"
+        listed = (
+            ", ".join(joint_topics) if joint_topics else f"none (topics: {', '.join(sorted({c.topic for c in info.channels})) or 'none'})"
+        )
         raise UserError(f"topic '{spec['topic']}' not in {path.name}; its {JOINT_STATE} topics: {listed}", document.where(*here, "topic"))
     for channel in channels:
         schema = channel.schema.name if channel.schema is not None else "no schema"
@@ -106,8 +108,8 @@ def _named_rows(plan: McapSourcePlan, chunk: Chunk) -> list[Chunk]:
         zero = int(np.count_nonzero(stamps == 0))
         if zero:
             raise UserError(
-                f"{zero} of {len(stamps)} messages on '{plan.topic}' (in one batch) have a zero header stamp, so they would all sit "
-                f"at time 0; set sources.{plan.name}.timeline: log_time to use the time the messages were recorded",
+                f"messages on '{plan.topic}' have a zero header stamp ({zero} of {len(stamps)} rows in one batch), so they would all "
+                f"sit at time 0; set sources.{plan.name}.timeline: log_time to use the time the messages were recorded",
                 plan.where,
             )
     messages = batch.column(index)

@@ -102,7 +102,9 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
     column = schema.column_for(entity, component)
     if column is None:
         present = sorted(c.component for c in schema.columns_for(entity_path=entity))
-        raise UserError(f"entity '{entity}' has no component '{component}'; it has: {', '.join(present)}", document.where(*here, "component"))
+        raise UserError(
+            f"entity '{entity}' has no component '{component}'; it has: {', '.join(present)}", document.where(*here, "component")
+        )
     if column.is_static:
         raise UserError(f"'{entity}' {component} is static: it has no rows over time", document.where(*here, "component"))
     column_type = schema.to_arrow().field(column.name).type

@@ -1,0 +1,30 @@
+"""Inputs of the MCAP / HDF5 / RRD cases in tests/configs/invalid/ (made by test_invalid_configs.py's fixture)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from urdf_pipeline.examples import PANDA_NAMES
+
+from .test_sources_hdf5 import write_aloha_episode
+from .test_sources_mcap import write_joint_states
+from .test_sources_rrd import write_state_rrd
+
+
+def write_source_inputs(data: Path, raw: np.ndarray) -> None:
+    """`raw`: Panda values in the contract config's units, one column per PANDA_NAMES (j1..j7, finger)."""
+    rng = np.random.default_rng(7)
+    messages = []
+    for row, values in enumerate(raw):
+        order = rng.permutation(len(PANDA_NAMES))
+        names, positions = [PANDA_NAMES[i] for i in order], [float(values[i]) for i in order]
+        if 100 <= row < 110:  # these ten messages lack j4
+            keep = [i for i, name in enumerate(names) if name != "j4"]
+            names, positions = [names[i] for i in keep], [positions[i] for i in keep]
+        messages.append((names, positions))
+    write_joint_states(data / "lacking_j4.mcap", messages)
+    write_joint_states(data / "unstamped.mcap", messages[:20], stamps_ns=[0] * 20)
+    write_aloha_episode(data / "aloha_26.hdf5", np.concatenate([raw, np.zeros((len(raw), 18))], axis=1))
+    write_state_rrd(data / "named_state.rrd", raw, PANDA_NAMES)
