@@ -66,6 +66,8 @@ def read_frames(path: Path, timeline: str) -> RecordedFrames:
         batch = chunk.to_record_batch()
         if "Transform3D:child_frame" not in batch.schema.names:
             continue
+        if not chunk.is_static and timeline not in batch.schema.names:
+            continue  # on another timeline (e.g. an arm by frame_index beside a base by message time)
         if timeline in batch.schema.names and pa.types.is_timestamp(batch.schema.field(timeline).type):
             # Nanosecond timestamps as integers: no pandas needed to read them back.
             index = batch.schema.get_field_index(timeline)

@@ -187,3 +187,27 @@ def test_plan_shows_the_temporal_edge(examples_dir: Path, run_cli) -> None:
         "temporal edge world -> panda_link0 on /calibration/temporal/panda_link0 (edges[0], line " in result.out
         and "per row of source 'base_pose', translation [x[1], y[3], z[5]], quaternion_xyzw [qx[2], qy[4], qz[6], qw[0]]" in result.out
     )
+
+
+def test_temporal_edge_from_mcap_maps_pose_values_by_name(examples_dir: Path, run_cli) -> None:
+    """Pose values arriving as JointState messages in a changing name order are picked by name, not position."""
+    from .test_sources_mcap import write_joint_states
+
+    reference = PinocchioRobot(examples_dir / "robots" / "panda.urdf")
+    joints, q = random_panda_parquet(examples_dir, "temporal_mcap_arm", reference, frames=12, seed=41)
+    poses = random_poses(12, seed=42)
+    rng = np.random.default_rng(43)
+    messages = []
+    for row in poses:
+        order = rng.permutation(len(POSE_NAMES))
+        messages.append(([POSE_NAMES[i] for i in order], [float(row[i]) for i in order]))
+    write_joint_states(examples_dir / "data" / "temporal_base.mcap", messages)
+    data = panda_config(examples_dir, "temporal_mcap", joints, [TEMPORAL_EDGE])
+    data["sources"]["base_pose"] = {"mcap": "data/temporal_base.mcap", "topic": "/joint_states", "names": POSE_NAMES}
+    result = run_cli("run", str(write_config(examples_dir, "temporal_mcap", data)))
+    assert result.code == 0, result.err
+    frames = read_frames(Path(result.out.strip()), "ros2_timestamp")
+    times = sorted(frames.temporal["panda_link0"])
+    assert len(times) == 12
+    for index in (0, 5, 11):
+        assert_poses_match(frames.world_pose("panda_link0", times[index], "world"), expected_pose(poses[index]), f"base at {index}")

@@ -9,8 +9,7 @@ import numpy as np
 import pyarrow as pa
 
 from .callbacks import CallbackErrors
-from .joint_values import JointValueMapper
-from .named_rows import is_named_rows, named_matrix
+from .joint_values import JointValueMapper, raw_matrix
 from .progress import RowProgress
 
 if TYPE_CHECKING:
@@ -41,10 +40,8 @@ class JointTransformBatches:
         return pa.ListArray.from_arrays(offsets, values)
 
     def __call__(self, vectors: pa.Array) -> pa.Array:
-        if is_named_rows(vectors):  # rows that name their values (MCAP JointState): mapped by name, row by row
-            raw = named_matrix(vectors, self.mapper.source, self.mapper.columns, f"robot '{self.mapper.robot.key}'")
-        else:
-            raw = self.mapper.matrix(vectors)
+        # Rows that name their values (MCAP JointState) are mapped by name, row by row; vectors by position.
+        raw = raw_matrix(self.mapper.source, vectors, self.mapper.columns, f"robot '{self.mapper.robot.key}'")
         values, left_out = self.mapper.urdf_values(raw)
         rows, count = values.shape
         # Fresh float64 arrays per call: zero-copy slices of one big array make Rerun's FK quadratic.

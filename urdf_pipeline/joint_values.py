@@ -58,12 +58,17 @@ def vector_matrix(source: SourcePlan, vectors: pa.Array) -> np.ndarray:
     return flat.reshape(len(vectors), width)
 
 
-def raw_matrix(source: SourcePlan, rows: pa.Array) -> np.ndarray:
-    """Any source's rows (vectors, or rows naming their values) as a (rows x names) matrix; unread names may be NaN."""
+def raw_matrix(source: SourcePlan, rows: pa.Array, required: np.ndarray | None = None, consumer: str = "") -> np.ndarray:
+    """Any source's rows as a (rows x names) matrix: vectors, or rows that name their values (mapped by name).
+
+    For named rows, `required` are the name positions the consumer reads (a row lacking one is an error);
+    names nobody reads may be absent and stay NaN.
+    """
     from .named_rows import is_named_rows, named_matrix
 
     if is_named_rows(rows):
-        return named_matrix(rows, source, np.empty(0, dtype=np.intp), f"source '{source.name}'")
+        needed = np.empty(0, dtype=np.intp) if required is None else required
+        return named_matrix(rows, source, needed, consumer or f"source '{source.name}'")
     return vector_matrix(source, rows)
 
 

@@ -78,9 +78,16 @@ def _explain(error: ValidationError) -> tuple[tuple[str | int, ...], str]:
 
 
 def _branches_of_the_right_type(error: ValidationError) -> list[ValidationError]:
-    """Errors from the oneOf branches whose type fits the instance: a mapping is judged by the mapping branch."""
-    wrong_type = {e.relative_schema_path[0] for e in error.context if e.validator == "type" and not e.relative_path}
-    fitting = [e for e in error.context if e.relative_schema_path[0] not in wrong_type]
+    """Errors from the oneOf branches the instance was meant for: a mapping is judged by a mapping branch, and among
+    those by the branch whose required keys it has ({timestamp: t, unit: h} by the timestamp form, not the sequence form)."""
+
+    def penalty(branch: object) -> int:
+        root = [e for e in error.context if e.relative_schema_path[0] == branch and not e.relative_path]
+        return 2 if any(e.validator == "type" for e in root) else 1 if any(e.validator == "required" for e in root) else 0
+
+    branches = {e.relative_schema_path[0] for e in error.context}
+    best = min((penalty(b) for b in branches), default=0)
+    fitting = [e for e in error.context if penalty(e.relative_schema_path[0]) == best]
     return fitting or list(error.context)
 
 

@@ -19,7 +19,8 @@ import numpy as np
 import pyarrow as pa
 
 from .callbacks import CallbackErrors
-from .errors import Problems, UserError
+from .errors import Problems
+from .joint_values import raw_matrix
 from .plan import Plan, SourcePlan, TemporalEdgePlan
 from .sidecar_edges import EdgeSpec
 
@@ -126,25 +127,8 @@ class TemporalEdgeValues:
         self.stats = TemporalEdgeStats()
         self._lock = threading.Lock()
 
-    def _matrix(self, vectors: pa.Array) -> np.ndarray:
-        if vectors.null_count:
-            raise UserError(f"source '{self.source.name}' has {vectors.null_count} rows without values", self.source.where)
-        if isinstance(vectors, pa.FixedSizeListArray):
-            found = vectors.type.list_size
-        else:
-            lengths = vectors.value_lengths().to_numpy(zero_copy_only=False)
-            wrong = lengths[lengths != self.width]
-            found = int(wrong[0]) if len(wrong) else self.width
-        if found != self.width:
-            raise UserError(
-                f"source '{self.source.name}' has rows of {found} values but {self.width} names; names and values must match one to one",
-                self.source.where,
-            )
-        flat = vectors.flatten().to_numpy(zero_copy_only=False).astype(np.float64, copy=False)
-        return flat.reshape(len(vectors), self.width)
-
     def __call__(self, vectors: pa.Array) -> pa.Array:
-        picked = self._matrix(vectors)[:, self.columns]
+        picked = raw_matrix(self.source, vectors, self.columns, f"temporal edge {self.edge.parent} -> {self.edge.child}")[:, self.columns]
         rows = len(picked)
         finite = np.isfinite(picked)
         bad_rows = ~finite.all(axis=1)
