@@ -86,3 +86,14 @@ def test_cli_json_and_exit_status(examples_dir: Path, run_cli, tmp_path: Path) -
 def test_current_correction_is_marked() -> None:
     r = report(replace(revolute(-166, 166), sign=-1.0), np.linspace(-30, 30, 10))
     assert "negate (the config's)" in r.fitting
+
+
+def test_source_range_values_are_checked_against_the_range() -> None:
+    channel = replace(
+        JointChannel("finger", "g", 0, "source units", 1.0, 1.0, 0.0, 0.021, 0.057, 0.0, HERE),
+        source_range=(0.0, 1.0),
+        target_range=(0.021, 0.057),
+    )
+    assert report(channel, [0.1, 0.9]).verdict == "fits"
+    outside = report(channel, [0.1, 1.5])
+    assert outside.verdict == "none" and not outside.current_fits and "source_range" in outside.message

@@ -149,6 +149,15 @@ def check_channel(robot: RobotPlan, channel: JointChannel, raw: np.ndarray) -> J
         excess = np.maximum(lower - current, current - upper)
         report.slack_rows = int(outside.sum())
         report.slack_worst = float(finite[np.argmax(excess)])
+    if channel.source_range is not None:  # the config maps the range itself: only the fit is to check
+        report.limits_in_source_unit = (min(channel.source_range), max(channel.source_range))
+        report.verdict = "fits" if report.current_fits else "none"
+        report.message = (
+            "source_range maps the values onto the joint's range"
+            if report.current_fits
+            else f"values leave source_range {list(channel.source_range)}: the range (or the column) is wrong"
+        )
+        return report
     kept: list[tuple[Candidate, np.ndarray]] = []
     for candidate in _candidates(channel):
         values = _values(channel, finite, candidate)

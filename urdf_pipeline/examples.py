@@ -113,6 +113,46 @@ def write_lerobot_dataset(root: Path, values: np.ndarray, names: list[str], fps:
     (root / "meta" / "tasks.jsonl").write_text(json.dumps({"task_index": 0, "task": "wave"}) + "\n")
 
 
+VX300S_ARM = ["waist", "shoulder", "elbow", "forearm_roll", "wrist_angle", "wrist_rotate"]
+VX300S_LIMITS = [(-3.14, 3.14), (-1.85, 1.76), (-1.6, 1.76), (-3.14, 3.14), (-2.26, 1.86), (-3.14, 3.14)]
+
+
+def aloha_qpos(frames: int, seed: int = 4) -> np.ndarray:
+    """ALOHA's /observations/qpos: per arm six joint angles (rad) then the gripper normalised to 0..1; left arm first."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(frames)[:, None] / 50.0
+    lower, upper = np.array(VX300S_LIMITS).T
+
+    def arm() -> np.ndarray:
+        middle, half = (lower + upper) / 2, (upper - lower) / 2 * 0.5
+        angles = middle + half * np.sin(2 * math.pi * rng.uniform(0.1, 0.4, 6) * t + rng.uniform(0, 2 * math.pi, 6))
+        gripper = 0.5 + 0.45 * np.sin(2 * math.pi * 0.3 * t + rng.uniform(0, 2 * math.pi))
+        return np.concatenate([angles, gripper], axis=1)
+
+    return np.concatenate([arm(), arm()], axis=1)
+
+
+def write_aloha_episode(path: Path, qpos: np.ndarray) -> None:
+    """An ALOHA-layout episode: /observations/qpos and /observations/qvel [N, 14], /action [N, 14]."""
+    import h5py
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with h5py.File(path, "w") as file:
+        file.attrs["sim"] = False
+        file.create_dataset("/observations/qpos", data=qpos)
+        file.create_dataset("/observations/qvel", data=np.gradient(qpos, axis=0) * 50.0)
+        file.create_dataset("/action", data=qpos)
+
+
+def _rtb_xacro() -> Path | None:
+    """The rtb-data package's xacro descriptions (Trossen/Interbotix arms), when installed."""
+    try:
+        import rtbdata
+    except ImportError:
+        return None
+    return Path(rtbdata.__file__).parent / "xacro"
+
+
 def _link(link: Path, target: Path) -> None:
     if link.is_symlink() or link.exists():
         if link.is_symlink() and link.resolve() == target.resolve():
@@ -133,6 +173,10 @@ def prepare(directory: Path, frames: int = 900) -> None:
     write_joint_parquet(directory / "data" / "episode_000.parquet", panda_raw_values(frames, panda))
     left, right = panda_raw_values(frames, panda, seed=1), panda_raw_values(frames, panda, seed=2)
     write_joint_parquet(directory / "data" / "bimanual_000.parquet", np.concatenate([left, right], axis=1))
+    rtb = _rtb_xacro()
+    if rtb is not None:
+        _link(robots / "rtbdata", rtb)
+    write_aloha_episode(directory / "data" / "aloha_episode_0.hdf5", aloha_qpos(frames))
     _, so101 = read_urdf(share / "robots" / "so_arm_description" / "urdf" / "so101.urdf")
     write_lerobot_dataset(
         directory / "data" / "so101_lerobot", np.degrees(smooth_trajectory(so101, SO101_NAMES, frames, seed=3)), SO101_NAMES

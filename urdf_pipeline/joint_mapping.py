@@ -86,7 +86,7 @@ def compile_joints(
             covered[joint_name] = "hold"
             holds.append(HeldJoint(joint_name, float(value)))
 
-    ignored = joints_spec.get("ignore", [])
+    ignored = [str(name) for name in joints_spec.get("ignore", [])]  # 7 and "7": a value named by its index
     for index, name in enumerate(ignored):
         where = document.where(*here, "ignore", index)
         if name not in names:

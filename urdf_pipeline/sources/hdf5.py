@@ -49,7 +49,7 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
     here = ("sources", name)
     path = resolve_input(document, config_dir, spec["hdf5"], *here, "hdf5")
     dataset = dataset_path(spec["dataset"])
-    names = tuple(spec["names"])
+    names: tuple[str, ...] | None = tuple(spec["names"]) if "names" in spec else None
     index: IndexPlan | None = None
     if "index" in spec:
         parsed = compile_index(spec["index"])
@@ -73,6 +73,8 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
         if node.dtype.kind not in "fiu":
             raise UserError(f"dataset '{dataset}' holds {node.dtype}, not numbers", document.where(*here, "dataset"))
         rows, width = node.shape
+        if names is None:  # no names: the values are mapped by their index, 0 .. width - 1
+            names = tuple(str(i) for i in range(width))
         if width != len(names):
             raise UserError(
                 f"dataset '{dataset}' holds {width} values per row but {len(names)} names are given", document.where(*here, "names")
