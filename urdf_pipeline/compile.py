@@ -2,25 +2,19 @@
 
 from __future__ import annotations
 
-import difflib
-import math
 import string
-import sys
 from pathlib import Path
 from typing import Any
 
 from .document import Document, load_document
+from .edges_compile import UrdfModels, assumed_identity_edges, compile_edges, frame_edges, urdf_frames
 from .errors import Problems, UserError
-from .fixed_chain import NoFixedChain, compose_chain, find_fixed_chain
-from .frame_graph import FrameEdge, check_assume_identity, check_frame_graph
-from .geometry import normalized_quaternion, quaternion_from_rpy
-from .plan import EdgePlan, FixedChain, OutputPlan, Plan, RobotPlan, SourcePlan, TemporalEdgePlan
+from .frame_graph import check_frame_graph
+from .plan import OutputPlan, Plan, RobotPlan, SourcePlan
 from .robots import compile_robot
 from .schema import require_schema_valid
-from .sidecar_edges import EdgeSpec, expand_edge_specs
+from .sidecar_edges import expand_edge_specs
 from .sources import compile_source
-from .temporal_edges import compile_temporal_edge
-from .urdf_model import UrdfModel, UrdfParseError, parse_urdf_text
 
 
 def compile_config(config_path: Path) -> Plan:
@@ -60,15 +54,15 @@ def compile_document(document: Document) -> Plan:
     prefixes_unique = _check_unique_prefixes(data, document, problems)
     # Frame names can be traced to robots only when every robot compiled and their frame prefixes differ.
     frames_known = prefixes_unique and len(robots) == len(data["robots"])
-    models = _UrdfModels()
-    edges, temporal, broken = _compile_edges(edge_specs, robots if frames_known else None, models, sources, set(data["sources"]), problems)
+    models = UrdfModels()
+    edges, temporal, broken = compile_edges(edge_specs, robots if frames_known else None, models, sources, set(data["sources"]), problems)
     root = _root_frame(data, robots, document, problems)
     if root is not None and frames_known:
-        graph = _frame_edges(robots, edges, temporal, models, broken)
-        identity = _assumed_identity_edges(data, document, robots, graph, root, problems)
+        graph = frame_edges(robots, edges, temporal, models, broken)
+        identity = assumed_identity_edges(data, document, robots, graph, root, problems)
         edges += identity
-        graph += _frame_edges([], identity, [], models)
-        check_frame_graph(graph, _urdf_frames(robots), root, document.where("frames", "root"), problems)
+        graph += frame_edges([], identity, [], models)
+        check_frame_graph(graph, urdf_frames(robots), root, document.where("frames", "root"), problems)
     output = _compile_output(data["output"], document, problems)
     problems.raise_if_any()
     assert root is not None and output is not None
@@ -97,147 +91,6 @@ def _check_unique_prefixes(data: dict[str, Any], document: Document, problems: P
     return len(problems.errors) == before
 
 
-class _UrdfModels:
-    """Each robot's URDF parsed once, and only when an edge needs its joint types or origins."""
-
-    def __init__(self) -> None:
-        self._models: dict[str, UrdfModel | None] = {}
-
-    def get(self, robot: RobotPlan) -> UrdfModel | None:
-        if robot.key not in self._models:
-            try:
-                self._models[robot.key] = parse_urdf_text(robot.urdf_text, str(robot.urdf_path))
-            except UrdfParseError:  # compile_robot parsed this text already; it cannot fail here
-                self._models[robot.key] = None
-        return self._models[robot.key]
-
-
-def _compile_edges(
-    specs: list[EdgeSpec],
-    robots: list[RobotPlan] | None,
-    models: _UrdfModels,
-    sources: dict[str, SourcePlan],
-    defined_sources: set[str],
-    problems: Problems,
-) -> tuple[list[EdgePlan], list[TemporalEdgePlan], list[EdgeSpec]]:
-    """Static and fixed_chain edges (logged on /calibration), temporal edges, and the edges that failed (reported; they
-    still count in the frame graph so one mistake is one error). `robots` is None when frame names cannot be traced to
-    robots (a robot failed, or prefixes collide): fixed chains are then skipped, already in error."""
-    edges: list[EdgePlan] = []
-    temporal: list[TemporalEdgePlan] = []
-    broken: list[EdgeSpec] = []
-    taken_entities: set[str] = set()
-    for edge in specs:
-        spec = edge.spec
-        if "source" in spec:
-            compiled = compile_temporal_edge(edge, sources, defined_sources, taken_entities, problems)
-            if compiled is not None:
-                temporal.append(compiled)
-            else:
-                broken.append(edge)
-            continue
-        if "fixed_chain" in spec:
-            chained = _fixed_chain_edge(edge, robots, models, problems) if robots is not None else None
-            if chained is not None:
-                edges.append(chained)
-            else:
-                broken.append(edge)
-            continue
-        nonfinite = [key for key in ("translation", "quaternion_xyzw", "rpy", "rpy_deg") if not all(map(math.isfinite, spec.get(key, ())))]
-        if nonfinite:  # YAML .nan / .inf, JSON NaN / Infinity
-            for key in nonfinite:
-                problems.add(f"{key} holds a NaN or infinite value", edge.where(key))
-            broken.append(edge)
-            continue
-        if "quaternion_xyzw" in spec:
-            quaternion = normalized_quaternion(tuple(spec["quaternion_xyzw"]))
-            if quaternion is None:
-                problems.add("quaternion_xyzw is zero; write [0, 0, 0, 1] for no rotation", edge.where("quaternion_xyzw"))
-                broken.append(edge)
-                continue
-        else:
-            rpy = spec["rpy"] if "rpy" in spec else [math.radians(v) for v in spec["rpy_deg"]]
-            quaternion = quaternion_from_rpy(*rpy)
-        translation = tuple(float(v) for v in spec["translation"])
-        edges.append(EdgePlan(spec["parent"], spec["child"], translation, quaternion, edge.where(), label=edge.label))  # type: ignore[arg-type]
-    return edges, temporal, broken
-
-
-def _owner(frame: str, robots: list[RobotPlan]) -> RobotPlan | None:
-    """The robot whose URDF emits `frame` (a link name with its frame_prefix applied)."""
-    for robot in robots:
-        if frame.startswith(robot.frame_prefix) and frame[len(robot.frame_prefix) :] in robot.links:
-            return robot
-    return None
-
-
-def _fixed_chain_edge(edge: EdgeSpec, robots: list[RobotPlan], models: _UrdfModels, problems: Problems) -> EdgePlan | None:
-    spec = edge.spec
-    start, end = spec["fixed_chain"]["from"], spec["fixed_chain"]["to"]
-    all_links = sorted(robot.frame_prefix + link for robot in robots for link in robot.links)
-    owners = {}
-    for key in ("from", "to"):
-        frame = spec["fixed_chain"][key]
-        owners[key] = _owner(frame, robots)
-        if owners[key] is None:
-            close = difflib.get_close_matches(frame, all_links, n=1, cutoff=0.6)
-            hint = f" (did you mean '{close[0]}'?)" if close else ""
-            problems.add(f"fixed_chain.{key} '{frame}' is a link of no URDF{hint}", edge.where("fixed_chain", key))
-    robot, other = owners["from"], owners["to"]
-    if robot is None or other is None:
-        return None
-    prefix = robot.frame_prefix
-    if other is not robot:
-        problems.add(
-            f"no fixed chain from {start} to {end}; stuck at {start}: '{end}' is a link of robot '{other.key}', "
-            f"'{start}' of robot '{robot.key}'",
-            edge.where("fixed_chain"),
-        )
-        return None
-    model = models.get(robot)
-    if model is None:
-        return None
-    try:
-        joints = find_fixed_chain(model, start[len(prefix) :], end[len(prefix) :])
-    except NoFixedChain as stuck:
-        if stuck.blocking is not None:
-            reason = (
-                f"the next joint toward {end}, '{stuck.blocking.name}', is {stuck.blocking.type}, not fixed "
-                f"({prefix}{stuck.stuck} is the deepest link toward {end} that fixed joints reach)"
-            )
-        elif stuck.end_is_above:
-            reason = f"'{end}' is above '{start}' in URDF '{model.name}', not below it; swap from and to"
-        else:
-            reason = f"'{end}' is not below '{start}' in URDF '{model.name}'"
-        problems.add(f"no fixed chain from {start} to {end}; stuck at {prefix}{stuck.stuck}: {reason}", edge.where("fixed_chain"))
-        return None
-    translation, quaternion = compose_chain(joints)
-    chain = FixedChain(robot.key, start, end, tuple(joint.name for joint in joints))
-    return EdgePlan(spec["parent"], spec["child"], translation, quaternion, edge.where(), "fixed_chain", edge.label, chain)
-
-
-def _assumed_identity_edges(
-    data: dict[str, Any], document: Document, robots: list[RobotPlan], graph: list[FrameEdge], root: str, problems: Problems
-) -> list[EdgePlan]:
-    """frames.assume_identity: an identity edge root -> frame for each listed frame, with a warning naming it."""
-    listed = data.get("frames", {}).get("assume_identity", [])
-    if not listed:
-        return []
-    wheres = {frame: document.where("frames", "assume_identity", index) for index, frame in enumerate(listed)}
-    accepted = check_assume_identity(list(wheres.items()), graph, _urdf_frames(robots), root, problems)
-    result = []
-    for frame in accepted:
-        where = wheres[frame]
-        print(
-            f"warning: {where.prefix()}: {where.path}: frame '{frame}' has no calibration; logging an identity edge "
-            f"from root '{root}' (frames.assume_identity): its pose is assumed, not measured",
-            file=sys.stderr,
-        )
-        label = where.path
-        result.append(EdgePlan(root, frame, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0), where, "assume_identity", label))
-    return result
-
-
 def _root_frame(data: dict[str, Any], robots: list[RobotPlan], document: Document, problems: Problems) -> str | None:
     root = data.get("frames", {}).get("root")
     if root is not None:
@@ -249,48 +102,6 @@ def _root_frame(data: dict[str, Any], robots: list[RobotPlan], document: Documen
         )
         return None
     return robots[0].frame_prefix + robots[0].root_link if robots else None
-
-
-def _frame_edges(
-    robots: list[RobotPlan],
-    edges: list[EdgePlan],
-    temporal: list[TemporalEdgePlan],
-    models: _UrdfModels,
-    broken: list[EdgeSpec] | None = None,
-) -> list[FrameEdge]:
-    # A temporal edge may drive the child of a URDF floating/planar joint (a floating pelvis) when it has the joint's
-    # parent: like the FK over a moving joint's rest pose, the temporal value overrides the joint's static identity.
-    driven = {(edge.parent, edge.child) for edge in temporal}
-    result = []
-    for robot in robots:
-        overridable = set()
-        if driven:
-            model = models.get(robot)
-            overridable = {j.name for j in model.joints if j.type in ("floating", "planar")} if model is not None else set()
-        for joint, parent, child in robot.joint_links:
-            if joint in overridable and (robot.frame_prefix + parent, robot.frame_prefix + child) in driven:
-                continue
-            result.append(
-                FrameEdge(
-                    robot.frame_prefix + parent,
-                    robot.frame_prefix + child,
-                    f"URDF '{robot.robot_name}' joint '{joint}' of robot '{robot.key}'",
-                    robot.where,
-                )
-            )
-    result += [FrameEdge(edge.parent, edge.child, f"{edge.label} at line {edge.where.line}", edge.where, True) for edge in edges]
-    result += [
-        FrameEdge(edge.parent, edge.child, f"temporal {edge.label} at line {edge.where.line}", edge.where, True) for edge in temporal
-    ]
-    result += [
-        FrameEdge(edge.spec["parent"], edge.spec["child"], f"{edge.label} at line {edge.where().line}", edge.where(), True)
-        for edge in broken or []
-    ]
-    return result
-
-
-def _urdf_frames(robots: list[RobotPlan]) -> dict[str, Any]:
-    return {robot.frame_prefix + link: robot.where for robot in robots for link in robot.links}
 
 
 def _compile_output(spec: dict[str, Any], document: Document, problems: Problems) -> OutputPlan | None:
