@@ -183,6 +183,8 @@ def check_plan(plan: Plan, sample: dict[str, np.ndarray]) -> list[JointReport]:
     """`sample`: source name -> (rows x names) raw values."""
     reports = []
     for robot in plan.robots:
+        if robot.source is None:
+            continue
         raw = sample[robot.source]
         reports += [check_channel(robot, channel, raw[:, channel.source_index]) for channel in robot.channels]
     return reports

@@ -41,7 +41,7 @@ def compile_document(document: Document) -> Plan:
             robots.append(robot)
 
     edge_specs = expand_edge_specs(data.get("edges", []), document, problems)  # inline edges and sidecar files, in order
-    used = {spec["joints"]["source"] for spec in data["robots"].values()}
+    used = {spec["joints"]["source"] for spec in data["robots"].values() if "joints" in spec}
     used |= {edge.spec["source"] for edge in edge_specs if "source" in edge.spec}  # temporal edges read sources too
     for name in data["sources"]:
         if name not in used:

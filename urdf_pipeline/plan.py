@@ -154,7 +154,7 @@ class RobotPlan:
     entity_path_prefix: str  # "/arm"
     frame_prefix: str
     keep_collisions: bool
-    source: str
+    source: str | None  # None for a scene URDF without moving joints
     channels: tuple[JointChannel, ...]
     holds: tuple[HeldJoint, ...]
     mimics: tuple[MimicJoint, ...]  # ordered so a driver is computed before its mimic

@@ -20,6 +20,10 @@ def _robot_lines(robot: RobotPlan) -> list[str]:
     lines = [
         f"robot {robot.key}: URDF '{robot.robot_name}' from {robot.urdf_path}",
         f"  entity {robot.entity_path_prefix}, frame prefix '{robot.frame_prefix}', root link {robot.frame_prefix}{robot.root_link}, collisions {'kept' if robot.keep_collisions else 'dropped'}",
+    ]
+    if robot.source is None:
+        return [*lines, "  a scene: no moving joints, no joint source (static transforms only)"]
+    lines += [
         f"  joints from source '{robot.source}', NaN policy {robot.nan_policy}; per value, in this order:",
         "    wrap (source units) -> (value * unit factor * scale) * sign + offset, or source_range onto the joint's range"
         " -> limits (clamp within slack) -> mimic joints",

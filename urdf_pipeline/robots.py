@@ -10,7 +10,7 @@ from .document import Document
 from .errors import Problems, UserError
 from .joint_mapping import compile_joints
 from .meshes import resolve_meshes, rewrite_mesh_uris
-from .plan import RobotPlan, SourcePlan
+from .plan import HeldJoint, JointChannel, MimicJoint, OnViolation, RobotPlan, SourcePlan
 from .urdf_model import UrdfModel, UrdfParseError, parse_urdf_text
 from .urdf_sources import LoadedUrdf, load_urdf_source
 
@@ -68,17 +68,33 @@ def compile_robot(
                 document.where(*here, "package_paths") if "package_paths" in spec else document.where(*here, "urdf"),
             )
 
-    joints_spec = spec["joints"]
-    source = sources.get(joints_spec["source"])
-    if source is None:
-        if joints_spec["source"] in defined:
-            return None  # the source itself is broken and already reported
-        problems.add(
-            f"no source named '{joints_spec['source']}'; sources are: {', '.join(sources) or 'none'}",
-            document.where(*here, "joints", "source"),
-        )
-        return None
-    channels, holds, mimics, on_violation = compile_joints(key, joints_spec, source.names, model, document, problems)
+    joints_spec = spec.get("joints")
+    if joints_spec is None:  # a scene (table, camera mounts): nothing moves
+        moving = [j.name for j in model.joints if j.moving and j.mimic is None]
+        if moving:
+            problems.add(
+                f"URDF '{model.name}' has moving joints ({', '.join(moving)}) but the robot has no joints section; "
+                "add joints: {source: ..., map: ...} (hold joints the data lacks)",
+                document.where(*here),
+            )
+            return None
+        source_name: str | None = None
+        channels: tuple[JointChannel, ...] = ()
+        holds: tuple[HeldJoint, ...] = ()
+        mimics: tuple[MimicJoint, ...] = ()
+        on_violation: OnViolation = "error"
+    else:
+        source = sources.get(joints_spec["source"])
+        if source is None:
+            if joints_spec["source"] in defined:
+                return None  # the source itself is broken and already reported
+            problems.add(
+                f"no source named '{joints_spec['source']}'; sources are: {', '.join(sources) or 'none'}",
+                document.where(*here, "joints", "source"),
+            )
+            return None
+        source_name = source.name
+        channels, holds, mimics, on_violation = compile_joints(key, joints_spec, source.names, model, document, problems)
     prefix = spec.get("entity_path_prefix", key).strip("/")
     return RobotPlan(
         key=key,
@@ -93,11 +109,11 @@ def compile_robot(
         entity_path_prefix=f"/{prefix}",
         frame_prefix=spec.get("frame_prefix", ""),
         keep_collisions=keep_collisions,
-        source=source.name,
+        source=source_name,
         channels=channels,
         holds=holds,
         mimics=mimics,
         on_violation=on_violation,
         where=document.where(*here),
-        nan_policy=joints_spec.get("nan", "error"),
+        nan_policy=(joints_spec or {}).get("nan", "error"),
     )
