@@ -23,6 +23,9 @@ def write_atomically(store: ChunkStore, output: OutputPlan) -> Path:
     try:
         store.write_rrd(partial, application_id=output.application_id, recording_id=output.recording_id)
         os.replace(partial, target)
+    except OSError as exc:  # disk full, a directory in the way, permissions: the machine, not a bug
+        partial.unlink(missing_ok=True)
+        raise UserError(f"cannot write {target}: {exc}", output.where) from None
     except BaseException:
         partial.unlink(missing_ok=True)
         raise
