@@ -14,6 +14,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from .joint_values import wrapped
 from .plan import JointChannel, Plan, RobotPlan, SourcePlan
 
 SAMPLE_ROWS = 100_000
@@ -104,7 +105,7 @@ def _values(channel: JointChannel, raw: np.ndarray, candidate: Candidate) -> np.
     turn = 360.0 if channel.source_unit == "deg" else 2 * math.pi
     if candidate.wrap:
         center = channel.to_source_unit(((channel.lower or 0.0) + (channel.upper or 0.0)) / 2)
-        raw = center - turn / 2 + np.mod(raw - (center - turn / 2), turn)
+        raw = wrapped(raw, center, turn)
     return raw * candidate.unit_factor * candidate.sign + math.radians(candidate.offset_deg) * (1 if _angular(channel) else 0)
 
 
@@ -121,7 +122,7 @@ def _is_current(candidate: Candidate, channel: JointChannel) -> bool:
 
 def _current_values(channel: JointChannel, raw: np.ndarray) -> np.ndarray:
     if channel.wrap:
-        raw = channel.wrap_center - channel.wrap / 2 + np.mod(raw - (channel.wrap_center - channel.wrap / 2), channel.wrap)
+        raw = wrapped(raw, channel.wrap_center, channel.wrap)
     return raw * channel.gain + channel.bias
 
 

@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from .document import Document, load_document
-from .edges_compile import UrdfModels, assumed_identity_edges, compile_edges, frame_edges, urdf_frames
+from .edges_compile import assumed_identity_edges, compile_edges, frame_edges, urdf_frames
 from .errors import Problems, UserError
 from .frame_graph import check_frame_graph
 from .plan import OutputPlan, Plan, RobotPlan, SourcePlan
@@ -15,6 +15,7 @@ from .robots import compile_robot
 from .schema import require_schema_valid
 from .sidecar_edges import expand_edge_specs
 from .sources import compile_source
+from .urdf_model import UrdfModel
 
 
 def compile_config(config_path: Path) -> Plan:
@@ -35,10 +36,12 @@ def compile_document(document: Document) -> Plan:
             problems.extend(exc)
 
     robots: list[RobotPlan] = []
+    models: dict[str, UrdfModel] = {}  # parsed once, for the edges that walk a URDF (fixed_chain)
     for key, spec in data["robots"].items():
-        robot = compile_robot(key, spec, sources, set(data["sources"]), document, problems)
-        if robot is not None:
-            robots.append(robot)
+        compiled = compile_robot(key, spec, sources, set(data["sources"]), document, problems)
+        if compiled is not None:
+            robots.append(compiled[0])
+            models[key] = compiled[1]
 
     edge_specs = expand_edge_specs(data.get("edges", []), document, problems)  # inline edges and sidecar files, in order
     used = {spec["joints"]["source"] for spec in data["robots"].values() if "joints" in spec}
@@ -54,7 +57,6 @@ def compile_document(document: Document) -> Plan:
     prefixes_unique = _check_unique_prefixes(data, document, problems)
     # Frame names can be traced to robots only when every robot compiled and their frame prefixes differ.
     frames_known = prefixes_unique and len(robots) == len(data["robots"])
-    models = UrdfModels()
     edges, temporal, broken = compile_edges(edge_specs, robots if frames_known else None, models, sources, set(data["sources"]), problems)
     root = _root_frame(data, robots, document, problems)
     if root is not None and frames_known:

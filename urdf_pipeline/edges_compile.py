@@ -5,6 +5,7 @@ from __future__ import annotations
 import difflib
 import math
 import sys
+from collections.abc import Mapping
 from typing import Any
 
 from .document import Document
@@ -15,28 +16,13 @@ from .geometry import normalized_quaternion, quaternion_from_rpy
 from .plan import EdgePlan, FixedChain, RobotPlan, SourcePlan, TemporalEdgePlan
 from .sidecar_edges import EdgeSpec
 from .temporal_edges import compile_temporal_edge
-from .urdf_model import UrdfModel, UrdfParseError, parse_urdf_text
-
-
-class UrdfModels:
-    """Each robot's URDF parsed once, and only when an edge needs its joint types or origins."""
-
-    def __init__(self) -> None:
-        self._models: dict[str, UrdfModel | None] = {}
-
-    def get(self, robot: RobotPlan) -> UrdfModel | None:
-        if robot.key not in self._models:
-            try:
-                self._models[robot.key] = parse_urdf_text(robot.urdf_text, str(robot.urdf_path))
-            except UrdfParseError:  # compile_robot parsed this text already; it cannot fail here
-                self._models[robot.key] = None
-        return self._models[robot.key]
+from .urdf_model import UrdfModel
 
 
 def compile_edges(
     specs: list[EdgeSpec],
     robots: list[RobotPlan] | None,
-    models: UrdfModels,
+    models: Mapping[str, UrdfModel],
     sources: dict[str, SourcePlan],
     defined_sources: set[str],
     problems: Problems,
@@ -92,7 +78,7 @@ def _owner(frame: str, robots: list[RobotPlan]) -> RobotPlan | None:
     return None
 
 
-def _fixed_chain_edge(edge: EdgeSpec, robots: list[RobotPlan], models: UrdfModels, problems: Problems) -> EdgePlan | None:
+def _fixed_chain_edge(edge: EdgeSpec, robots: list[RobotPlan], models: Mapping[str, UrdfModel], problems: Problems) -> EdgePlan | None:
     spec = edge.spec
     start, end = spec["fixed_chain"]["from"], spec["fixed_chain"]["to"]
     all_links = sorted(robot.frame_prefix + link for robot in robots for link in robot.links)
@@ -115,7 +101,7 @@ def _fixed_chain_edge(edge: EdgeSpec, robots: list[RobotPlan], models: UrdfModel
             edge.where("fixed_chain"),
         )
         return None
-    model = models.get(robot)
+    model = models.get(robot.key)
     if model is None:
         return None
     try:
@@ -163,7 +149,7 @@ def frame_edges(
     robots: list[RobotPlan],
     edges: list[EdgePlan],
     temporal: list[TemporalEdgePlan],
-    models: UrdfModels,
+    models: Mapping[str, UrdfModel],
     broken: list[EdgeSpec] | None = None,
 ) -> list[FrameEdge]:
     # A temporal edge may drive the child of a URDF floating/planar joint (a floating pelvis) when it has the joint's
@@ -173,7 +159,7 @@ def frame_edges(
     for robot in robots:
         overridable = set()
         if driven:
-            model = models.get(robot)
+            model = models.get(robot.key)
             overridable = {j.name for j in model.joints if j.type in ("floating", "planar")} if model is not None else set()
         for joint, parent, child in robot.joint_links:
             if joint in overridable and (robot.frame_prefix + parent, robot.frame_prefix + child) in driven:

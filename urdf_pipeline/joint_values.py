@@ -38,6 +38,12 @@ class RobotStats:
     channels: list[ChannelStats] = field(default_factory=list)
 
 
+def wrapped(values: np.ndarray, center: np.ndarray | float, period: np.ndarray | float) -> np.ndarray:
+    """Values moved by whole periods into [center - period/2, center + period/2): a servo's 350 deg is -10 deg."""
+    low = center - np.asarray(period) / 2
+    return low + np.mod(values - low, period)
+
+
 def vector_matrix(source: SourcePlan, vectors: pa.Array) -> np.ndarray:
     """(rows x names) float64 from one list of values per row; every row holds exactly one value per name."""
     width = len(source.names)
@@ -84,7 +90,7 @@ class JointValueMapper:
         self.gain = np.array([c.gain for c in channels], dtype=np.float64)
         self.bias = np.array([c.bias for c in channels], dtype=np.float64)
         self.wrap = np.array([c.wrap if c.wrap else np.nan for c in channels], dtype=np.float64)
-        self.wrap_low = np.array([c.wrap_center - (c.wrap or 0.0) / 2 for c in channels], dtype=np.float64)
+        self.wrap_center = np.array([c.wrap_center for c in channels], dtype=np.float64)
         self.any_wrap = bool(np.isfinite(self.wrap).any())
         self.nan_policy = robot.nan_policy
         self._last_valid: np.ndarray | None = None  # hold_last carries the last valid row across batches
@@ -121,8 +127,7 @@ class JointValueMapper:
             self.stats.rows += len(picked)
         drop = self._apply_nan_policy(picked, nonfinite)
         if self.any_wrap:
-            wrapped = self.wrap_low + np.mod(picked - self.wrap_low, self.wrap)
-            picked_for_values = np.where(np.isnan(self.wrap), picked, wrapped)
+            picked_for_values = np.where(np.isnan(self.wrap), picked, wrapped(picked, self.wrap_center, self.wrap))
         else:
             picked_for_values = picked
         values = picked_for_values * self.gain + self.bias

@@ -34,8 +34,9 @@ def _check_mimics(model: UrdfModel, key: str, document: Document, problems: Prob
 
 def compile_robot(
     key: str, spec: dict[str, Any], sources: dict[str, SourcePlan], defined: set[str], document: Document, problems: Problems
-) -> RobotPlan | None:
-    """`sources` holds the sources that compiled; `defined` every name in the config (a broken source is reported once)."""
+) -> tuple[RobotPlan, UrdfModel] | None:
+    """The robot's plan and parsed URDF. `sources` holds the sources that compiled; `defined` every name in the config
+    (a broken source is reported once)."""
     here = ("robots", key)
     package_paths = {name: (document.file.parent / folder).resolve() for name, folder in spec.get("package_paths", {}).items()}
     for name, folder in package_paths.items():
@@ -96,7 +97,7 @@ def compile_robot(
         source_name = source.name
         channels, holds, mimics, on_violation = compile_joints(key, joints_spec, source.names, model, document, problems)
     prefix = spec.get("entity_path_prefix", key).strip("/")
-    return RobotPlan(
+    plan = RobotPlan(
         key=key,
         urdf_path=urdf_path,
         urdf_text=rewrite_mesh_uris(loaded.text, resolution.resolved),
@@ -117,3 +118,4 @@ def compile_robot(
         where=document.where(*here),
         nan_policy=(joints_spec or {}).get("nan", "error"),
     )
+    return plan, model
