@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,6 +18,13 @@ class Where:
     def prefix(self) -> str:
         """`FILE:LINE`, or just `FILE` when the problem is the file as a whole (line 0)."""
         return f"{self.file}:{self.line}" if self.line else str(self.file)
+
+
+def listing(items: Sequence[str], limit: int = 12, separator: str = ", ", empty: str = "") -> str:
+    """`a, b, c and 4 more`: names in a message, shortened so one error stays one readable line."""
+    if not items:
+        return empty
+    return separator.join(items[:limit]) + (f" and {len(items) - limit} more" if len(items) > limit else "")
 
 
 class UserError(Exception):

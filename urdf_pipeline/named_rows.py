@@ -18,7 +18,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 
-from .errors import UserError
+from .errors import UserError, listing
 from .plan import SourcePlan
 
 NAMED_COMPONENT = "urdf_pipeline:named_joint_values"
@@ -35,11 +35,6 @@ def named_rows_column(names: pa.Array, values: pa.Array) -> pa.ListArray:
     value_type = pa.large_list(pa.float64()) if pa.types.is_large_list(values.type) else pa.list_(pa.float64())
     struct = pa.StructArray.from_arrays([names, values.cast(value_type)], [NAME_FIELD, VALUE_FIELD])
     return pa.ListArray.from_arrays(pa.array(np.arange(len(struct) + 1, dtype=np.int32)), struct)
-
-
-def _quoted(names: Sequence[str], limit: int = 8) -> str:
-    shown = ", ".join(f"'{n}'" for n in names[:limit])
-    return shown + (f" and {len(names) - limit} more" if len(names) > limit else "")
 
 
 def named_matrix(rows: pa.Array, source: SourcePlan, required: Sequence[int] | np.ndarray, consumer: str) -> np.ndarray:
@@ -70,8 +65,9 @@ def named_matrix(rows: pa.Array, source: SourcePlan, required: Sequence[int] | n
     unknown = position.is_null().to_numpy(zero_copy_only=False)
     if unknown.any():
         strangers = sorted(pc.unique(flat_names.filter(pa.array(unknown))).to_pylist())
+        quoted = listing([f"'{n}'" for n in strangers], limit=8)
         raise UserError(
-            f"{label} has rows naming {_quoted(strangers)}, not among its names ({np.unique(row_of[unknown]).size} of {count} rows "
+            f"{label} has rows naming {quoted}, not among its names ({np.unique(row_of[unknown]).size} of {count} rows "
             f"in one batch); list every name the data carries in sources.{source.name}.names and map or ignore it",
             source.where,
         )

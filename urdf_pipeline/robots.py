@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from .document import Document
-from .errors import Problems, UserError
+from .errors import Problems, UserError, listing
 from .joint_mapping import compile_joints
 from .meshes import resolve_meshes, rewrite_mesh_uris
 from .plan import HeldJoint, JointChannel, MimicJoint, OnViolation, RobotPlan, SourcePlan
@@ -55,9 +55,8 @@ def compile_robot(
     resolution = resolve_meshes(model.meshes, package_paths, urdf_path.parent)
     missing = [m for m in resolution.missing if m.kind == "visual" or keep_collisions]
     if missing:
-        listing = "; ".join(f"{m.uri} ({m.kind} of link '{m.link}')" for m in missing[:5])
-        more = f" and {len(missing) - 5} more" if len(missing) > 5 else ""
-        message = f"{len(missing)} mesh(es) do not resolve: {listing}{more}"
+        shown = listing([f"{m.uri} ({m.kind} of link '{m.link}')" for m in missing], limit=5, separator="; ")
+        message = f"{len(missing)} mesh(es) do not resolve: {shown}"
         if spec.get("allow_missing_meshes", False):
             print(
                 f"warning: {document.where(*here).prefix()}: robots.{key}: {message}; they will be invisible (allow_missing_meshes: true)",

@@ -19,7 +19,7 @@ import numpy as np
 import pyarrow as pa
 
 from .callbacks import CallbackErrors
-from .errors import Problems
+from .errors import Problems, listing
 from .joint_values import raw_matrix
 from .plan import Plan, SourcePlan, TemporalEdgePlan
 from .sidecar_edges import EdgeSpec
@@ -66,7 +66,7 @@ def compile_temporal_edge(
         for index, value in enumerate(spec[key]):
             if value not in position:
                 close = difflib.get_close_matches(value, list(source.names), n=1)
-                hint = f" (did you mean '{close[0]}'?)" if close else f"; it has: {_listing(source.names)}"
+                hint = f" (did you mean '{close[0]}'?)" if close else f"; it has: {listing(source.names)}"
                 problems.add(f"source '{name}' has no value named '{value}'{hint}", edge.where(key, index))
                 missing = True
     if missing:
@@ -85,11 +85,6 @@ def compile_temporal_edge(
         label=edge.label,
         where=edge.where(),
     )
-
-
-def _listing(names: tuple[str, ...], limit: int = 12) -> str:
-    shown = ", ".join(names[:limit])
-    return shown + (f" and {len(names) - limit} more" if len(names) > limit else "")
 
 
 def _entity_for(child: str, taken: set[str]) -> str:

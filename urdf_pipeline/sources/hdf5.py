@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from ..document import Document
-from ..errors import UserError
+from ..errors import UserError, listing
 from ..plan import Hdf5SourcePlan, IndexPlan
 from .parquet import compile_index
 from .stream import SourceStream, index_column
@@ -37,10 +37,6 @@ def _datasets_of_rank(file: Any, rank: int) -> list[str]:
     return found
 
 
-def _listing(paths: list[str]) -> str:
-    return ", ".join(paths[:12]) + (f" and {len(paths) - 12} more" if len(paths) > 12 else "") if paths else "none"
-
-
 def compile_source(name: str, spec: dict[str, Any], document: Document, config_dir: Path) -> Hdf5SourcePlan:
     import h5py
 
@@ -62,7 +58,7 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
         node = file.get(dataset)
         if not isinstance(node, h5py.Dataset):
             raise UserError(
-                f"no dataset '{dataset}' in {path.name}; its 2-D datasets: {_listing(_datasets_of_rank(file, 2))}",
+                f"no dataset '{dataset}' in {path.name}; its 2-D datasets: {listing(_datasets_of_rank(file, 2), empty='none')}",
                 document.where(*here, "dataset"),
             )
         if node.ndim != 2:
@@ -93,7 +89,8 @@ def _check_index(file: Any, index: IndexPlan, rows: int, path: Path, document: D
     node = file.get(index.column)
     if not isinstance(node, h5py.Dataset):
         raise UserError(
-            f"no index dataset '{index.column}' in {path.name}; its 1-D datasets: {_listing(_datasets_of_rank(file, 1))}", where
+            f"no index dataset '{index.column}' in {path.name}; its 1-D datasets: {listing(_datasets_of_rank(file, 1), empty='none')}",
+            where,
         )
     if node.ndim != 1:
         raise UserError(f"index dataset '{index.column}' has shape {list(node.shape)}; an index is 1-D, one value per row", where)
