@@ -7,13 +7,8 @@ through fixed joints only; a moving joint on the way means the pose changes over
 
 from __future__ import annotations
 
-import math
-
-from .geometry import quaternion_from_rpy
+from .geometry import Quaternion, Vector, normalized_quaternion, quaternion_from_rpy, quaternion_multiply, rotate
 from .urdf_model import Joint, UrdfModel
-
-Vector = tuple[float, float, float]
-Quaternion = tuple[float, float, float, float]  # x, y, z, w
 
 
 class NoFixedChain(Exception):
@@ -66,31 +61,6 @@ def _is_ancestor(candidate: str, link: str, parent_joint: dict[str, Joint]) -> b
     return False
 
 
-def quaternion_multiply(a: Quaternion, b: Quaternion) -> Quaternion:
-    ax, ay, az, aw = a
-    bx, by, bz, bw = b
-    return (
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-        aw * bw - ax * bx - ay * by - az * bz,
-    )
-
-
-def rotate(q: Quaternion, v: Vector) -> Vector:
-    """v rotated by the unit quaternion q (q v q*)."""
-    x, y, z, w = q
-    # t = 2 (q_vec x v); v' = v + w t + q_vec x t
-    tx = 2 * (y * v[2] - z * v[1])
-    ty = 2 * (z * v[0] - x * v[2])
-    tz = 2 * (x * v[1] - y * v[0])
-    return (
-        v[0] + w * tx + (y * tz - z * ty),
-        v[1] + w * ty + (z * tx - x * tz),
-        v[2] + w * tz + (x * ty - y * tx),
-    )
-
-
 def compose_chain(joints: tuple[Joint, ...]) -> tuple[Vector, Quaternion]:
     """Pose of the last joint's child in the first joint's parent: each joint's origin (xyz, URDF rpy) in turn."""
     translation: Vector = (0.0, 0.0, 0.0)
@@ -99,6 +69,6 @@ def compose_chain(joints: tuple[Joint, ...]) -> tuple[Vector, Quaternion]:
         step = rotate(rotation, joint.xyz)
         translation = (translation[0] + step[0], translation[1] + step[1], translation[2] + step[2])
         rotation = quaternion_multiply(rotation, quaternion_from_rpy(*joint.rpy))
-    norm = math.sqrt(sum(v * v for v in rotation))
-    x, y, z, w = (v / norm for v in rotation)
-    return translation, (x, y, z, w)
+    unit = normalized_quaternion(rotation)
+    assert unit is not None  # a product of unit quaternions is never zero
+    return translation, unit

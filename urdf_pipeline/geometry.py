@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import math
 
+Vector = tuple[float, float, float]
+Quaternion = tuple[float, float, float, float]  # x, y, z, w
+
 
 def quaternion_from_rpy(roll: float, pitch: float, yaw: float) -> tuple[float, float, float, float]:
     """URDF rpy (R = Rz(yaw) Ry(pitch) Rx(roll)) as a quaternion x, y, z, w."""
@@ -25,3 +28,28 @@ def normalized_quaternion(q: tuple[float, ...]) -> tuple[float, float, float, fl
         return None
     x, y, z, w = (v / norm for v in q)
     return (x, y, z, w)
+
+
+def quaternion_multiply(a: Quaternion, b: Quaternion) -> Quaternion:
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return (
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+        aw * bw - ax * bx - ay * by - az * bz,
+    )
+
+
+def rotate(q: Quaternion, v: Vector) -> Vector:
+    """v rotated by the unit quaternion q (q v q*)."""
+    x, y, z, w = q
+    # t = 2 (q_vec x v); v' = v + w t + q_vec x t
+    tx = 2 * (y * v[2] - z * v[1])
+    ty = 2 * (z * v[0] - x * v[2])
+    tz = 2 * (x * v[1] - y * v[0])
+    return (
+        v[0] + w * tx + (y * tz - z * ty),
+        v[1] + w * ty + (z * tx - x * tz),
+        v[2] + w * tz + (x * ty - y * tx),
+    )

@@ -13,6 +13,7 @@ import numpy as np
 import pyarrow as pa
 
 from .errors import UserError
+from .named_rows import is_named_rows, named_matrix
 from .plan import RobotPlan, SourcePlan
 
 
@@ -70,8 +71,6 @@ def raw_matrix(source: SourcePlan, rows: pa.Array, required: np.ndarray | None =
     For named rows, `required` are the name positions the consumer reads (a row lacking one is an error);
     names nobody reads may be absent and stay NaN.
     """
-    from .named_rows import is_named_rows, named_matrix
-
     if is_named_rows(rows):
         needed = np.empty(0, dtype=np.intp) if required is None else required
         return named_matrix(rows, source, needed, consumer or f"source '{source.name}'")
