@@ -104,14 +104,20 @@ def test_so101_lerobot_matches_pinocchio(examples_dir: Path, run_cli, erd_share:
     assert check_robot(frames, list(range(40)), reference, values, "", np.eye(4), root, [0, 7, 39]) > 0
 
 
-def test_bimanual_prefixed_robots_with_rotated_edges_match_pinocchio(examples_dir: Path, run_cli) -> None:
+def random_bimanual_parquet(
+    examples_dir: Path, name: str, frames: int, seeds: tuple[int, int]
+) -> tuple[PinocchioRobot, np.ndarray, np.ndarray]:
+    """data/NAME with two Pandas' random joint values in the contract's units (16 values), and the q of each arm."""
     reference = PinocchioRobot(examples_dir / "robots" / "panda.urdf")
     joints = [*PANDA_ARM, "panda_finger_joint1"]
-    left = random_within_limits(reference, joints, frames=30, seed=13)
-    right = random_within_limits(reference, joints, frames=30, seed=14)
-    write_joint_parquet(
-        examples_dir / "data" / "random_bimanual.parquet", np.concatenate([panda_contract_raw(left), panda_contract_raw(right)], axis=1)
-    )
+    left = random_within_limits(reference, joints, frames=frames, seed=seeds[0])
+    right = random_within_limits(reference, joints, frames=frames, seed=seeds[1])
+    write_joint_parquet(examples_dir / "data" / name, np.concatenate([panda_contract_raw(left), panda_contract_raw(right)], axis=1))
+    return reference, left, right
+
+
+def test_bimanual_prefixed_robots_with_rotated_edges_match_pinocchio(examples_dir: Path, run_cli) -> None:
+    reference, left, right = random_bimanual_parquet(examples_dir, "random_bimanual.parquet", frames=30, seeds=(13, 14))
     config = variant(
         examples_dir,
         "bimanual_pandas.yaml",

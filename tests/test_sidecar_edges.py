@@ -12,18 +12,13 @@ import pinocchio as pin
 import pytest
 import yaml
 
-from urdf_pipeline.examples import write_joint_parquet
-
 from .edge_helpers import write_config
-from .reference_fk import PinocchioRobot
 from .rrd_frames import read_frames
 from .test_fk_against_pinocchio import (
-    PANDA_ARM,
     assert_poses_match,
     check_robot,
-    panda_contract_raw,
     panda_joint_values,
-    random_within_limits,
+    random_bimanual_parquet,
 )
 
 ERROR_LINE = re.compile(r"^error: .+:\d+: ")
@@ -50,13 +45,7 @@ def bimanual_with_sidecars(directory: Path, name: str, parquet: str) -> Path:
 
 
 def test_sidecar_edges_match_pinocchio(examples_dir: Path, run_cli) -> None:
-    reference = PinocchioRobot(examples_dir / "robots" / "panda.urdf")
-    joints = [*PANDA_ARM, "panda_finger_joint1"]
-    left = random_within_limits(reference, joints, frames=12, seed=41)
-    right = random_within_limits(reference, joints, frames=12, seed=42)
-    write_joint_parquet(
-        examples_dir / "data" / "sidecar_bimanual.parquet", np.concatenate([panda_contract_raw(left), panda_contract_raw(right)], axis=1)
-    )
+    reference, left, right = random_bimanual_parquet(examples_dir, "sidecar_bimanual.parquet", frames=12, seeds=(41, 42))
     config = bimanual_with_sidecars(examples_dir, "sidecar_bimanual", "data/sidecar_bimanual.parquet")
 
     assert run_cli("validate", str(config)).code == 0
