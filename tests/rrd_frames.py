@@ -58,11 +58,13 @@ class RecordedFrames:
         return result
 
 
-def read_frames(path: Path, timeline: str) -> RecordedFrames:
+def read_frames(path: Path | list[Path], timeline: str) -> RecordedFrames:
+    """The frames of one recording, or of several that belong together (a split layout's model and one layer)."""
     static: dict[str, Edge] = {}
     static_entities: dict[str, str] = {}
     temporal: dict[str, dict[object, Edge]] = {}
-    for chunk in RrdReader(path).stream().to_chunks():
+    chunks = [chunk for one in ([path] if isinstance(path, Path) else path) for chunk in RrdReader(one).stream().to_chunks()]
+    for chunk in chunks:
         batch = chunk.to_record_batch()
         if "Transform3D:child_frame" not in batch.schema.names:
             continue

@@ -24,7 +24,7 @@ def test_missing_config_file(run_cli, tmp_path: Path) -> None:
 
 
 def test_a_bug_exits_70_with_a_traceback(monkeypatch, run_cli, examples_dir: Path) -> None:
-    def broken(plan):
+    def broken(*args, **kwargs):
         raise ZeroDivisionError("boom")
 
     import urdf_pipeline.execute

@@ -8,28 +8,91 @@ Exit status: 0 success, 1 a user error (one `error: FILE:LINE: message` line eac
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import traceback
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .errors import UserError
 
-EXIT_OK, EXIT_USER_ERROR, EXIT_BUG = 0, 1, 70
+EXIT_OK, EXIT_USER_ERROR, EXIT_BUG, EXIT_INTERRUPTED = 0, 1, 70, 130
+
+if TYPE_CHECKING:
+    from .plan import Plan
+    from .segment_run import SegmentResult
+
+
+def _positive(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError("must be at least 1")
+    return value
 
 
 def cmd_run(args: argparse.Namespace) -> int:
     from .compile import compile_config
-    from .execute import execute
+    from .dataset_run import RunOptions, run_dataset
+    from .progress import SegmentProgress, say
+    from .run_summary import summary_table, totals_line
 
-    plan = compile_config(Path(args.config))
+    if args.catalog and not args.dataset:
+        raise UserError("--catalog needs --dataset NAME: the catalog dataset to register the outputs in")
+    plan = compile_config(Path(args.config), args.episodes)
     for robot in plan.robots:
-        print(f"urdf-pipeline: robot {robot.key}: URDF sha256 {robot.urdf_sha256} from {robot.urdf_origin}", file=sys.stderr)
-    result = execute(plan)
-    rows = ", ".join(f"{key}: {count} rows" for key, count in result.rows.items())
-    print(f"urdf-pipeline: {rows} in {result.seconds:.1f} s", file=sys.stderr)
-    print(result.output)
-    return EXIT_OK
+        say(f"robot {robot.key}: URDF sha256 {robot.urdf_sha256} from {robot.urdf_origin}")
+    if args.base:
+        from .base_check import check_base
+
+        say(f"all {check_base(plan, args.base)} segment id(s) found among the base recordings in {args.base}")
+    assert plan.dataset is not None
+    segments = len(plan.segments)
+    many = segments > 1 or plan.dataset.layout == "split"
+    if many:
+        say(f"{segments} segment(s), layout {plan.dataset.layout}, {args.jobs} job(s) on the {args.executor} executor")
+    options = RunOptions(args.jobs, args.executor, args.ray_address, args.force, verbose=not many)
+    run = run_dataset(plan, options, SegmentProgress() if many else None)
+    if many or run.interrupted:
+        print(summary_table(run.results), file=sys.stderr)
+        say(totals_line(run.results, run.seconds) + f"; manifest {run.manifest}")
+    else:
+        _print_single(run.results[0])
+    for result in run.results:
+        if result.status in ("written", "skipped"):
+            print(result.output)
+    bugs = [r for r in run.results if r.status == "bug"]
+    for result in bugs:
+        print(f"{result.label}: {result.reason}", file=sys.stderr)
+    if run.interrupted:
+        print("interrupted: only complete outputs were kept", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    if args.catalog and all(r.status in ("written", "skipped") for r in run.results):
+        _register(plan, run.results, args)
+    if bugs:
+        print("urdf-pipeline: internal error (a bug, not your config); please report it with the traceback above", file=sys.stderr)
+        return EXIT_BUG
+    return EXIT_USER_ERROR if any(r.status == "failed" for r in run.results) else EXIT_OK
+
+
+def _print_single(result: SegmentResult) -> None:
+    """One recording: as a plain run always printed it (its error lines, or what was written)."""
+    if result.status == "failed":
+        print(result.reason, file=sys.stderr)
+    elif result.status == "skipped":
+        print(f"urdf-pipeline: {result.output} is up to date (same content hash); --force writes it again", file=sys.stderr)
+    elif result.status == "written":
+        print(f"urdf-pipeline: {result.label}: {result.frames} rows in {result.seconds:.1f} s", file=sys.stderr)
+
+
+def _register(plan: Plan, results: tuple[SegmentResult, ...], args: argparse.Namespace) -> None:
+    from .catalog import register_in_catalog
+    from .progress import say
+
+    model = next((r.output for r in results if r.label == "model"), None)
+    layers = [(r.label, r.output) for r in results if r.label != "model"]
+    report = register_in_catalog(args.catalog, args.dataset, args.layer, model, layers)
+    say(report.summary())
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
@@ -78,8 +141,17 @@ def cmd_schema(args: argparse.Namespace) -> int:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="urdf-pipeline", description="A robot config file becomes one validated Rerun recording.")
     commands = parser.add_subparsers(dest="command", required=True)
-    run = commands.add_parser("run", help="validate CONFIG, compute forward kinematics and write the .rrd")
+    run = commands.add_parser("run", help="validate CONFIG, compute forward kinematics and write the .rrd of every segment")
     run.add_argument("config")
+    run.add_argument("--episodes", metavar="SPEC", help="override output.episodes: all, 0,3,7 or 10:20")
+    run.add_argument("--jobs", type=_positive, default=os.cpu_count() or 1, help="segments written in parallel (default: number of cores)")
+    run.add_argument("--executor", choices=("local", "ray"), default="local", help="local worker processes (default) or Ray tasks")
+    run.add_argument("--ray-address", metavar="ADDR", help="the Ray cluster to run on (default: a local Ray instance)")
+    run.add_argument("--force", action="store_true", help="write every segment, even those whose output is up to date")
+    run.add_argument("--base", metavar="DIR_OR_GLOB", help="fail unless every segment id is the recording_id of a base .rrd there")
+    run.add_argument("--catalog", metavar="URL", help="register the outputs in this Rerun catalog server (needs --dataset)")
+    run.add_argument("--dataset", metavar="NAME", help="the catalog dataset (created when missing)")
+    run.add_argument("--layer", default="urdf", help="the catalog layer name of the segments' outputs (default: urdf)")
     run.set_defaults(handler=cmd_run)
     validate = commands.add_parser("validate", help="check configs against the schema, URDFs and source metadata (no joint values read)")
     validate.add_argument("configs", nargs="+", metavar="CONFIG")
@@ -110,7 +182,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_USER_ERROR
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
     except Exception:
         traceback.print_exc()
         print("urdf-pipeline: internal error (a bug, not your config); please report it with the traceback above", file=sys.stderr)

@@ -2,38 +2,34 @@
 
 from __future__ import annotations
 
-import string
 from pathlib import Path
 from typing import Any
 
 from .document import Document, load_document
 from .edges_compile import assumed_identity_edges, compile_edges, frame_edges, urdf_frames
-from .errors import Problems, UserError
+from .errors import Problems
 from .frame_graph import check_frame_graph
 from .plan import OutputPlan, Plan, RobotPlan, SourcePlan
 from .robots import compile_robot
 from .schema import require_schema_valid
+from .segments import compile_sources, expand_segments
 from .sidecar_edges import expand_edge_specs
-from .sources import compile_source
 from .urdf_model import UrdfModel
 
 
-def compile_config(config_path: Path) -> Plan:
+def compile_config(config_path: Path, episodes: str | None = None) -> Plan:
+    """`episodes` (from `run --episodes`) overrides output.episodes."""
     document = load_document(config_path)
     require_schema_valid(document)
-    return compile_document(document)
+    return compile_document(document, episodes)
 
 
-def compile_document(document: Document) -> Plan:
+def compile_document(document: Document, episodes: str | None = None) -> Plan:
     data: dict[str, Any] = document.data
     problems = Problems()
 
-    sources: dict[str, SourcePlan] = {}
-    for name, spec in data["sources"].items():
-        try:
-            sources[name] = compile_source(name, spec, document)
-        except UserError as exc:
-            problems.extend(exc)
+    compiled_sources = compile_sources(data, document, problems)
+    sources: dict[str, SourcePlan] = compiled_sources.plans
 
     robots: list[RobotPlan] = []
     models: dict[str, UrdfModel] = {}  # parsed once, for the edges that walk a URDF (fixed_chain)
@@ -65,10 +61,12 @@ def compile_document(document: Document) -> Plan:
         edges += identity
         graph += frame_edges([], identity, [], models)
         check_frame_graph(graph, urdf_frames(robots), root, document.where("frames", "root"), problems)
-    output = _compile_output(data["output"], document, problems)
+    dataset = expand_segments(data, document, compiled_sources, episodes, problems) if len(sources) == len(data["sources"]) else None
     problems.raise_if_any()
-    assert root is not None and output is not None
-    return Plan(document.file, tuple(sources.values()), tuple(robots), tuple(edges), root, output, tuple(temporal))
+    assert root is not None and dataset is not None
+    first = dataset.segments[0]
+    output = OutputPlan(first.output, data["output"]["application_id"], first.id, document.where("output"))
+    return Plan(document.file, first.sources, tuple(robots), tuple(edges), root, output, tuple(temporal), dataset)
 
 
 def _check_unique_prefixes(data: dict[str, Any], document: Document, problems: Problems) -> bool:
@@ -104,16 +102,3 @@ def _root_frame(data: dict[str, Any], robots: list[RobotPlan], document: Documen
         )
         return None
     return robots[0].frame_prefix + robots[0].root_link if robots else None
-
-
-def _compile_output(spec: dict[str, Any], document: Document, problems: Problems) -> OutputPlan | None:
-    where = document.where("output", "path")
-    fields = [name for _, name, _, _ in string.Formatter().parse(spec["path"]) if name is not None]
-    unknown = [name for name in fields if name != "segment"]
-    if unknown:
-        problems.add(
-            f"output.path uses unknown placeholder(s) {', '.join('{' + n + '}' for n in unknown)}; only {{segment}} is known", where
-        )
-        return None
-    path = (document.file.parent / spec["path"].format(segment=spec["segment"])).resolve()
-    return OutputPlan(path, spec["application_id"], spec["segment"], document.where("output"))

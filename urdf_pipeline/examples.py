@@ -66,37 +66,42 @@ def write_joint_parquet(path: Path, values: np.ndarray, column: str = "observati
     pq.write_table(table, path)
 
 
-def write_lerobot_dataset(root: Path, values: np.ndarray, names: list[str], fps: int = 30) -> None:
-    """A minimal LeRobot v2.1 dataset with one episode and no videos."""
-    frames, width = values.shape
-    data = root / "data" / "chunk-000" / "episode_000000.parquet"
-    data.parent.mkdir(parents=True, exist_ok=True)
+def write_lerobot_dataset(root: Path, episodes: np.ndarray | list[np.ndarray], names: list[str], fps: int = 30) -> None:
+    """A minimal LeRobot v2.1 dataset without videos: one parquet file per episode (one array of values each)."""
+    episodes = [episodes] if isinstance(episodes, np.ndarray) else episodes
     (root / "meta").mkdir(parents=True, exist_ok=True)
-    pq.write_table(
-        pa.table(
-            {
-                "observation.state": pa.FixedSizeListArray.from_arrays(pa.array(values.astype(np.float32).reshape(-1)), width),
-                "timestamp": pa.array(np.arange(frames) / fps, pa.float32()),
-                "frame_index": pa.array(np.arange(frames), pa.int64()),
-                "episode_index": pa.array(np.zeros(frames), pa.int64()),
-                "index": pa.array(np.arange(frames), pa.int64()),
-                "task_index": pa.array(np.zeros(frames), pa.int64()),
-            }
-        ),
-        data,
-    )
+    width = episodes[0].shape[1]
+    first_index = 0
+    for episode, values in enumerate(episodes):
+        frames = len(values)
+        data = root / "data" / "chunk-000" / f"episode_{episode:06d}.parquet"
+        data.parent.mkdir(parents=True, exist_ok=True)
+        pq.write_table(
+            pa.table(
+                {
+                    "observation.state": pa.FixedSizeListArray.from_arrays(pa.array(values.astype(np.float32).reshape(-1)), width),
+                    "timestamp": pa.array(np.arange(frames) / fps, pa.float32()),
+                    "frame_index": pa.array(np.arange(frames), pa.int64()),
+                    "episode_index": pa.array(np.full(frames, episode), pa.int64()),
+                    "index": pa.array(first_index + np.arange(frames), pa.int64()),
+                    "task_index": pa.array(np.zeros(frames), pa.int64()),
+                }
+            ),
+            data,
+        )
+        first_index += frames
     scalar = {"dtype": "int64", "shape": [1], "names": None}
     info = {
         "codebase_version": "v2.1",
         "robot_type": "so101",
-        "total_episodes": 1,
-        "total_frames": frames,
+        "total_episodes": len(episodes),
+        "total_frames": first_index,
         "total_tasks": 1,
         "total_videos": 0,
         "total_chunks": 1,
         "chunks_size": 1000,
         "fps": fps,
-        "splits": {"train": "0:1"},
+        "splits": {"train": f"0:{len(episodes)}"},
         "data_path": "data/chunk-{episode_chunk:03d}/episode_{episode_index:06d}.parquet",
         "video_path": None,
         "features": {
@@ -109,7 +114,8 @@ def write_lerobot_dataset(root: Path, values: np.ndarray, names: list[str], fps:
         },
     }
     (root / "meta" / "info.json").write_text(json.dumps(info, indent=2))
-    (root / "meta" / "episodes.jsonl").write_text(json.dumps({"episode_index": 0, "tasks": ["wave"], "length": frames}) + "\n")
+    lines = [json.dumps({"episode_index": e, "tasks": ["wave"], "length": len(v)}) for e, v in enumerate(episodes)]
+    (root / "meta" / "episodes.jsonl").write_text("\n".join(lines) + "\n")
     (root / "meta" / "tasks.jsonl").write_text(json.dumps({"task_index": 0, "task": "wave"}) + "\n")
 
 
@@ -176,11 +182,11 @@ def prepare(directory: Path, frames: int = 900) -> None:
     rtb = _rtb_xacro()
     if rtb is not None:
         _link(robots / "rtbdata", rtb)
-    write_aloha_episode(directory / "data" / "aloha_episode_0.hdf5", aloha_qpos(frames))
+    for episode in range(3):  # ALOHA records one HDF5 file per episode
+        write_aloha_episode(directory / "data" / "aloha" / f"episode_{episode}.hdf5", aloha_qpos(frames // (episode + 1), seed=4 + episode))
     _, so101 = read_urdf(share / "robots" / "so_arm_description" / "urdf" / "so101.urdf")
-    write_lerobot_dataset(
-        directory / "data" / "so101_lerobot", np.degrees(smooth_trajectory(so101, SO101_NAMES, frames, seed=3)), SO101_NAMES
-    )
+    so101_episodes = [np.degrees(smooth_trajectory(so101, SO101_NAMES, frames // (e + 1), seed=3 + e)) for e in range(4)]
+    write_lerobot_dataset(directory / "data" / "so101_lerobot", so101_episodes, SO101_NAMES)
 
 
 if __name__ == "__main__":

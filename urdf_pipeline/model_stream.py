@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import atexit
+import shutil
+import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -24,6 +27,29 @@ def load_tree(robot: RobotPlan, workdir: Path) -> UrdfTree:
         frame_prefix=robot.frame_prefix or None,
         static_transform_entity_path=robot.static_transform_entity,
     )
+
+
+_TREES: dict[tuple[str, str, str, str], UrdfTree] = {}
+
+
+def cached_tree(robot: RobotPlan) -> UrdfTree:
+    """A worker writing hundreds of segments of one robot parses its URDF once."""
+    key = (robot.key, robot.urdf_text, robot.entity_path_prefix, robot.frame_prefix)
+    if key not in _TREES:
+        _TREES[key] = load_tree(robot, _tree_directory())
+    return _TREES[key]
+
+
+def _tree_directory() -> Path:
+    """URDF files of cached trees live as long as the process (the trees may read them again)."""
+    global _TREE_DIRECTORY
+    if _TREE_DIRECTORY is None:
+        _TREE_DIRECTORY = Path(tempfile.mkdtemp(prefix="urdf-pipeline-trees-"))
+        atexit.register(shutil.rmtree, _TREE_DIRECTORY, True)
+    return _TREE_DIRECTORY
+
+
+_TREE_DIRECTORY: Path | None = None
 
 
 def model_stream(robot: RobotPlan, tree: UrdfTree) -> LazyChunkStream:

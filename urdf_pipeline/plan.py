@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Literal
 
@@ -38,6 +38,7 @@ class LeRobotSourcePlan:
     episode: int
     names: tuple[str, ...]
     where: Where
+    per_segment: bool = False  # no `episode` in the config: each segment reads its own episode
 
 
 @dataclass(frozen=True)
@@ -218,12 +219,41 @@ class TemporalEdgePlan:
     where: Where
 
 
+Layout = Literal["single", "split"]
+
+
 @dataclass(frozen=True)
 class OutputPlan:
+    """Where one recording goes: a single-layout segment, a split layout's layer, or its model."""
+
     path: Path
     application_id: str
     recording_id: str
     where: Where
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One recording of a run: a LeRobot episode, a globbed input file, or the run's only input."""
+
+    id: str  # the recording_id
+    episode: int | None
+    stem: str | None
+    sources: tuple[SourcePlan, ...]  # this segment's own inputs (episode, file)
+    output: Path
+    frames: int | None  # rows expected, when the dataset's metadata says (LeRobot episode lengths)
+    inputs: tuple[Path, ...]  # the files whose bytes this segment reads: part of its content hash
+
+
+@dataclass(frozen=True)
+class DatasetPlan:
+    """The segments of a run and how they are written."""
+
+    layout: Layout
+    segments: tuple[Segment, ...]
+    model: Path | None  # layout split: the static model asset
+    manifest: Path
+    where: Where  # output.segment, for errors about segments
 
 
 @dataclass(frozen=True)
@@ -233,11 +263,30 @@ class Plan:
     robots: tuple[RobotPlan, ...]
     edges: tuple[EdgePlan, ...]
     root_frame: str
-    output: OutputPlan
+    output: OutputPlan  # the first segment's; see for_segment
     temporal_edges: tuple[TemporalEdgePlan, ...] = ()
+    dataset: DatasetPlan | None = None  # None only for plans built by hand in tests
 
     def source(self, name: str) -> SourcePlan:
         return next(s for s in self.sources if s.name == name)
 
     def robots_for(self, source: str) -> tuple[RobotPlan, ...]:
         return tuple(r for r in self.robots if r.source == source)
+
+    @property
+    def segments(self) -> tuple[Segment, ...]:
+        assert self.dataset is not None
+        return self.dataset.segments
+
+    def for_segment(self, segment: Segment) -> Plan:
+        """The plan of one recording: the segment's own sources and output."""
+        output = replace(self.output, path=segment.output, recording_id=segment.id)
+        return replace(self, sources=segment.sources, output=output)
+
+    def for_model(self) -> Plan:
+        """The plan of the split layout's model asset."""
+        assert self.dataset is not None and self.dataset.model is not None
+        return replace(self, output=replace(self.output, path=self.dataset.model, recording_id=MODEL_RECORDING_ID))
+
+
+MODEL_RECORDING_ID = "urdf_model"  # the split layout's model asset is a recording of its own, not a segment

@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 import threading
 import time
+from typing import Protocol, TextIO
 
 
 def say(message: str) -> None:
@@ -26,3 +27,71 @@ class RowProgress:
             if now - self._last >= self.every:
                 self._last = now
                 say(f"{self.label}: {self.rows:,} rows ({self.rows / (now - self._started):,.0f} rows/s)")
+
+
+class SegmentProgress:
+    """Segments done, frames/s and ETA: one redrawn bar when stderr is a terminal, else one plain line per segment."""
+
+    def __init__(self, stream: TextIO | None = None, width: int = 30) -> None:
+        self.stream = stream or sys.stderr
+        self.tty = self.stream.isatty()
+        self.width = width
+        self.total = self.finished = self.frames = self.frames_expected = self.frames_of_expected = 0
+        self.started = time.monotonic()
+        self._last_draw = 0.0
+
+    def start(self, total: int, frames_expected: int, skipped: int) -> None:
+        self.total, self.finished, self.frames_expected = total, skipped, frames_expected
+        self.started = time.monotonic()
+        if skipped:
+            self._line(f"{skipped} of {total} up to date (skipped)")
+
+    def done(self, result: SegmentResultLike, frames_expected: int | None) -> None:
+        self.finished += 1
+        self.frames += result.frames
+        self.frames_of_expected += frames_expected or 0
+        if self.tty:
+            self._draw(force=self.finished == self.total)
+        else:
+            reason = f": {result.reason.splitlines()[0]}" if result.status != "written" and result.reason else ""
+            self._line(
+                f"[{self.finished}/{self.total}] {result.label} {result.status} ({result.frames:,} frames, {result.seconds:.1f} s){reason}"
+            )
+
+    def finish(self) -> None:
+        if self.tty and self._last_draw:
+            self.stream.write("\n")
+            self.stream.flush()
+
+    def _eta(self, elapsed: float) -> str:
+        if self.frames_expected and self.frames_of_expected:  # by frames: episodes differ in length
+            remaining = elapsed * (self.frames_expected - self.frames_of_expected) / self.frames_of_expected
+        elif self.finished:
+            remaining = elapsed * (self.total - self.finished) / self.finished
+        else:
+            return "?"
+        return time.strftime("%H:%M:%S", time.gmtime(max(remaining, 0)))
+
+    def _draw(self, force: bool = False) -> None:
+        now = time.monotonic()
+        if not force and now - self._last_draw < 0.2:
+            return
+        self._last_draw = now
+        elapsed = max(now - self.started, 1e-9)
+        filled = int(self.width * self.finished / max(self.total, 1))
+        bar = "#" * filled + "-" * (self.width - filled)
+        self.stream.write(
+            f"\rurdf-pipeline [{bar}] {self.finished}/{self.total} segments, {self.frames / elapsed:,.0f} frames/s, ETA {self._eta(elapsed)}  "
+        )
+        self.stream.flush()
+
+    def _line(self, message: str) -> None:
+        print(f"urdf-pipeline: {message}", file=self.stream, flush=True)
+
+
+class SegmentResultLike(Protocol):
+    label: str
+    status: str
+    frames: int
+    seconds: float
+    reason: str

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pyarrow as pa
+import pyarrow.compute  # noqa: F401  (pa.compute)
 
 from ..document import Document
 from ..errors import UserError
@@ -66,13 +67,65 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
             f"feature '{feature_key}' holds {width} values per row but {len(names)} names are given",
             document.where(*here, "names" if "names" in spec else "feature"),
         )
-    episode = int(spec.get("episode", 0))
+    if "episode" not in spec:  # one segment per episode; segments.py picks them and fills in `episode`
+        return LeRobotSourcePlan(name, root, feature_key, -1, names, document.where(*here), per_segment=True)
+    episode = int(spec["episode"])
     total = info.get("total_episodes")
     if isinstance(total, int) and episode >= total:
         raise UserError(
             f"episode {episode} does not exist: the dataset has {total} episodes (0..{total - 1})", document.where(*here, "episode")
         )
     return LeRobotSourcePlan(name, root, feature_key, episode, names, document.where(*here))
+
+
+def _info(root: Path) -> dict[str, Any]:
+    info: dict[str, Any] = json.loads((root / "meta" / "info.json").read_text(encoding="utf-8"))
+    return info
+
+
+def _episode_table(root: Path) -> pa.Table | None:
+    """The dataset's per-episode metadata: v2's meta/episodes.jsonl or v3's meta/episodes/**/*.parquet."""
+    import pyarrow.parquet as pq
+
+    jsonl = root / "meta" / "episodes.jsonl"
+    if jsonl.is_file():
+        rows = [json.loads(line) for line in jsonl.read_text(encoding="utf-8").splitlines() if line.strip()]
+        return pa.table({"episode_index": [int(r["episode_index"]) for r in rows], "length": [r.get("length") for r in rows]})
+    files = sorted((root / "meta" / "episodes").glob("**/*.parquet"))
+    if not files:
+        return None
+    wanted = ["episode_index", "length", "data/chunk_index", "data/file_index"]
+    tables = [pq.read_table(f, columns=[c for c in wanted if c in pq.read_schema(f).names]) for f in files]
+    return pa.concat_tables(tables, promote_options="default")
+
+
+def episodes(plan: LeRobotSourcePlan) -> dict[int, int | None]:
+    """Episode index -> its length in frames (None when the metadata does not say), from the dataset's metadata only."""
+    table = _episode_table(plan.root)
+    if table is None:
+        total = int(_info(plan.root).get("total_episodes", 0))
+        return dict.fromkeys(range(total))
+    lengths = table.column("length").to_pylist() if "length" in table.column_names else [None] * table.num_rows
+    return dict(zip(table.column("episode_index").to_pylist(), lengths, strict=True))
+
+
+def episode_inputs(plan: LeRobotSourcePlan) -> tuple[Path, ...]:
+    """The files one episode is read from (for its content hash): meta/info.json and the episode's data file(s)."""
+    info = _info(plan.root)
+    template = str(info.get("data_path", ""))
+    meta = plan.root / "meta" / "info.json"
+    if "{episode_index" in template:  # v2: one file per episode
+        chunk = plan.episode // int(info.get("chunks_size", 1000))
+        path = plan.root / template.format(episode_chunk=chunk, episode_index=plan.episode)
+        if path.is_file():
+            return (meta, path)
+    table = _episode_table(plan.root)
+    if table is not None and {"data/chunk_index", "data/file_index"} <= set(table.column_names):  # v3: episodes share files
+        rows = table.filter(pa.compute.equal(table.column("episode_index"), plan.episode)).to_pylist()
+        paths = {plan.root / template.format(chunk_index=r["data/chunk_index"], file_index=r["data/file_index"]) for r in rows}
+        if paths and all(p.is_file() for p in paths):
+            return (meta, *sorted(paths))
+    return (meta, *sorted((plan.root / "data").glob("**/*.parquet")))  # unknown layout: every data file, to be safe
 
 
 def _one_vector_per_row(chunk: Chunk) -> list[Chunk]:

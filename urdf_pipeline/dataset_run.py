@@ -1,0 +1,129 @@
+"""Run every segment of a plan: skip what is up to date, run the rest on an executor, keep the manifest current.
+
+One failing segment does not stop the others; Ctrl-C stops the run, removes partial files and keeps the manifest
+true to the complete files.
+"""
+
+from __future__ import annotations
+
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Literal
+
+from .fingerprint import model_hash, segment_hashes
+from .manifest import Manifest
+from .plan import Plan
+from .progress import SegmentProgress
+from .segment_run import SegmentJob, SegmentResult, install_run_plan, run_segment
+
+Executor = Literal["local", "ray"]
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    jobs: int = 1
+    executor: Executor = "local"
+    ray_address: str | None = None
+    force: bool = False
+    verbose: bool = False  # one segment in this process: its own progress lines and notes, as a plain run prints them
+
+
+@dataclass(frozen=True)
+class DatasetRun:
+    results: tuple[SegmentResult, ...]  # the model first (split layout), then the segments in order
+    seconds: float
+    manifest: Path
+    interrupted: bool
+
+
+def build_jobs(plan: Plan) -> list[SegmentJob]:
+    assert plan.dataset is not None
+    jobs = []
+    if plan.dataset.layout == "split" and plan.dataset.model is not None:
+        jobs.append(SegmentJob(None, "model", "model", plan.dataset.model, model_hash(plan), run_plan=plan))
+    parts = "layer" if plan.dataset.layout == "split" else "all"
+    hashes = segment_hashes(plan, with_model=parts == "all")
+    for segment in plan.dataset.segments:
+        jobs.append(SegmentJob(segment, parts, segment.id, segment.output, hashes[segment.id], segment.frames, run_plan=plan))
+    return jobs
+
+
+def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | None = None) -> DatasetRun:
+    import time
+
+    from .provenance import stored_content_hash
+
+    assert plan.dataset is not None
+    started = time.perf_counter()
+    jobs = build_jobs(plan)
+    manifest = Manifest.load(plan.dataset.manifest, plan.output.application_id, plan.dataset.layout, plan.config_path)
+    results: dict[str, SegmentResult] = {}
+    to_run: list[SegmentJob] = []
+    for job in jobs:
+        fresh = manifest.up_to_date(job.label, job.output, job.content_hash)
+        if not fresh and manifest.entry(job.label) is None and job.output.is_file():  # no manifest (deleted, other machine)
+            fresh = stored_content_hash(job.output, job.parts) == job.content_hash
+            if fresh:
+                manifest.record(job.label, job.output, job.content_hash, job.frames_expected or 0, {})
+        if fresh and not options.force:
+            results[job.label] = SegmentResult(job.label, job.output, "skipped", job.content_hash, reason="up to date")
+        else:
+            to_run.append(job)
+    if progress is not None:
+        progress.start(len(jobs), sum(j.frames_expected or 0 for j in to_run), skipped=len(jobs) - len(to_run))
+
+    def on_done(job: SegmentJob, result: SegmentResult) -> None:
+        results[job.label] = result
+        if result.status == "written":
+            extra = {"episode": _episode(plan, job.label)} if job.label != "model" else {}
+            manifest.record(job.label, job.output, job.content_hash, result.frames, extra)
+            manifest.write(every_seconds=1.0)
+        if progress is not None:
+            progress.done(result, job.frames_expected)
+
+    def on_crash(job: SegmentJob, error: BaseException) -> None:
+        reason = "".join(traceback.format_exception(error))
+        on_done(job, SegmentResult(job.label, job.output, "bug", job.content_hash, reason=reason))
+
+    work: Callable[[SegmentJob], SegmentResult] = run_segment
+    if options.verbose and len(to_run) == 1 and options.executor == "local":
+        to_run = [_verbose(to_run[0])]
+    interrupted = False
+    try:
+        if options.executor == "ray":
+            from .ray_executor import run_on_ray
+
+            run_on_ray(work, to_run, options.ray_address, on_done, on_crash)
+        else:
+            from .local_executor import run_locally
+
+            slim = [replace(job, run_plan=None) for job in to_run]  # workers get the plan once, from install_run_plan
+            run_locally(work, slim, options.jobs, on_done, on_crash, install_run_plan, (plan,))
+    except KeyboardInterrupt:
+        interrupted = True
+        _remove_partial_files([job.output for job in to_run])
+        for job in to_run:
+            results.setdefault(job.label, SegmentResult(job.label, job.output, "interrupted", job.content_hash, reason="Ctrl-C"))
+    finally:
+        if progress is not None:
+            progress.finish()
+        manifest.write()
+    ordered = tuple(results[job.label] for job in jobs)
+    return DatasetRun(ordered, time.perf_counter() - started, manifest.path, interrupted)
+
+
+def _verbose(job: SegmentJob) -> SegmentJob:
+    return replace(job, verbose=True)
+
+
+def _episode(plan: Plan, label: str) -> int | None:
+    return next((s.episode for s in plan.segments if s.id == label), None)
+
+
+def _remove_partial_files(outputs: list[Path]) -> None:
+    """A worker stopped mid-write leaves `.NAME.partial-PID` beside its target; only complete files may remain."""
+    for output in outputs:
+        for partial in output.parent.glob(f".{output.name}.partial-*"):
+            partial.unlink(missing_ok=True)

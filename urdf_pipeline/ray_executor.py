@@ -1,0 +1,146 @@
+"""Run jobs as Ray tasks: on a local Ray instance started for the run, or on an existing cluster.
+
+Workers import `work` and the job types by reference, so every node needs `urdf_pipeline` (the same version) and the
+same Ray and Python versions as this process: install them in the cluster's environment, or run this CLI through
+`ray job submit --runtime-env-json ...` so Ray installs them. A cluster with token authentication needs
+`RAY_AUTH_MODE=token` and its token (`RAY_AUTH_TOKEN`, or `~/.ray/auth_token`) in this process's environment.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import socket
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from typing import TYPE_CHECKING, Any, TypeVar
+
+from .errors import UserError
+
+if TYPE_CHECKING:
+    from ray import ObjectRef
+
+J = TypeVar("J")
+R = TypeVar("R")
+
+CONNECT_TIMEOUT = 5.0  # seconds; Ray itself retries an unreachable address for over five minutes
+STOP_GRACE = 5.0  # seconds that interrupted tasks get to run their cleanup before their workers are killed
+
+
+def _call(work: Callable[[J], R], job: J) -> R:
+    """The task body; top-level so Ray pickles it by reference."""
+    return work(job)
+
+
+def run_on_ray(
+    work: Callable[[J], R],
+    jobs: Sequence[J],
+    address: str | None,
+    on_done: Callable[[J, R], None],
+    on_crash: Callable[[J, BaseException], None],
+    num_cpus: int | None = None,
+) -> None:
+    """Call `on_done` for each job as its task finishes; `on_crash` when `work` raised (a bug) or its worker died.
+
+    `address` None starts a local instance with `num_cpus` (default: all cores) and stops it afterwards; otherwise
+    connect to `auto`, `host:port` or `ray://host:port` and only disconnect. Ctrl-C (or an exception from a callback)
+    cancels the tasks still pending or running, lets running ones handle the KeyboardInterrupt, and re-raises.
+    """
+    try:
+        import ray
+    except ImportError:
+        raise UserError("the ray executor needs Ray: pip install 'urdf-pipeline[ray]'", None) from None
+    if not jobs:
+        return
+    _connect(ray, address, num_cpus)
+    try:
+        task = ray.remote(num_cpus=1, max_retries=0)(_call)  # a crashed segment is reported, not silently run again
+        pending: dict[ObjectRef[Any], J] = {task.remote(work, job): job for job in jobs}
+        try:
+            while pending:
+                ready, _ = ray.wait(list(pending), num_returns=1)
+                for ref in ready:
+                    job = pending.pop(ref)
+                    try:
+                        result = ray.get(ref)
+                    except ray.exceptions.RayError as error:
+                        on_crash(job, _cause(error))
+                    else:
+                        on_done(job, result)
+        except BaseException:
+            _cancel(ray, list(pending))
+            raise
+    finally:
+        ray.shutdown()  # stops a local instance; for a cluster it only disconnects this driver
+
+
+def _connect(ray: Any, address: str | None, num_cpus: int | None) -> None:
+    """`ray.init`, with Ray's log noise kept off stderr and connection failures as user errors that name the address."""
+    options: dict[str, Any] = {"logging_level": logging.WARNING, "log_to_driver": True}  # task output (warnings) still shows
+    if address is None:
+        # "local", not None: None would join a cluster named by RAY_ADDRESS or the last `ray start` on this machine
+        options |= {"address": "local", "num_cpus": num_cpus or os.cpu_count() or 1, "include_dashboard": False}
+        what = "could not start a local Ray instance"
+    else:
+        if address != "auto":
+            _check_reachable(address)
+        options["address"] = address
+        what = f"could not connect to the Ray cluster at {address}"
+    try:
+        with _quiet_token_notice():
+            ray.init(**options)
+    except Exception as error:  # ConnectionError, ValueError (address format, ray[client] missing), RuntimeError, ...
+        ray.shutdown()
+        raise UserError(f"{what}: {error}", None) from error
+
+
+def _check_reachable(address: str) -> None:
+    """Fail in seconds when nothing listens at `address`: `ray.init` would wait for minutes."""
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    host = host.strip("[]")  # [::1]:6379
+    if not host or not port.isdigit():
+        raise UserError(f"not a Ray address: {address!r}; expected host:port, ray://host:port or auto", None)
+    try:
+        socket.create_connection((host, int(port)), timeout=CONNECT_TIMEOUT).close()
+    except OSError as error:
+        reason = "timed out" if isinstance(error, TimeoutError) else (error.strerror or str(error))
+        raise UserError(f"could not connect to the Ray cluster at {address}: {reason}", None) from error
+
+
+@contextmanager
+def _quiet_token_notice() -> Iterator[None]:
+    """Ray >= 2.59 logs a warning on every local start that it enabled token authentication: news, not a problem."""
+    logger = logging.getLogger("ray._private.authentication.authentication_token_setup")
+    level = logger.level
+    logger.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
+
+
+def _cause(error: BaseException) -> BaseException:
+    """The exception `work` raised, with the worker's traceback as a note; Ray's own errors (a worker died) as they are."""
+    cause = getattr(error, "cause", None)
+    if not isinstance(cause, BaseException):
+        return error
+    remote = getattr(error, "traceback_str", "")
+    if remote:
+        cause.add_note(remote.rstrip())
+    return cause
+
+
+def _cancel(ray: Any, refs: list[ObjectRef[Any]]) -> None:
+    """Cancel tasks: a running one gets a KeyboardInterrupt so its cleanup runs; stragglers are killed after a grace period."""
+    if not refs:
+        return
+    for ref in refs:
+        ray.cancel(ref, force=False)
+    _, running = ray.wait(refs, num_returns=len(refs), timeout=STOP_GRACE)
+    for ref in running:
+        ray.cancel(ref, force=True)
+    for ref in refs:  # fetch the errors, or Ray reports each as "unhandled" when the reference is dropped
+        try:
+            ray.get(ref, timeout=STOP_GRACE)
+        except Exception:
+            pass
