@@ -67,28 +67,53 @@ def test_g1_real_recording_matches_pinocchio(valid_dir: Path, run_cli) -> None:
     shutil.copy(VALID / config.name, config)
     result = run_cli("run", str(config))
     assert result.code == 0, result.err
-    spec = yaml.safe_load(config.read_text())
-    g1 = spec["robots"]["g1"]
+    assert _compare_g1_episode(config, valid_dir, 0, [Path(result.out.strip())]) > 3 * 30
+
+
+@pytest.mark.skipif(not G1_DATA.is_dir(), reason=f"{G1_DATA} is absent (shared data is not part of a fresh clone)")
+def test_g1_dataset_split_layout_model_plus_layers_match_pinocchio(valid_dir: Path, run_cli) -> None:
+    """The real dataset, one layer per episode beside one model: each episode's layer with the model gives the right poses."""
+    spec = yaml.safe_load((VALID / "g1_inspire_lerobot.yaml").read_text())
+    del spec["sources"]["g1_state"]["episode"]
+    spec["output"] = {
+        "layout": "split",
+        "model": "out/g1_dataset/model.rrd",
+        "path": "out/g1_dataset/{segment}.rrd",
+        "segment": "episode_{episode:06d}",
+        "episodes": [3, 57, 99],
+        "application_id": "g1_inspire",
+    }
+    config = valid_dir / "g1_dataset.yaml"
+    config.write_text(yaml.safe_dump(spec, sort_keys=False))
+    result = run_cli("run", str(config), "--jobs", "2")
+    assert result.code == 0, result.err
+    out = valid_dir / "out" / "g1_dataset"
+    for episode in (3, 57, 99):
+        assert _compare_g1_episode(config, valid_dir, episode, [out / "model.rrd", out / f"episode_{episode:06d}.rrd"]) > 3 * 30
+
+
+def _compare_g1_episode(config: Path, valid_dir: Path, episode: int, recordings: list[Path]) -> int:
+    """Poses of every G1 link at three frames of one episode: the recording(s) against pinocchio on the data itself."""
+    g1 = yaml.safe_load(config.read_text())["robots"]["g1"]
     urdf = (valid_dir / g1["urdf"]).resolve()
     names = _feature_names(G1_DATA)
-    values = np.array(
-        pq.read_table(G1_DATA / "data" / "chunk-000" / "episode_000000.parquet", columns=["observation.state"]).column(0).to_pylist()
-    )
+    data = G1_DATA / "data" / "chunk-000" / f"episode_{episode:06d}.parquet"
+    values = np.array(pq.read_table(data, columns=["observation.state"]).column(0).to_pylist())
     reference = PinocchioRobot(urdf)
-    frames = read_frames(Path(result.out.strip()), "frame_index")
+    frames = read_frames(recordings, "frame_index")
     root = _urdf_root(urdf)
     compared = 0
-    for frame in (0, 100, len(values) - 1):
+    for frame in (0, len(values) // 2, len(values) - 1):
         joint_values = {joint: float(values[frame, names.index(name)]) for name, joint in g1["joints"]["map"].items()}
         joint_values.update(g1["joints"]["hold"])
         for link, expected in reference.link_poses(joint_values).items():
             if link == root:
                 continue
             recorded = frames.world_pose(link, frame, root)
-            assert np.linalg.norm(recorded[:3, 3] - expected[:3, 3]) < 1e-5, f"{link} at frame {frame}"
-            assert rotation_angle(recorded, expected) < 1e-5, f"{link} at frame {frame}"
+            assert np.linalg.norm(recorded[:3, 3] - expected[:3, 3]) < 1e-5, f"{link} at frame {frame} of episode {episode}"
+            assert rotation_angle(recorded, expected) < 1e-5, f"{link} at frame {frame} of episode {episode}"
             compared += 1
-    assert compared > 3 * 30
+    return compared
 
 
 def _feature_names(dataset: Path) -> list[str]:

@@ -1,3 +1,3 @@
 """urdf-pipeline: one schema-validated YAML file per robot setup becomes a validated Rerun recording."""
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"

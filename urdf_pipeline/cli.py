@@ -20,6 +20,7 @@ from .errors import UserError
 EXIT_OK, EXIT_USER_ERROR, EXIT_BUG, EXIT_INTERRUPTED = 0, 1, 70, 130
 
 if TYPE_CHECKING:
+    from .dataset_run import DatasetRun, RunOptions
     from .plan import Plan
     from .segment_run import SegmentResult
 
@@ -39,6 +40,10 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     if args.catalog and not args.dataset:
         raise UserError("--catalog needs --dataset NAME: the catalog dataset to register the outputs in")
+    if args.jobs > 1 and args.executor == "local":
+        from .local_executor import start_fork_server
+
+        start_fork_server()
     plan = compile_config(Path(args.config), args.episodes)
     for robot in plan.robots:
         say(f"robot {robot.key}: URDF sha256 {robot.urdf_sha256} from {robot.urdf_origin}")
@@ -53,6 +58,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         say(f"{segments} segment(s), layout {plan.dataset.layout}, {args.jobs} job(s) on the {args.executor} executor")
     options = RunOptions(args.jobs, args.executor, args.ray_address, args.force, verbose=not many)
     run = run_dataset(plan, options, SegmentProgress() if many else None)
+    if args.report:
+        _write_report(Path(args.report), plan, run, options)
     if many or run.interrupted:
         print(summary_table(run.results), file=sys.stderr)
         say(totals_line(run.results, run.seconds) + f"; manifest {run.manifest}")
@@ -67,12 +74,32 @@ def cmd_run(args: argparse.Namespace) -> int:
     if run.interrupted:
         print("interrupted: only complete outputs were kept", file=sys.stderr)
         return EXIT_INTERRUPTED
-    if args.catalog and all(r.status in ("written", "skipped") for r in run.results):
-        _register(plan, run.results, args)
+    if args.catalog:  # what was written (or is up to date) is registered even when other segments failed
+        _register(plan, tuple(r for r in run.results if r.status in ("written", "skipped")), args)
     if bugs:
         print("urdf-pipeline: internal error (a bug, not your config); please report it with the traceback above", file=sys.stderr)
         return EXIT_BUG
     return EXIT_USER_ERROR if any(r.status == "failed" for r in run.results) else EXIT_OK
+
+
+def _write_report(path: Path, plan: Plan, run: DatasetRun, options: RunOptions) -> None:
+    """`--report FILE.json`: what the run did, segment by segment, for CI dashboards and benchmarks."""
+    import dataclasses
+    import json
+
+    report = {
+        "config": str(plan.config_path),
+        "layout": plan.dataset.layout if plan.dataset else "single",
+        "jobs": options.jobs,
+        "executor": options.executor,
+        "seconds": run.seconds,
+        "interrupted": run.interrupted,
+        "results": [{**dataclasses.asdict(r), "output": str(r.output)} for r in run.results],
+    }
+    try:
+        path.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
+    except OSError as exc:
+        raise UserError(f"cannot write the run report {path}: {exc}") from None
 
 
 def _print_single(result: SegmentResult) -> None:
@@ -152,6 +179,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--catalog", metavar="URL", help="register the outputs in this Rerun catalog server (needs --dataset)")
     run.add_argument("--dataset", metavar="NAME", help="the catalog dataset (created when missing)")
     run.add_argument("--layer", default="urdf", help="the catalog layer name of the segments' outputs (default: urdf)")
+    run.add_argument(
+        "--report", metavar="FILE.json", help="write what the run did per segment (status, frames, seconds, worker, peak memory)"
+    )
     run.set_defaults(handler=cmd_run)
     validate = commands.add_parser("validate", help="check configs against the schema, URDFs and source metadata (no joint values read)")
     validate.add_argument("configs", nargs="+", metavar="CONFIG")

@@ -71,5 +71,19 @@ def describe_plan(plan: Plan) -> str:
     for robot in plan.robots:
         lines += _robot_lines(robot)
     lines += _edge_lines(plan)
-    lines.append(f"output {plan.output.path} (application_id {plan.output.application_id}, recording_id {plan.output.recording_id})")
+    lines += _output_lines(plan)
     return "\n".join(lines)
+
+
+def _output_lines(plan: Plan) -> list[str]:
+    if plan.dataset is None or len(plan.segments) == 1 and plan.dataset.layout == "single":
+        return [f"output {plan.output.path} (application_id {plan.output.application_id}, recording_id {plan.output.recording_id})"]
+    dataset, segments = plan.dataset, plan.segments
+    named = ", ".join(s.id for s in segments[:3]) + (f", ... {segments[-1].id}" if len(segments) > 3 else "")
+    lines = [f"output: {len(segments)} segments ({named}), layout {dataset.layout}, application_id {plan.output.application_id}"]
+    if dataset.model is not None:
+        lines.append(f"  model (meshes, static URDF transforms, written once, static only): {dataset.model}")
+    what = "layer (forward kinematics, calibration edges)" if dataset.layout == "split" else "recording"
+    lines.append(f"  each segment's {what}: {segments[0].output} ... recording_id = segment id")
+    lines.append(f"  manifest: {dataset.manifest}")
+    return lines
