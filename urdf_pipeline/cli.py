@@ -20,8 +20,6 @@ from .errors import UserError
 EXIT_OK, EXIT_USER_ERROR, EXIT_BUG, EXIT_INTERRUPTED = 0, 1, 70, 130
 
 if TYPE_CHECKING:
-    from .dataset_run import DatasetRun, RunOptions
-    from .plan import Plan
     from .segment_run import SegmentResult
 
 
@@ -34,9 +32,9 @@ def _positive(text: str) -> int:
 
 def cmd_run(args: argparse.Namespace) -> int:
     from .compile import compile_config
-    from .dataset_run import RunOptions, run_dataset
+    from .dataset_run import RunOptions, register_outputs, run_dataset
     from .progress import SegmentProgress, say
-    from .run_summary import summary_table, totals_line
+    from .run_summary import summary_table, totals_line, write_report
 
     if args.catalog and not args.dataset:
         raise UserError("--catalog needs --dataset NAME: the catalog dataset to register the outputs in")
@@ -59,7 +57,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     options = RunOptions(args.jobs, args.executor, args.ray_address, args.force, verbose=not many)
     run = run_dataset(plan, options, SegmentProgress() if many else None)
     if args.report:
-        _write_report(Path(args.report), plan, run, options)
+        write_report(Path(args.report), plan, run, options)
     if many or run.interrupted:
         print(summary_table(run.results), file=sys.stderr)
         say(totals_line(run.results, run.seconds) + f"; manifest {run.manifest}")
@@ -75,31 +73,11 @@ def cmd_run(args: argparse.Namespace) -> int:
         print("interrupted: only complete outputs were kept", file=sys.stderr)
         return EXIT_INTERRUPTED
     if args.catalog:  # what was written (or is up to date) is registered even when other segments failed
-        _register(plan, tuple(r for r in run.results if r.status in ("written", "skipped")), args)
+        say(register_outputs(run, args.catalog, args.dataset, args.layer).summary())
     if bugs:
         print("urdf-pipeline: internal error (a bug, not your config); please report it with the traceback above", file=sys.stderr)
         return EXIT_BUG
     return EXIT_USER_ERROR if any(r.status == "failed" for r in run.results) else EXIT_OK
-
-
-def _write_report(path: Path, plan: Plan, run: DatasetRun, options: RunOptions) -> None:
-    """`--report FILE.json`: what the run did, segment by segment, for CI dashboards and benchmarks."""
-    import dataclasses
-    import json
-
-    report = {
-        "config": str(plan.config_path),
-        "layout": plan.dataset.layout if plan.dataset else "single",
-        "jobs": options.jobs,
-        "executor": options.executor,
-        "seconds": run.seconds,
-        "interrupted": run.interrupted,
-        "results": [{**dataclasses.asdict(r), "output": str(r.output)} for r in run.results],
-    }
-    try:
-        path.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
-    except OSError as exc:
-        raise UserError(f"cannot write the run report {path}: {exc}") from None
 
 
 def _print_single(result: SegmentResult) -> None:
@@ -110,16 +88,6 @@ def _print_single(result: SegmentResult) -> None:
         print(f"urdf-pipeline: {result.output} is up to date (same content hash); --force writes it again", file=sys.stderr)
     elif result.status == "written":
         print(f"urdf-pipeline: {result.label}: {result.frames} rows in {result.seconds:.1f} s", file=sys.stderr)
-
-
-def _register(plan: Plan, results: tuple[SegmentResult, ...], args: argparse.Namespace) -> None:
-    from .catalog import register_in_catalog
-    from .progress import say
-
-    model = next((r.output for r in results if r.label == "model"), None)
-    layers = [(r.label, r.output) for r in results if r.label != "model"]
-    report = register_in_catalog(args.catalog, args.dataset, args.layer, model, layers)
-    say(report.summary())
 
 
 def cmd_validate(args: argparse.Namespace) -> int:

@@ -10,13 +10,17 @@ import traceback
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
+from .execute import Parts
 from .fingerprint import model_hash, segment_hashes
 from .manifest import Manifest
 from .plan import Plan
 from .progress import SegmentProgress
 from .segment_run import SegmentJob, SegmentResult, install_run_plan, run_segment
+
+if TYPE_CHECKING:
+    from .catalog import CatalogReport
 
 Executor = Literal["local", "ray"]
 
@@ -43,7 +47,7 @@ def build_jobs(plan: Plan) -> list[SegmentJob]:
     jobs = []
     if plan.dataset.layout == "split" and plan.dataset.model is not None:
         jobs.append(SegmentJob(None, "model", "model", plan.dataset.model, model_hash(plan), run_plan=plan))
-    parts = "layer" if plan.dataset.layout == "split" else "all"
+    parts: Parts = "layer" if plan.dataset.layout == "split" else "all"
     hashes = segment_hashes(plan, with_model=parts == "all")
     for segment in plan.dataset.segments:
         jobs.append(SegmentJob(segment, parts, segment.id, segment.output, hashes[segment.id], segment.frames, run_plan=plan))
@@ -127,3 +131,12 @@ def _remove_partial_files(outputs: list[Path]) -> None:
     for output in outputs:
         for partial in output.parent.glob(f".{output.name}.partial-*"):
             partial.unlink(missing_ok=True)
+
+
+def register_outputs(run: DatasetRun, url: str, dataset: str, layer: str) -> CatalogReport:
+    """Register what the run wrote or found up to date: the model as the dataset's asset, each segment under `layer`."""
+    from .catalog import register_in_catalog
+
+    usable = [r for r in run.results if r.status in ("written", "skipped")]
+    model = next((r.output for r in usable if r.label == "model"), None)
+    return register_in_catalog(url, dataset, layer, model, [(r.label, r.output) for r in usable if r.label != "model"])

@@ -90,8 +90,13 @@ class SegmentProgress:
 
 
 class SegmentResultLike(Protocol):
-    label: str
-    status: str
-    frames: int
-    seconds: float
-    reason: str
+    @property
+    def label(self) -> str: ...
+    @property
+    def status(self) -> str: ...
+    @property
+    def frames(self) -> int: ...
+    @property
+    def seconds(self) -> float: ...
+    @property
+    def reason(self) -> str: ...

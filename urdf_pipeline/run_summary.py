@@ -2,9 +2,18 @@
 
 from __future__ import annotations
 
+import dataclasses
+import json
 from collections import Counter
+from pathlib import Path
+from typing import TYPE_CHECKING
 
+from .errors import UserError
 from .segment_run import SegmentResult
+
+if TYPE_CHECKING:
+    from .dataset_run import DatasetRun, RunOptions
+    from .plan import Plan
 
 
 def summary_table(results: tuple[SegmentResult, ...]) -> str:
@@ -22,3 +31,20 @@ def totals_line(results: tuple[SegmentResult, ...], seconds: float) -> str:
     parts = ", ".join(f"{counts[s]} {s}" for s in ("written", "skipped", "failed", "bug", "interrupted") if counts[s])
     rate = f", {frames / seconds:,.0f} frames/s" if seconds > 0 and frames else ""
     return f"{len(results)} outputs: {parts}; {frames:,} frames in {seconds:.1f} s{rate}"
+
+
+def write_report(path: Path, plan: Plan, run: DatasetRun, options: RunOptions) -> None:
+    """`run --report FILE.json`: what the run did, segment by segment, for CI dashboards and benchmarks."""
+    report = {
+        "config": str(plan.config_path),
+        "layout": plan.dataset.layout if plan.dataset else "single",
+        "jobs": options.jobs,
+        "executor": options.executor,
+        "seconds": run.seconds,
+        "interrupted": run.interrupted,
+        "results": [{**dataclasses.asdict(r), "output": str(r.output)} for r in run.results],
+    }
+    try:
+        path.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
+    except OSError as exc:
+        raise UserError(f"cannot write the run report {path}: {exc}") from None

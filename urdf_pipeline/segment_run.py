@@ -11,7 +11,7 @@ import resource
 import sys
 import time
 import traceback
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Literal
 
@@ -75,23 +75,25 @@ def run_segment(job: SegmentJob) -> SegmentResult:
         if job.verbose:
             print(f"note: {note}", file=sys.stderr)
 
-    common = {"label": job.label, "output": job.output, "content_hash": job.content_hash}
+    failed = SegmentResult(job.label, job.output, "failed", job.content_hash)
     try:
         provenance = {"content_sha256": job.content_hash}
         result = execute(job.plan(), job.parts, provenance, log=say if job.verbose else _quiet, on_note=on_note)
     except UserError as exc:
-        return SegmentResult(**common, status="failed", reason="\n".join(exc.lines()), notes=tuple(notes), **_worker(started))
+        return _finished(replace(failed, reason="\n".join(exc.lines()), notes=tuple(notes)), started)
     except Exception:
-        return SegmentResult(**common, status="bug", reason=traceback.format_exc(), notes=tuple(notes), **_worker(started))
+        return _finished(replace(failed, status="bug", reason=traceback.format_exc(), notes=tuple(notes)), started)
     frames = max(result.rows.values(), default=0)
-    size = result.output.stat().st_size
-    return SegmentResult(**common, status="written", frames=frames, bytes=size, notes=tuple(notes), **_worker(started))
+    written = replace(failed, status="written", frames=frames, bytes=result.output.stat().st_size, notes=tuple(notes))
+    return _finished(written, started)
 
 
 def _quiet(message: str) -> None:
     """Per-segment progress lines are left out: the run's progress bar and summary say it for all segments."""
 
 
-def _worker(started: float) -> dict[str, object]:
-    peak_kib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss  # KiB on Linux
-    return {"seconds": time.perf_counter() - started, "worker": f"{os.uname().nodename}:{os.getpid()}", "peak_rss_mib": peak_kib / 1024}
+def _finished(result: SegmentResult, started: float) -> SegmentResult:
+    """With the time it took and the worker's identity and peak memory (KiB on Linux), for the summary and --report."""
+    peak_mib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    worker = f"{os.uname().nodename}:{os.getpid()}"
+    return replace(result, seconds=time.perf_counter() - started, worker=worker, peak_rss_mib=peak_mib)

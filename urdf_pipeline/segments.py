@@ -244,6 +244,7 @@ def _output_paths(template: str, ids: list[str], document: Document, problems: P
 
 def _source_for(plan: SourcePlan, sources: CompiledSources, episode: int | None, stem: str | None) -> SourcePlan:
     if isinstance(plan, LeRobotSourcePlan) and plan.per_segment:
+        assert episode is not None  # segments of per-episode sources are keyed by episode
         return replace(plan, episode=episode)
     if plan.name in sources.files and stem is not None:
         return sources.files[plan.name][stem]
