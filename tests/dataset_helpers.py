@@ -60,3 +60,13 @@ def recording_content(path: Path) -> list[tuple[str, bool, list[dict]]]:
 def store_ids(path: Path) -> tuple[str, str]:
     (entry,) = RrdReader(path).recordings()
     return str(entry.application_id), str(entry.recording_id)
+
+
+def status_lines(err: str) -> dict[str, str]:
+    """segment -> status, from the summary table."""
+    found = {}
+    for line in err.splitlines():
+        parts = line.split()
+        if len(parts) >= 4 and not line.startswith("urdf-pipeline") and parts[3] in ("written", "skipped", "failed", "bug", "interrupted"):
+            found[parts[0]] = parts[3]
+    return found

@@ -24,6 +24,7 @@ from .dataset_helpers import (
     edit_config,
     isolated_examples,
     random_so101_episodes,
+    status_lines,
     store_ids,
     write_so101_dataset,
 )
@@ -47,23 +48,13 @@ def _manifest(config: Path) -> dict:
     return json.loads((_outputs(config) / "so101_dataset.manifest.json").read_text())
 
 
-def _status_lines(err: str) -> dict[str, str]:
-    """segment -> status, from the summary table."""
-    found = {}
-    for line in err.splitlines():
-        parts = line.split()
-        if len(parts) >= 4 and not line.startswith("urdf-pipeline") and parts[3] in ("written", "skipped", "failed", "bug", "interrupted"):
-            found[parts[0]] = parts[3]
-    return found
-
-
 def test_split_layout_writes_the_model_once_and_a_layer_per_episode(so101_dataset: Path, run_cli) -> None:
     result = run_cli("run", str(so101_dataset), "--jobs", "2")
     assert result.code == 0, result.err
     out = _outputs(so101_dataset)
     layers = [out / f"episode_{e:06d}.rrd" for e in range(4)]
     assert result.out.split() == [str(out / "model.rrd"), *map(str, layers)]
-    assert _status_lines(result.err) == {"model": "written", **{f"episode_{e:06d}": "written" for e in range(4)}}
+    assert status_lines(result.err) == {"model": "written", **{f"episode_{e:06d}": "written" for e in range(4)}}
 
     model_chunks = RrdReader(out / "model.rrd").stream().to_chunks()
     assert all(chunk.is_static for chunk in model_chunks), "a catalog asset must hold static chunks only"
@@ -118,7 +109,7 @@ def test_a_rerun_skips_what_is_up_to_date_and_rewrites_what_changed(so101_datase
 
     again = run_cli("run", str(so101_dataset))
     assert again.code == 0, again.err
-    assert set(_status_lines(again.err).values()) == {"skipped"}
+    assert set(status_lines(again.err).values()) == {"skipped"}
     assert {p.name: p.stat().st_mtime_ns for p in out.glob("*.rrd")} == mtimes
     assert len(again.out.split()) == 4, "skipped outputs are still listed: they are part of the result"
 
@@ -126,7 +117,7 @@ def test_a_rerun_skips_what_is_up_to_date_and_rewrites_what_changed(so101_datase
     write_so101_dataset(dataset, episodes)
     changed = run_cli("run", str(so101_dataset))
     assert changed.code == 0, changed.err
-    assert _status_lines(changed.err) == {
+    assert status_lines(changed.err) == {
         "model": "skipped",
         "episode_000000": "skipped",
         "episode_000001": "written",
@@ -134,31 +125,31 @@ def test_a_rerun_skips_what_is_up_to_date_and_rewrites_what_changed(so101_datase
     }
 
     (out / "so101_dataset.manifest.json").unlink()  # without a manifest, the hash stored in each file decides
-    assert set(_status_lines(run_cli("run", str(so101_dataset)).err).values()) == {"skipped"}
+    assert set(status_lines(run_cli("run", str(so101_dataset)).err).values()) == {"skipped"}
     assert (out / "so101_dataset.manifest.json").is_file()
 
     forced = run_cli("run", str(so101_dataset), "--force")
-    assert set(_status_lines(forced.err).values()) == {"written"}
+    assert set(status_lines(forced.err).values()) == {"written"}
 
     edit_config(so101_dataset, lambda d: d["robots"]["so101"]["joints"]["map"].update(gripper={"joint": "gripper", "offset": 0.01}))
     remapped = run_cli("run", str(so101_dataset))  # a changed correction changes every layer, not the model
-    assert _status_lines(remapped.err) == {"model": "skipped", **{f"episode_{e:06d}": "written" for e in range(3)}}
+    assert status_lines(remapped.err) == {"model": "skipped", **{f"episode_{e:06d}": "written" for e in range(3)}}
 
 
 def test_comments_and_key_order_do_not_make_outputs_stale(so101_dataset: Path, run_cli) -> None:
     assert run_cli("run", str(so101_dataset), "--episodes", "3").code == 0
     text = so101_dataset.read_text()
     so101_dataset.write_text("# reviewed in PR 12\n" + text.replace("  layout: split\n", "") + "  layout: split\n")
-    assert set(_status_lines(run_cli("run", str(so101_dataset), "--episodes", "3").err).values()) == {"skipped"}
+    assert set(status_lines(run_cli("run", str(so101_dataset), "--episodes", "3").err).values()) == {"skipped"}
 
 
 def test_episodes_select_segments_and_the_command_line_overrides(so101_dataset: Path, run_cli) -> None:
     edit_config(so101_dataset, lambda d: d["output"].update(episodes=[0, 2]))
     result = run_cli("run", str(so101_dataset))
     assert result.code == 0, result.err
-    assert sorted(_status_lines(result.err)) == ["episode_000000", "episode_000002", "model"]
+    assert sorted(status_lines(result.err)) == ["episode_000000", "episode_000002", "model"]
     result = run_cli("run", str(so101_dataset), "--episodes", "2:")
-    assert sorted(_status_lines(result.err)) == ["episode_000002", "episode_000003", "model"]
+    assert sorted(status_lines(result.err)) == ["episode_000002", "episode_000003", "model"]
     manifest = _manifest(so101_dataset)  # entries of earlier runs stay while their files exist
     assert [s["segment"] for s in manifest["segments"]] == ["episode_000000", "episode_000002", "episode_000003"]
     wrong = run_cli("run", str(so101_dataset), "--episodes", "1,9")
@@ -174,7 +165,7 @@ def test_one_failing_segment_does_not_stop_the_others(so101_dataset: Path, run_c
     edit_config(so101_dataset, lambda d: d["sources"]["so101"].update(lerobot="random_so101"))
     result = run_cli("run", str(so101_dataset), "--jobs", "2")
     assert result.code == 1
-    assert _status_lines(result.err) == {
+    assert status_lines(result.err) == {
         "model": "written",
         "episode_000000": "written",
         "episode_000001": "failed",
@@ -242,9 +233,10 @@ def test_base_recordings_must_hold_every_segment(so101_dataset: Path, run_cli) -
     )  # the base: the same episodes written as single recordings
     base_config = so101_dataset.with_name("base.yaml")
     base_config.write_text(
-        single.read_text().replace("  layout: split\n", "").replace("  model: out/so101_dataset/model.rrd\n", "").replace(
-            "out/so101_dataset/{segment}.rrd", "base/{segment}.rrd"
-        )
+        single.read_text()
+        .replace("  layout: split\n", "")
+        .replace("  model: out/so101_dataset/model.rrd\n", "")
+        .replace("out/so101_dataset/{segment}.rrd", "base/{segment}.rrd")
     )
     assert run_cli("run", str(base_config), "--episodes", "0:2").code == 0
     ok = run_cli("run", str(so101_dataset), "--episodes", "0:2", "--base", str(base))

@@ -38,10 +38,6 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     if args.catalog and not args.dataset:
         raise UserError("--catalog needs --dataset NAME: the catalog dataset to register the outputs in")
-    if args.jobs > 1 and args.executor == "local":
-        from .local_executor import start_fork_server
-
-        start_fork_server()
     plan = compile_config(Path(args.config), args.episodes)
     for robot in plan.robots:
         say(f"robot {robot.key}: URDF sha256 {robot.urdf_sha256} from {robot.urdf_origin}")
@@ -54,6 +50,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     many = segments > 1 or plan.dataset.layout == "split"
     if many:
         say(f"{segments} segment(s), layout {plan.dataset.layout}, {args.jobs} job(s) on the {args.executor} executor")
+    if many and args.jobs > 1 and args.executor == "local":
+        from .local_executor import start_fork_server
+
+        start_fork_server()  # its imports overlap with hashing the inputs
     options = RunOptions(args.jobs, args.executor, args.ray_address, args.force, verbose=not many)
     run = run_dataset(plan, options, SegmentProgress() if many else None)
     if args.report:

@@ -99,7 +99,7 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
         if options.executor == "ray":
             from .ray_executor import run_on_ray
 
-            run_on_ray(work, to_run, options.ray_address, on_done, on_crash)
+            run_on_ray(work, to_run, options.ray_address, on_done, on_crash, num_cpus=options.jobs)
         else:
             from .local_executor import run_locally
 
