@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 import os
+import re
 import socket
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -25,6 +26,7 @@ R = TypeVar("R")
 
 CONNECT_TIMEOUT = 5.0  # seconds; Ray itself retries an unreachable address for over five minutes
 STOP_GRACE = 5.0  # seconds that interrupted tasks get to run their cleanup before their workers are killed
+_ANSI_COLOUR = re.compile(r"\x1b\[[0-9;]*m")
 
 
 def _call(work: Callable[[J], R], job: J) -> R:
@@ -54,7 +56,7 @@ def run_on_ray(
         return
     _connect(ray, address, num_cpus)
     try:
-        task = ray.remote(num_cpus=1, max_retries=0)(_call)  # a crashed segment is reported, not silently run again
+        task: Any = ray.remote(num_cpus=1, max_retries=0)(_call)  # a crashed segment is reported, not silently run again
         pending: dict[ObjectRef[Any], J] = {task.remote(work, job): job for job in jobs}
         try:
             while pending:
@@ -76,7 +78,9 @@ def run_on_ray(
 
 def _connect(ray: Any, address: str | None, num_cpus: int | None) -> None:
     """`ray.init`, with Ray's log noise kept off stderr and connection failures as user errors that name the address."""
-    options: dict[str, Any] = {"logging_level": logging.WARNING, "log_to_driver": True}  # task output (warnings) still shows
+    # Task output stays in Ray's logs (/tmp/ray/session_latest/logs on each node): results carry what matters, and
+    # Ray would print it to this process's stdout, where `run` lists the files it wrote.
+    options: dict[str, Any] = {"logging_level": logging.WARNING, "log_to_driver": False}
     if address is None:
         # "local", not None: None would join a cluster named by RAY_ADDRESS or the last `ray start` on this machine
         options |= {"address": "local", "num_cpus": num_cpus or os.cpu_count() or 1, "include_dashboard": False}
@@ -89,9 +93,18 @@ def _connect(ray: Any, address: str | None, num_cpus: int | None) -> None:
     try:
         with _quiet_token_notice():
             ray.init(**options)
-    except Exception as error:  # ConnectionError, ValueError (address format, ray[client] missing), RuntimeError, ...
-        ray.shutdown()
-        raise UserError(f"{what}: {error}", None) from error
+    except BaseException as error:
+        ray.shutdown()  # what a Ctrl-C or a failure left half started
+        if isinstance(error, Exception):  # ConnectionError, ValueError (address format, ray[client] missing), RuntimeError, ...
+            raise UserError(f"{what}: {error}{_auth_hint(address, error)}", None) from error
+        raise
+
+
+def _auth_hint(address: str | None, error: Exception) -> str:
+    """Ray's message for a rejected token is only "Failed to connect"; the missing setting is the likely cause."""
+    if address is None or not isinstance(error, ConnectionError) or os.environ.get("RAY_AUTH_MODE") == "token":
+        return ""
+    return " (a cluster with token authentication also needs RAY_AUTH_MODE=token and RAY_AUTH_TOKEN in this environment)"
 
 
 def _check_reachable(address: str) -> None:
@@ -124,9 +137,9 @@ def _cause(error: BaseException) -> BaseException:
     cause = getattr(error, "cause", None)
     if not isinstance(cause, BaseException):
         return error
-    remote = getattr(error, "traceback_str", "")
+    remote = _ANSI_COLOUR.sub("", str(error)).strip()  # "ray::_call() (pid=..., ip=...)" and the traceback
     if remote:
-        cause.add_note(remote.rstrip())
+        cause.add_note(remote)
     return cause
 
 
@@ -139,8 +152,5 @@ def _cancel(ray: Any, refs: list[ObjectRef[Any]]) -> None:
     _, running = ray.wait(refs, num_returns=len(refs), timeout=STOP_GRACE)
     for ref in running:
         ray.cancel(ref, force=True)
-    for ref in refs:  # fetch the errors, or Ray reports each as "unhandled" when the reference is dropped
-        try:
-            ray.get(ref, timeout=STOP_GRACE)
-        except Exception:
-            pass
+    if running:
+        ray.wait(running, num_returns=len(running), timeout=STOP_GRACE)  # so the caller's cleanup comes after the kills
