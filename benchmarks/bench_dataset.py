@@ -49,7 +49,19 @@ def prepare(workdir: Path) -> dict[str, Path]:
 
 def run(config: Path, extra: list[str], episodes: str) -> dict:
     report = config.with_suffix(".report.json")
-    command = [sys.executable, "-m", "urdf_pipeline", "run", str(config), "--force", "--episodes", episodes, "--report", str(report), *extra]
+    command = [
+        sys.executable,
+        "-m",
+        "urdf_pipeline",
+        "run",
+        str(config),
+        "--force",
+        "--episodes",
+        episodes,
+        "--report",
+        str(report),
+        *extra,
+    ]
     started = time.perf_counter()
     done = subprocess.run(command, capture_output=True, text=True)
     wall = time.perf_counter() - started
@@ -108,7 +120,9 @@ def main() -> None:
     def median(name: str, key: str) -> float:
         return statistics.median(m[key] for m in measured[name])
 
-    print(f"\nG1 dataset, {measured['split, jobs 1'][0]['episodes']} episodes, {measured['split, jobs 1'][0]['frames']:,} frames; medians of {args.repeat} runs\n")
+    print(
+        f"\nG1 dataset, {measured['split, jobs 1'][0]['episodes']} episodes, {measured['split, jobs 1'][0]['frames']:,} frames; medians of {args.repeat} runs\n"
+    )
     print("| variant | wall s | segment phase s | episodes/s (wall) | frames/s (wall) | peak RSS per worker MiB | bytes written |")
     print("|---|---|---|---|---|---|---|")
     for name in variants:
@@ -119,13 +133,19 @@ def main() -> None:
             f"{median(name, 'peak_worker_mib'):.0f} | {first['bytes']:,} |"
         )
     one, two = "split, jobs 1", "split, jobs 2"
-    print(f"\nspeed-up jobs 2 / jobs 1: whole command {median(one, 'wall') / median(two, 'wall'):.2f}x, segment phase {median(one, 'segments_phase') / median(two, 'segments_phase'):.2f}x")
+    print(
+        f"\nspeed-up jobs 2 / jobs 1: whole command {median(one, 'wall') / median(two, 'wall'):.2f}x, segment phase {median(one, 'segments_phase') / median(two, 'segments_phase'):.2f}x"
+    )
     split_bytes, single_bytes = measured[two][0]["bytes"], measured["single, jobs 2"][0]["bytes"]
-    print(f"bytes: single {single_bytes:,} / split {split_bytes:,} (model {measured[two][0]['model_bytes']:,}) = {single_bytes / split_bytes:.1f}x fewer with split")
+    print(
+        f"bytes: single {single_bytes:,} / split {split_bytes:,} (model {measured[two][0]['model_bytes']:,}) = {single_bytes / split_bytes:.1f}x fewer with split"
+    )
 
     few = run(configs["split"], ["--jobs", "2"], "0:20")
     many = run(configs["split"], ["--jobs", "2"], args.episodes)
-    print(f"peak RSS per worker, split, jobs 2: {few['episodes']} episodes {few['peak_worker_mib']:.0f} MiB, {many['episodes']} episodes {many['peak_worker_mib']:.0f} MiB")
+    print(
+        f"peak RSS per worker, split, jobs 2: {few['episodes']} episodes {few['peak_worker_mib']:.0f} MiB, {many['episodes']} episodes {many['peak_worker_mib']:.0f} MiB"
+    )
     if not args.workdir:
         shutil.rmtree(workdir)
 
