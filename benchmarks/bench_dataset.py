@@ -38,10 +38,11 @@ def prepare(workdir: Path) -> dict[str, Path]:
     spec = yaml.safe_load(G1_CONFIG.read_text())
     del spec["sources"]["g1_state"]["episode"]  # one segment per episode
     configs = {}
-    for layout in ("split", "single"):
-        output = {"layout": layout, "path": f"out/{layout}/{{segment}}.rrd", "segment": "episode_{episode:06d}", "application_id": "g1"}
-        if layout == "split":
-            output["model"] = "out/split/model.rrd"
+    for layout in ("split", "single", "split_b"):
+        kind = layout.removesuffix("_b")  # split_b: a second split config with its own outputs, for two processes at once
+        output = {"layout": kind, "path": f"out/{layout}/{{segment}}.rrd", "segment": "episode_{episode:06d}", "application_id": "g1"}
+        if kind == "split":
+            output["model"] = f"out/{layout}/model.rrd"
         configs[layout] = workdir / f"g1_{layout}.yaml"
         configs[layout].write_text(yaml.safe_dump({**spec, "output": output}, sort_keys=False))
     return configs
@@ -86,6 +87,19 @@ def run(config: Path, extra: list[str], episodes: str) -> dict:
     }
 
 
+def run_halves(configs: dict[str, Path]) -> dict:
+    """The bound on this machine: two independent `--jobs 1` processes at once, each on half of the episodes."""
+    commands = [
+        [sys.executable, "-m", "urdf_pipeline", "run", str(configs["split"]), "--force", "--jobs", "1", "--episodes", ":50"],
+        [sys.executable, "-m", "urdf_pipeline", "run", str(configs["split_b"]), "--force", "--jobs", "1", "--episodes", "50:"],
+    ]
+    started = time.perf_counter()
+    processes = [subprocess.Popen(c, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for c in commands]
+    if any(p.wait() != 0 for p in processes):
+        raise SystemExit("a half run failed")
+    return {"wall": time.perf_counter() - started}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--repeat", type=int, default=3)
@@ -110,12 +124,15 @@ def main() -> None:
     except ImportError:
         print("ray is not installed: the ray variant is left out", file=sys.stderr)
     measured: dict[str, list[dict]] = {name: [] for name in variants}
+    halves: list[float] = []
     for round_index in range(args.repeat):
         order = list(variants) if round_index % 2 == 0 else list(reversed(variants))
         for name in order:
             config, extra = variants[name]
             measured[name].append(run(config, extra, args.episodes))
             print(f"round {round_index + 1} {name}: {measured[name][-1]['wall']:.2f} s", file=sys.stderr)
+        if args.episodes == "all":
+            halves.append(run_halves(configs)["wall"])
 
     def median(name: str, key: str) -> float:
         return statistics.median(m[key] for m in measured[name])
@@ -135,6 +152,15 @@ def main() -> None:
     one, two = "split, jobs 1", "split, jobs 2"
     print(
         f"\nspeed-up jobs 2 / jobs 1: whole command {median(one, 'wall') / median(two, 'wall'):.2f}x, segment phase {median(one, 'segments_phase') / median(two, 'segments_phase'):.2f}x"
+    )
+    if halves:
+        bound = median(one, "wall") / statistics.median(halves)
+        print(
+            f"upper bound on this machine: two independent --jobs 1 processes on 50 episodes each take {statistics.median(halves):.2f} s, {bound:.2f}x"
+        )
+    single_one = run(configs["single"], ["--jobs", "1"], args.episodes)
+    print(
+        f"single layout: jobs 1 {single_one['wall']:.2f} s, jobs 2 {median('single, jobs 2', 'wall'):.2f} s: {single_one['wall'] / median('single, jobs 2', 'wall'):.2f}x (segment phase {single_one['segments_phase'] / median('single, jobs 2', 'segments_phase'):.2f}x)"
     )
     split_bytes, single_bytes = measured[two][0]["bytes"], measured["single, jobs 2"][0]["bytes"]
     print(

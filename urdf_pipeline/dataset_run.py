@@ -109,7 +109,14 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
         interrupted = True
         _remove_partial_files([job.output for job in to_run])
         for job in to_run:
-            results.setdefault(job.label, SegmentResult(job.label, job.output, "interrupted", job.content_hash, reason="Ctrl-C"))
+            if job.label in results:
+                continue
+            if job.output.is_file() and stored_content_hash(job.output, job.parts) == job.content_hash:
+                # written completely by a worker stopped before its result arrived: keep the manifest true to the files
+                manifest.record(job.label, job.output, job.content_hash, job.frames_expected or 0, {})
+                results[job.label] = SegmentResult(job.label, job.output, "written", job.content_hash, reason="finished as Ctrl-C came")
+            else:
+                results[job.label] = SegmentResult(job.label, job.output, "interrupted", job.content_hash, reason="Ctrl-C")
     finally:
         if progress is not None:
             progress.finish()

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import multiprocessing
 import signal
+import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from typing import TypeVar
@@ -46,39 +47,73 @@ def run_locally(
 ) -> None:
     """Call `on_done` for each job as it finishes; `on_crash` when its worker died or `work` raised (a bug).
 
-    `initializer(*initargs)` runs once in each worker process (or in this one, when it runs the jobs itself). At most two jobs per worker are queued at a time, so an interrupted run has little to unwind.
+    This process is one of the `workers`: it runs jobs itself while the fork server starts the others, so a small
+    dataset is not slower with more workers. `initializer(*initargs)` runs once in each worker process and here.
+    At most two jobs per worker process are queued at a time, so an interrupted run has little to unwind.
     """
-    if workers <= 1 or len(jobs) <= 1:
-        if initializer is not None:
-            initializer(*initargs)
+    if initializer is not None:
+        initializer(*initargs)
+    helpers = min(workers, len(jobs)) - 1
+    if helpers < 1:
         for job in jobs:
-            on_done(job, work(job))
+            _run_here(work, job, on_done, on_crash)
         return
     context = multiprocessing.get_context("forkserver")
     context.set_forkserver_preload(PRELOAD)
-    workers = min(workers, len(jobs))
-    pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker, initargs=(initializer, initargs))
+    pool = ProcessPoolExecutor(helpers, mp_context=context, initializer=_start_worker, initargs=(initializer, initargs))
+    ready = threading.Event()  # the worker processes are up: until then, this process works alone
+
+    def start_workers() -> None:
+        try:  # blocks until the fork server has imported Rerun: in a thread, so this process works meanwhile
+            wait([pool.submit(_started) for _ in range(helpers)])
+        finally:
+            ready.set()
+
+    threading.Thread(target=start_workers, name="urdf-pipeline-start-workers", daemon=True).start()
     pending: dict[Future[R], J] = {}
     queue = list(reversed(jobs))
+
+    def finish(done: set[Future[R]] | list[Future[R]]) -> None:
+        for future in done:
+            job = pending.pop(future)
+            error = future.exception()
+            if error is None:
+                on_done(job, future.result())
+            else:
+                on_crash(job, error)
+
     try:
         while queue or pending:
-            while queue and len(pending) < 2 * workers:
+            while ready.is_set() and queue and len(pending) < 2 * helpers:
                 job = queue.pop()
                 pending[pool.submit(work, job)] = job
-            done, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for future in done:
-                job = pending.pop(future)
-                error = future.exception()
-                if error is None:
-                    on_done(job, future.result())
-                else:
-                    on_crash(job, error)
+            finish([future for future in pending if future.done()])
+            if queue:
+                _run_here(work, queue.pop(), on_done, on_crash)
+            elif pending:
+                finish(wait(pending, return_when=FIRST_COMPLETED)[0])
     except BaseException:
         for future in pending:
             future.cancel()
         _terminate(pool)
         raise
-    pool.shutdown(wait=True)
+    if ready.is_set():
+        pool.shutdown(wait=True)
+    else:  # every job was done here before the workers came up: they are not needed
+        _terminate(pool)
+
+
+def _started() -> None:
+    """A no-op task: its completion says a worker process is up."""
+
+
+def _run_here(work: Callable[[J], R], job: J, on_done: Callable[[J, R], None], on_crash: Callable[[J, BaseException], None]) -> None:
+    try:
+        result = work(job)
+    except Exception as error:  # a bug in `work`: reported for this job, like one raised in a worker process
+        on_crash(job, error)
+    else:
+        on_done(job, result)
 
 
 def _terminate(pool: ProcessPoolExecutor) -> None:
