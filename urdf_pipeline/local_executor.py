@@ -47,13 +47,14 @@ def run_locally(
 ) -> None:
     """Call `on_done` for each job as it finishes; `on_crash` when its worker died or `work` raised (a bug).
 
-    This process is one of the `workers`: it runs jobs itself while the fork server starts the others, so a small
-    dataset is not slower with more workers. `initializer(*initargs)` runs once in each worker process and here.
-    At most two jobs per worker process are queued at a time, so an interrupted run has little to unwind.
+    This process runs jobs itself until the fork server has started the workers (about 0.7 s of imports), then
+    leaves the jobs to them: a small dataset is not slower with more workers. `initializer(*initargs)` runs once in
+    each worker process and here. At most two jobs per worker process are queued at a time, so an interrupted run
+    has little to unwind.
     """
     if initializer is not None:
         initializer(*initargs)
-    helpers = min(workers, len(jobs)) - 1
+    helpers = min(workers, len(jobs)) if workers > 1 else 0
     if helpers < 1:
         for job in jobs:
             _run_here(work, job, on_done, on_crash)
@@ -88,7 +89,7 @@ def run_locally(
                 job = queue.pop()
                 pending[pool.submit(work, job)] = job
             finish([future for future in pending if future.done()])
-            if queue:
+            if queue and not ready.is_set():
                 _run_here(work, queue.pop(), on_done, on_crash)
             elif pending:
                 finish(wait(pending, return_when=FIRST_COMPLETED)[0])
