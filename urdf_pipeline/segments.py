@@ -119,8 +119,8 @@ def expand_segments(
     where_segment = document.where("output", "segment")
     episodic = {n: p for n, p in sources.plans.items() if isinstance(p, LeRobotSourcePlan) and p.per_segment}
     if episodes_override is not None:
-        selection = parse_episodes(episodes_override, None)
         where_selection = Where(Path("--episodes"), 0)
+        selection = parse_episodes(episodes_override, where_selection)
     else:
         selection = parse_episodes(output.get("episodes", "all"), document.where("output", "episodes"))
         where_selection = document.where("output", "episodes") if "episodes" in output else where_segment
