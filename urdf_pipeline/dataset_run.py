@@ -6,6 +6,7 @@ true to the complete files.
 
 from __future__ import annotations
 
+import time
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -55,8 +56,6 @@ def build_jobs(plan: Plan) -> list[SegmentJob]:
 
 
 def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | None = None) -> DatasetRun:
-    import time
-
     from .provenance import stored_content_hash
 
     assert plan.dataset is not None
@@ -81,7 +80,7 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
     def on_done(job: SegmentJob, result: SegmentResult) -> None:
         results[job.label] = result
         if result.status == "written":
-            extra = {"episode": _episode(plan, job.label)} if job.label != "model" else {}
+            extra = {"episode": job.segment.episode} if job.segment is not None else {}
             manifest.record(job.label, job.output, job.content_hash, result.frames, extra)
             manifest.write(every_seconds=1.0)
         if progress is not None:
@@ -93,7 +92,7 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
 
     work: Callable[[SegmentJob], SegmentResult] = run_segment
     if options.verbose and len(to_run) == 1 and options.executor == "local":
-        to_run = [_verbose(to_run[0])]
+        to_run = [replace(to_run[0], verbose=True)]
     interrupted = False
     try:
         if options.executor == "ray":
@@ -123,14 +122,6 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
         manifest.write()
     ordered = tuple(results[job.label] for job in jobs)
     return DatasetRun(ordered, time.perf_counter() - started, manifest.path, interrupted)
-
-
-def _verbose(job: SegmentJob) -> SegmentJob:
-    return replace(job, verbose=True)
-
-
-def _episode(plan: Plan, label: str) -> int | None:
-    return next((s.episode for s in plan.segments if s.id == label), None)
 
 
 def _remove_partial_files(outputs: list[Path]) -> None:

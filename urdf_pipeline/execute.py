@@ -38,15 +38,20 @@ def _note(note: str) -> None:
     print(f"note: {note}", file=sys.stderr)
 
 
+def _silent(message: str) -> None:
+    """Progress lines of one segment among many are left out: the run's progress bar says it for all of them."""
+
+
 def execute(
     plan: Plan,
     parts: Parts = "all",
     provenance: dict[str, str] | None = None,
-    log: Callable[[str], None] = say,
     on_note: Callable[[str], None] = _note,
+    quiet: bool = False,
 ) -> RunResult:
-    """Write one recording. `provenance` adds fields (the content hash) to the recording's properties; `log` and `on_note`
-    let a worker running many segments keep its output for the summary instead of interleaving it."""
+    """Write one recording. `provenance` adds fields (the content hash) to the recording's properties; `on_note` and
+    `quiet` (no progress lines) let a worker running many segments keep its output for the run's summary."""
+    log: Callable[[str], None] = _silent if quiet else say
     from rerun.chunk import LazyChunkStream, OptimizationProfile
 
     started = time.perf_counter()
@@ -63,7 +68,7 @@ def execute(
             for robot in plan.robots_for(source.name):
                 mapper = JointValueMapper(robot, source)
                 mappers.append(mapper)
-                progress = RowProgress(f"robot {robot.key}") if log is say else None
+                progress = None if quiet else RowProgress(f"robot {robot.key}")
                 batches = JointTransformBatches(mapper, trees[robot.key], progress)
                 driven.append((robot.key, robot.fk_entity, batches))
             if driven:  # a source used only by temporal edges is read there

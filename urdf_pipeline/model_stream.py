@@ -30,6 +30,7 @@ def load_tree(robot: RobotPlan, workdir: Path) -> UrdfTree:
 
 
 _TREES: dict[tuple[str, str, str, str], UrdfTree] = {}
+_TREE_DIRECTORY: Path | None = None
 
 
 def cached_tree(robot: RobotPlan) -> UrdfTree:
@@ -47,9 +48,6 @@ def _tree_directory() -> Path:
         _TREE_DIRECTORY = Path(tempfile.mkdtemp(prefix="urdf-pipeline-trees-"))
         atexit.register(shutil.rmtree, _TREE_DIRECTORY, True)
     return _TREE_DIRECTORY
-
-
-_TREE_DIRECTORY: Path | None = None
 
 
 def model_stream(robot: RobotPlan, tree: UrdfTree) -> LazyChunkStream:

@@ -65,7 +65,6 @@ class SegmentResult:
 
 def run_segment(job: SegmentJob) -> SegmentResult:
     from .execute import execute
-    from .progress import say
 
     started = time.perf_counter()
     notes: list[str] = []
@@ -78,7 +77,7 @@ def run_segment(job: SegmentJob) -> SegmentResult:
     failed = SegmentResult(job.label, job.output, "failed", job.content_hash)
     try:
         provenance = {"content_sha256": job.content_hash}
-        result = execute(job.plan(), job.parts, provenance, log=say if job.verbose else _quiet, on_note=on_note)
+        result = execute(job.plan(), job.parts, provenance, on_note=on_note, quiet=not job.verbose)
     except UserError as exc:
         return _finished(replace(failed, reason="\n".join(exc.lines()), notes=tuple(notes)), started)
     except Exception:
@@ -86,10 +85,6 @@ def run_segment(job: SegmentJob) -> SegmentResult:
     frames = max(result.rows.values(), default=0)
     written = replace(failed, status="written", frames=frames, bytes=result.output.stat().st_size, notes=tuple(notes))
     return _finished(written, started)
-
-
-def _quiet(message: str) -> None:
-    """Per-segment progress lines are left out: the run's progress bar and summary say it for all segments."""
 
 
 def _finished(result: SegmentResult, started: float) -> SegmentResult:

@@ -7,6 +7,7 @@ id would overwrite each other's recording, so that is refused here, before anyth
 from __future__ import annotations
 
 import glob
+import itertools
 import os
 import re
 import string
@@ -289,15 +290,5 @@ def _dataset_plan(output: dict[str, Any], document: Document, segments: tuple[Se
 
 def _fixed_directory(template: str, base: Path) -> Path:
     """The deepest directory of output.path before any placeholder: where the manifest goes by default."""
-    parts = Path(template).parent.parts
-    fixed = [part for part in _until_placeholder(parts)]
-    return (base.joinpath(*fixed) if fixed else base).resolve()
-
-
-def _until_placeholder(parts: tuple[str, ...]) -> list[str]:
-    fixed = []
-    for part in parts:
-        if "{" in part:
-            break
-        fixed.append(part)
-    return fixed
+    fixed = itertools.takewhile(lambda part: "{" not in part, Path(template).parent.parts)
+    return base.joinpath(*fixed).resolve()
