@@ -56,8 +56,6 @@ def build_jobs(plan: Plan) -> list[SegmentJob]:
 
 
 def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | None = None) -> DatasetRun:
-    from .provenance import stored_content_hash
-
     assert plan.dataset is not None
     started = time.perf_counter()
     jobs = build_jobs(plan)
@@ -66,10 +64,8 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
     to_run: list[SegmentJob] = []
     for job in jobs:
         fresh = manifest.up_to_date(job.label, job.output, job.content_hash)
-        if not fresh and manifest.entry(job.label) is None and job.output.is_file():  # no manifest (deleted, other machine)
-            fresh = stored_content_hash(job.output, job.parts) == job.content_hash
-            if fresh:
-                manifest.record(job.label, job.output, job.content_hash, job.frames_expected or 0, {})
+        if not fresh and manifest.entry(job.label) is None:  # no manifest (deleted, another machine): the file says
+            fresh = _adopt_if_written(job, manifest)
         if fresh and not options.force:
             results[job.label] = SegmentResult(job.label, job.output, "skipped", job.content_hash, reason="up to date")
         else:
@@ -110,9 +106,7 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
         for job in to_run:
             if job.label in results:
                 continue
-            if job.output.is_file() and stored_content_hash(job.output, job.parts) == job.content_hash:
-                # written completely by a worker stopped before its result arrived: keep the manifest true to the files
-                manifest.record(job.label, job.output, job.content_hash, job.frames_expected or 0, {})
+            if _adopt_if_written(job, manifest):  # finished by a worker stopped before its result arrived
                 results[job.label] = SegmentResult(job.label, job.output, "written", job.content_hash, reason="finished as Ctrl-C came")
             else:
                 results[job.label] = SegmentResult(job.label, job.output, "interrupted", job.content_hash, reason="Ctrl-C")
@@ -122,6 +116,16 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
         manifest.write()
     ordered = tuple(results[job.label] for job in jobs)
     return DatasetRun(ordered, time.perf_counter() - started, manifest.path, interrupted)
+
+
+def _adopt_if_written(job: SegmentJob, manifest: Manifest) -> bool:
+    """The job's output exists with the content hash it would be written with: list it in the manifest."""
+    from .provenance import stored_content_hash
+
+    if not job.output.is_file() or stored_content_hash(job.output, job.parts) != job.content_hash:
+        return False
+    manifest.record(job.label, job.output, job.content_hash, job.frames_expected or 0, {})
+    return True
 
 
 def _remove_partial_files(outputs: list[Path]) -> None:
