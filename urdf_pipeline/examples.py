@@ -119,6 +119,70 @@ def write_lerobot_dataset(root: Path, episodes: np.ndarray | list[np.ndarray], n
     (root / "meta" / "tasks.jsonl").write_text(json.dumps({"task_index": 0, "task": "wave"}) + "\n")
 
 
+UR5_JOINTS = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint", "wrist_3_joint"]
+JOINT_STATE_MSGDEF = """std_msgs/Header header
+string[] name
+float64[] position
+float64[] velocity
+float64[] effort
+================================================================================
+MSG: std_msgs/Header
+builtin_interfaces/Time stamp
+string frame_id
+================================================================================
+MSG: builtin_interfaces/Time
+int32 sec
+uint32 nanosec
+"""
+
+
+def write_ros2_bag(path: Path, names: list[str], q: np.ndarray, hz: float = 100.0) -> bool:
+    """A ROS 2 bag (MCAP, CDR) with sensor_msgs/msg/JointState on /joint_states, names in a shuffled order per message,
+    as robot drivers publish them. Needs mcap-ros2-support (a test dependency); returns False without it."""
+    try:
+        from mcap_ros2.writer import Writer
+    except ImportError:
+        return False
+    rng = np.random.default_rng(5)
+    start_ns, step_ns = 1_700_000_000_000_000_000, int(1e9 / hz)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("wb") as stream:
+        writer = Writer(stream)
+        schema = writer.register_msgdef("sensor_msgs/msg/JointState", JOINT_STATE_MSGDEF)
+        for row, values in enumerate(q):
+            order = rng.permutation(len(names))
+            stamp = start_ns + row * step_ns
+            message = {
+                "header": {"stamp": {"sec": stamp // 10**9, "nanosec": stamp % 10**9}, "frame_id": ""},
+                "name": [names[i] for i in order],
+                "position": [float(values[i]) for i in order],
+                "velocity": [],
+                "effort": [],
+            }
+            writer.write_message("/joint_states", schema, message, log_time=stamp + 2_000_000, publish_time=stamp + 2_000_000)
+        writer.finish()
+    return True
+
+
+G1_ARM_NAMES = [
+    f"k{side}{joint}"
+    for side in ("Left", "Right")
+    for joint in ("ShoulderPitch", "ShoulderRoll", "ShoulderYaw", "Elbow", "WristRoll", "WristPitch", "WristYaw")
+]
+G1_HAND_NAMES = [
+    f"k{side}Hand{finger}"
+    for side in ("Left", "Right")
+    for finger in ("Pinky", "Ring", "Middle", "Index", "ThumbBend", "ThumbRotation")
+]
+
+
+def g1_arm_joints() -> list[str]:
+    """The G1 URDF joints of G1_ARM_NAMES, in the same order (kLeftShoulderPitch -> left_shoulder_pitch_joint)."""
+    import re
+
+    return [re.sub(r"(?<!^)([A-Z])", r"_\1", name[1:]).lower() + "_joint" for name in G1_ARM_NAMES]
+
+
 VX300S_ARM = ["waist", "shoulder", "elbow", "forearm_roll", "wrist_angle", "wrist_rotate"]
 VX300S_LIMITS = [(-3.14, 3.14), (-1.85, 1.76), (-1.6, 1.76), (-3.14, 3.14), (-2.26, 1.86), (-3.14, 3.14)]
 
@@ -187,6 +251,16 @@ def prepare(directory: Path, frames: int = 900) -> None:
     _, so101 = read_urdf(share / "robots" / "so_arm_description" / "urdf" / "so101.urdf")
     so101_episodes = [np.degrees(smooth_trajectory(so101, SO101_NAMES, frames // (e + 1), seed=3 + e)) for e in range(4)]
     write_lerobot_dataset(directory / "data" / "so101_lerobot", so101_episodes, SO101_NAMES)
+    ur5_urdf = share / "robots" / "ur_description" / "urdf" / "ur5_robot.urdf"
+    _, ur5 = read_urdf(ur5_urdf)
+    write_ros2_bag(directory / "data" / "ur5_joint_states.mcap", UR5_JOINTS, smooth_trajectory(ur5, UR5_JOINTS, frames, seed=8))
+    _, g1 = read_urdf(share / "robots" / "g1_description" / "urdf" / "g1_29dof_rev_1_0.urdf")
+    g1_episodes = []
+    for episode in range(2):  # like the real G1 recording: 14 arm joints in radians, then 12 hand values in 0..1
+        arms = smooth_trajectory(g1, g1_arm_joints(), frames // (episode + 1), seed=9 + episode)
+        hands = np.clip(0.5 + 0.4 * np.sin(np.arange(len(arms))[:, None] / 20.0 + np.arange(12)), 0.0, 1.0)
+        g1_episodes.append(np.concatenate([arms, hands], axis=1))
+    write_lerobot_dataset(directory / "data" / "g1_lerobot", g1_episodes, G1_ARM_NAMES + G1_HAND_NAMES)
 
 
 if __name__ == "__main__":
