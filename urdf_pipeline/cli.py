@@ -74,6 +74,10 @@ def cmd_run(args: argparse.Namespace) -> int:
         return EXIT_INTERRUPTED
     if args.catalog:  # what was written (or is up to date) is registered even when other segments failed
         say(register_outputs(run, args.catalog, args.dataset, args.layer).summary())
+    if args.spawn or args.connect:
+        from .viewer import send_to_viewer
+
+        say(f"sent {send_to_viewer(plan, run.results, args.connect, args.spawn)} segment(s) to the viewer")
     if bugs:
         print("urdf-pipeline: internal error (a bug, not your config); please report it with the traceback above", file=sys.stderr)
         return EXIT_BUG
@@ -147,6 +151,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--catalog", metavar="URL", help="register the outputs in this Rerun catalog server (needs --dataset)")
     run.add_argument("--dataset", metavar="NAME", help="the catalog dataset (created when missing)")
     run.add_argument("--layer", default="urdf", help="the catalog layer name of the segments' outputs (default: urdf)")
+    run.add_argument("--spawn", action="store_true", help="start a Rerun viewer and send it every segment (with the model)")
+    run.add_argument("--connect", metavar="URL", help="send every segment to the viewer at URL (rerun+http://HOST:9876/proxy)")
     run.add_argument(
         "--report", metavar="FILE.json", help="write what the run did per segment (status, frames, seconds, worker, peak memory)"
     )
