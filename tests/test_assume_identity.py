@@ -26,9 +26,11 @@ def table_config(directory: Path, name: str, assume: list[str] | None) -> Path:
 
 def test_assumed_frame_gets_an_identity_edge_and_a_warning(examples_dir: Path, run_cli) -> None:
     config = table_config(examples_dir, "assume_table", ["table"])
-    line = next(i for i, text in enumerate(config.read_text().splitlines(), 1) if text.strip() == "- table")
+    line, column = next(
+        (i, text.index("- table") + 3) for i, text in enumerate(config.read_text().splitlines(), 1) if text.strip() == "- table"
+    )
     expected = (
-        f"warning: {config}:{line}: frames.assume_identity[0]: frame 'table' has no calibration; "
+        f"warning: {config}:{line}:{column}: frames.assume_identity[0]: frame 'table' has no calibration; "
         "logging an identity edge from root 'world' (frames.assume_identity): its pose is assumed, not measured"
     )
 

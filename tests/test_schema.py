@@ -44,9 +44,9 @@ def test_every_schema_error_is_reported_with_its_line() -> None:
     with pytest.raises(UserError) as error:
         validate_document(doc)
     lines = "\n".join(error.value.lines())
-    assert "c.yaml:1: version: must be 1, got 2" in lines
-    assert "c.yaml:6: robots.arm.jionts: unknown key 'jionts' (did you mean 'joints'?)" in lines
-    assert "c.yaml:5: robots.arm.urdf: wrong type" in lines
+    assert "c.yaml:1:1: version: must be 1, got 2" in lines
+    assert "c.yaml:6:5: robots.arm.jionts: unknown key 'jionts' (did you mean 'joints'?)" in lines
+    assert "c.yaml:5:5: robots.arm.urdf: wrong type" in lines
     assert "missing required key 'application_id'" in lines
     assert len(error.value.lines()) >= 5
 

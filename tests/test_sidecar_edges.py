@@ -126,7 +126,7 @@ def test_sidecar_errors_point_at_the_sidecar_line(case: str, examples_dir: Path,
         assert "Traceback" not in result.err
         errors = [e for e in result.err.splitlines() if e.startswith("error")]
         assert errors and all(ERROR_LINE.match(e) for e in errors), result.err
-        assert f"error: {sidecar}:{line}: " in result.err, result.err
+        assert f"error: {sidecar}:{line}:" in result.err, result.err  # FILE:LINE: or FILE:LINE:COL:
         assert message in result.err, result.err
     assert not (examples_dir / "out" / f"sidecar_broken_{case}.rrd").exists()
 
@@ -142,7 +142,7 @@ def test_frame_graph_errors_name_the_sidecar_edge(examples_dir: Path, run_cli) -
     result = run_cli("validate", str(config))
     assert result.code == 1
     assert (
-        f"error: {sidecar}:1: [0]: frame 'panda_link0' has two parents: 'world' (edges[0] at line " in result.err
+        f"error: {sidecar}:1:3: [0]: frame 'panda_link0' has two parents: 'world' (edges[0] at line " in result.err
         and "and 'table' (calib/two_parents.yaml[0] at line 1)" in result.err
     ), result.err
 

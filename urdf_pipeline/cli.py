@@ -1,6 +1,6 @@
 """Thin command line: one function per subcommand, each returning an exit code; one exit point for errors.
 
-Exit status: 0 success, 1 a user error (one `error: FILE:LINE: message` line each), 2 bad command-line usage,
+Exit status: 0 success, 1 a user error (one `error: FILE:LINE:COL: message` line each), 2 bad command-line usage,
 3 (`check` only) some joint's sampled values do not fit its limits with the config's corrections,
 70 an internal bug (with a traceback: please report it).
 """
@@ -95,9 +95,20 @@ def _print_single(result: SegmentResult) -> None:
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
+    """text: `ok: CONFIG` on stdout, `error:` / `warning: FILE:LINE:COL: ...` lines on stderr. github / json: stdout
+    holds only the annotations (workflow commands, or one JSON list), `ok: CONFIG` goes to stderr. Exit 1 if any
+    config has an error (warnings alone: 0)."""
     from .compile import compile_config
     from .errors import Problems
 
+    if args.format != "text":
+        from .annotations import render, validate_configs
+
+        findings = validate_configs(args.configs)
+        sys.stdout.write(render(findings.sorted(), args.format))
+        for config in findings.valid:
+            print(f"ok: {config}", file=sys.stderr)
+        return EXIT_USER_ERROR if findings.invalid else EXIT_OK
     problems = Problems()
     for config in args.configs:
         try:
@@ -137,6 +148,38 @@ def cmd_schema(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_init(args: argparse.Namespace) -> int:
+    from .scaffold import init_config
+
+    result, said = init_config(Path(args.urdf), args.source, Path(args.output) if args.output else None, args.force)
+    if not args.output:
+        sys.stdout.write(result.text)
+    for line in said:
+        print(line, file=sys.stderr)
+    return EXIT_OK
+
+
+def cmd_diff(args: argparse.Namespace) -> int:
+    import json
+
+    from .plan_diff import diff_files, diff_git, report_json, report_text
+
+    if (args.git is None) == (args.new is None):
+        print("urdf-pipeline diff: error: give OLD NEW, or CONFIG --git REV", file=sys.stderr)
+        return 2  # bad command-line usage, as argparse's own errors
+    if args.git is not None:
+        old, new = f"{args.old}@{args.git}", args.old
+        changes = diff_git(Path(args.old), args.git)
+    else:
+        old, new = args.old, args.new
+        changes = diff_files(Path(args.old), Path(args.new))
+    if args.format == "json":
+        print(json.dumps(report_json(changes, old, new), indent=2))
+    else:
+        sys.stdout.write(report_text(changes))
+    return EXIT_USER_ERROR if args.exit_code and changes else EXIT_OK
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="urdf-pipeline", description="A robot config file becomes one validated Rerun recording.")
     commands = parser.add_subparsers(dest="command", required=True)
@@ -159,6 +202,12 @@ def build_parser() -> argparse.ArgumentParser:
     run.set_defaults(handler=cmd_run)
     validate = commands.add_parser("validate", help="check configs against the schema, URDFs and source metadata (no joint values read)")
     validate.add_argument("configs", nargs="+", metavar="CONFIG")
+    validate.add_argument(
+        "--format",
+        choices=("text", "github", "json"),
+        default="text",
+        help="text: error: FILE:LINE:COL lines (default); github: workflow annotations; json: a list of problems",
+    )
     validate.set_defaults(handler=cmd_validate)
     check = commands.add_parser(
         "check", help="read a sample of each source and say which corrections put every mapped joint inside its URDF limits"
@@ -172,6 +221,29 @@ def build_parser() -> argparse.ArgumentParser:
     plan.set_defaults(handler=cmd_plan)
     schema = commands.add_parser("schema", help="print the config's JSON Schema")
     schema.set_defaults(handler=cmd_schema)
+    init = commands.add_parser("init", help="scaffold a config from a URDF, pre-matched to a source's names when --source is given")
+    init.add_argument("--urdf", required=True, metavar="PATH", help="a plain URDF file")
+    init.add_argument(
+        "--source",
+        metavar="SOURCE_SPEC",
+        help="KIND:PATH[#PART]: lerobot:DIR[#FEATURE], parquet:FILE[#COLUMN], mcap:FILE[#TOPIC], hdf5:FILE#/DATASET, rrd:FILE#ENTITY",
+    )
+    init.add_argument("-o", "--output", metavar="CONFIG", help="write the config here (default: stdout); paths in it are relative to it")
+    init.add_argument("--force", action="store_true", help="overwrite an existing output file")
+    init.set_defaults(handler=cmd_init)
+    diff = commands.add_parser(
+        "diff",
+        help="print the semantic difference of two configs' compiled plans (OLD NEW, or CONFIG --git REV)",
+        description="Compile both configs and print what differs in their plans, one line per change (nothing when they are "
+        "equivalent: key order, comments and equal spellings do not count). With --git REV, CONFIG's text at REV is compared "
+        "with the working tree's; the files the old config refers to (URDF, data, sidecar edge files) are read from the working tree.",
+    )
+    diff.add_argument("old", metavar="OLD", help="the old config (with --git: the config)")
+    diff.add_argument("new", metavar="NEW", nargs="?", help="the new config (not with --git)")
+    diff.add_argument("--git", metavar="REV", help="compare CONFIG at git revision REV (git show REV:./CONFIG) with the working tree's")
+    diff.add_argument("--format", choices=("text", "json"), default="text")
+    diff.add_argument("--exit-code", action="store_true", help="exit 1 when there are differences (like git diff --exit-code)")
+    diff.set_defaults(handler=cmd_diff)
     return parser
 
 

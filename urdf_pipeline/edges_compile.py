@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import difflib
 import math
-import sys
 from collections.abc import Mapping
 from typing import Any
 
 from .document import Document
-from .errors import Problems
+from .errors import Problems, warn
 from .fixed_chain import NoFixedChain, compose_chain, find_fixed_chain
 from .frame_graph import FrameEdge, check_assume_identity
 from .geometry import normalized_quaternion, quaternion_from_rpy
@@ -135,10 +134,10 @@ def assumed_identity_edges(
     result = []
     for frame in accepted:
         where = wheres[frame]
-        print(
-            f"warning: {where.prefix()}: {where.path}: frame '{frame}' has no calibration; logging an identity edge "
-            f"from root '{root}' (frames.assume_identity): its pose is assumed, not measured",
-            file=sys.stderr,
+        warn(
+            f"frame '{frame}' has no calibration; logging an identity edge from root '{root}' (frames.assume_identity): "
+            "its pose is assumed, not measured",
+            where,
         )
         label = where.path
         result.append(EdgePlan(root, frame, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0), where, "assume_identity", label))

@@ -1,23 +1,33 @@
-"""The one error family users see: each carries where the config is at fault."""
+"""The one error family users see: each carries where the config is at fault. Warnings go through `warn`."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import sys
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass
 from pathlib import Path
 
 
 @dataclass(frozen=True)
 class Where:
-    """A place in a config (or sidecar) file: the file, the 1-based line and the YAML path."""
+    """A place in a config (or sidecar) file: the file, the 1-based line, the YAML path and the 1-based column.
+
+    Line 0 means the file as a whole; column 0 means the column is unknown. A Where made by `Document.where` points
+    where its YAML path's entry starts: at the key for a mapping entry (`j1` in `j1: panda_joint1`, for a problem with
+    the key or with its value alike), at the item for a sequence item."""
 
     file: Path
     line: int
     path: str = ""
+    column: int = 0
 
     def prefix(self) -> str:
-        """`FILE:LINE`, or just `FILE` when the problem is the file as a whole (line 0)."""
-        return f"{self.file}:{self.line}" if self.line else str(self.file)
+        """`FILE:LINE:COL`, `FILE:LINE` when the column is unknown, just `FILE` for the file as a whole (line 0)."""
+        if not self.line:
+            return str(self.file)
+        return f"{self.file}:{self.line}:{self.column}" if self.column else f"{self.file}:{self.line}"
 
 
 def listing(items: Sequence[str], limit: int = 12, separator: str = ", ", empty: str = "") -> str:
@@ -27,8 +37,15 @@ def listing(items: Sequence[str], limit: int = 12, separator: str = ", ", empty:
     return separator.join(items[:limit]) + (f" and {len(items) - limit} more" if len(items) > limit else "")
 
 
+def located(severity: str, message: str, where: Where | None) -> str:
+    """The one-line form of a problem: `SEVERITY: FILE:LINE:COL: YAML.PATH: message`."""
+    place = f"{where.prefix()}: " if where else ""
+    path = f"{where.path}: " if where and where.path else ""
+    return f"{severity}: {place}{path}{message}"
+
+
 class UserError(Exception):
-    """A problem the user can fix in their config or data. Printed as `error: FILE:LINE: message`, exit 1."""
+    """A problem the user can fix in their config or data. Printed as `error: FILE:LINE:COL: message`, exit 1."""
 
     def __init__(self, message: str, where: Where | None = None) -> None:
         super().__init__(message)
@@ -36,9 +53,7 @@ class UserError(Exception):
         self.where = where
 
     def lines(self) -> list[str]:
-        located = f"{self.where.prefix()}: " if self.where else ""
-        path = f"{self.where.path}: " if self.where and self.where.path else ""
-        return [f"error: {located}{path}{self.message}"]
+        return [located("error", self.message, self.where)]
 
 
 class UserErrors(UserError):
@@ -69,3 +84,40 @@ class Problems:
             raise self.errors[0]
         if self.errors:
             raise UserErrors(self.errors)
+
+
+@dataclass(frozen=True)
+class ConfigWarning:
+    """Something the config does on purpose that a reviewer should see (an assumed pose, invisible meshes)."""
+
+    message: str
+    where: Where | None = None
+
+    def line(self) -> str:
+        return located("warning", self.message, self.where)
+
+
+WarningHandler = Callable[[ConfigWarning], None]
+
+
+def _print_warning(warning: ConfigWarning) -> None:
+    print(warning.line(), file=sys.stderr)
+
+
+_warning_handler: ContextVar[WarningHandler] = ContextVar("warning_handler", default=_print_warning)
+
+
+def warn(message: str, where: Where | None = None) -> None:
+    """Report a warning: printed as `warning: FILE:LINE:COL: YAML.PATH: message` on stderr, unless collected."""
+    _warning_handler.get()(ConfigWarning(message, where))
+
+
+@contextmanager
+def collect_warnings() -> Iterator[list[ConfigWarning]]:
+    """Within the block, `warn` appends to the yielded list instead of printing (for `validate --format github|json`)."""
+    collected: list[ConfigWarning] = []
+    token = _warning_handler.set(collected.append)
+    try:
+        yield collected
+    finally:
+        _warning_handler.reset(token)

@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 from typing import Any
 
 from .document import Document
-from .errors import Problems, UserError, listing
+from .errors import Problems, UserError, listing, warn
 from .joint_mapping import compile_joints
 from .meshes import resolve_meshes, rewrite_mesh_uris
 from .plan import HeldJoint, JointChannel, MimicJoint, OnViolation, RobotPlan, SourcePlan
@@ -58,10 +57,7 @@ def compile_robot(
         shown = listing([f"{m.uri} ({m.kind} of link '{m.link}')" for m in missing], limit=5, separator="; ")
         message = f"{len(missing)} mesh(es) do not resolve: {shown}"
         if spec.get("allow_missing_meshes", False):
-            print(
-                f"warning: {document.where(*here).prefix()}: robots.{key}: {message}; they will be invisible (allow_missing_meshes: true)",
-                file=sys.stderr,
-            )
+            warn(f"{message}; they will be invisible (allow_missing_meshes: true)", document.where(*here))
         else:
             problems.add(
                 f"{message}; set package_paths for the package, or allow_missing_meshes: true to draw the robot without them",

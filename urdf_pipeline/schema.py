@@ -1,4 +1,4 @@
-"""The JSON Schema shipped with the package, and validation that reports every error with its line."""
+"""The JSON Schema shipped with the package, and validation that reports every error with its line and column."""
 
 from __future__ import annotations
 
@@ -27,18 +27,21 @@ def schema() -> dict[str, Any]:
 
 
 def validate_document(document: Document, subschema: str | None = None) -> None:
-    """Validate against the schema (or one of its $defs); raise all errors at once, each at its line."""
+    """Validate against the schema (or one of its $defs); raise all errors at once, each at its line and column."""
     root = schema()
     target = root if subschema is None else {"$ref": f"#/$defs/{subschema}", "$defs": root["$defs"]}
     validator = jsonschema.Draft202012Validator(target)
     problems = Problems()
-    errors = sorted(
-        validator.iter_errors(document.data), key=lambda e: (document.where(*e.absolute_path).line, list(map(str, e.absolute_path)))
-    )
+    errors = sorted(validator.iter_errors(document.data), key=lambda e: (_position(document, e), list(map(str, e.absolute_path))))
     for error in errors:
         path, message = _explain(error)
         problems.add(message, document.where(*path))
     problems.raise_if_any()
+
+
+def _position(document: Document, error: ValidationError) -> tuple[int, int]:
+    where = document.where(*error.absolute_path)
+    return where.line, where.column
 
 
 def _explain(error: ValidationError) -> tuple[tuple[str | int, ...], str]:
