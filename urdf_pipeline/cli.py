@@ -134,10 +134,15 @@ def cmd_check(args: argparse.Namespace) -> int:
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
-    from .compile import compile_config
-    from .plan_report import describe_plan
+    """text (default): the free-form account; markdown / json: the deterministic report for PR comments. Joint values
+    are read only with --sample (then Rerun is imported)."""
+    from .plan_report import plan_command
 
-    print(describe_plan(compile_config(Path(args.config))))
+    if args.rows is not None and not args.sample:
+        print("urdf-pipeline plan: error: --rows needs --sample", file=sys.stderr)
+        return 2  # bad command-line usage, as argparse's own errors
+    rows = (args.rows or 100_000) if args.sample else None
+    sys.stdout.write(plan_command(Path(args.config), args.format, rows))
     return EXIT_OK
 
 
@@ -218,6 +223,14 @@ def build_parser() -> argparse.ArgumentParser:
     check.set_defaults(handler=cmd_check)
     plan = commands.add_parser("plan", help="validate CONFIG and print what a run would do")
     plan.add_argument("config")
+    plan.add_argument(
+        "--format",
+        choices=("text", "markdown", "json"),
+        default="text",
+        help="text: the free-form account (default); markdown: a deterministic report for a PR comment; json: the same as data",
+    )
+    plan.add_argument("--sample", action="store_true", help="read a sample of each source and add the observed range per value")
+    plan.add_argument("--rows", type=_positive, help="with --sample: rows read from the start of each source (default 100000)")
     plan.set_defaults(handler=cmd_plan)
     schema = commands.add_parser("schema", help="print the config's JSON Schema")
     schema.set_defaults(handler=cmd_schema)

@@ -170,9 +170,7 @@ G1_ARM_NAMES = [
     for joint in ("ShoulderPitch", "ShoulderRoll", "ShoulderYaw", "Elbow", "WristRoll", "WristPitch", "WristYaw")
 ]
 G1_HAND_NAMES = [
-    f"k{side}Hand{finger}"
-    for side in ("Left", "Right")
-    for finger in ("Pinky", "Ring", "Middle", "Index", "ThumbBend", "ThumbRotation")
+    f"k{side}Hand{finger}" for side in ("Left", "Right") for finger in ("Pinky", "Ring", "Middle", "Index", "ThumbBend", "ThumbRotation")
 ]
 
 
