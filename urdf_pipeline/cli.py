@@ -58,6 +58,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     run = run_dataset(plan, options, SegmentProgress() if many else None)
     if args.report:
         write_report(Path(args.report), plan, run, options)
+    if not run.interrupted and any(r.status in ("written", "skipped") for r in run.results):
+        from .blueprint import write_blueprint
+
+        say(f"blueprint (a 3D view of the scene and one per robot): {write_blueprint(plan)}")
     if many or run.interrupted:
         print(summary_table(run.results), file=sys.stderr)
         say(totals_line(run.results, run.seconds) + f"; manifest {run.manifest}")

@@ -9,7 +9,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
-from .blueprint import recording_blueprint
 from .callbacks import CallbackErrors
 from .edges_stream import edges_stream
 from .errors import Problems
@@ -95,5 +94,5 @@ def execute(
         on_note(note)
     problems.raise_if_any()
     log(f"writing {plan.output.path}")
-    written = write_atomically(store, plan.output, recording_blueprint(plan))
+    written = write_atomically(store, plan.output)
     return RunResult(written, {m.robot.key: m.stats.rows for m in mappers}, tuple(notes), time.perf_counter() - started)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -10,14 +11,10 @@ from .errors import UserError
 from .plan import OutputPlan
 
 if TYPE_CHECKING:
-    from rerun.blueprint import BlueprintLike
     from rerun.chunk import ChunkStore
 
 
-def write_atomically(store: ChunkStore, output: OutputPlan, blueprint: BlueprintLike | None = None) -> Path:
-    """Through a RecordingStream (ChunkStore.write_rrd cannot add a blueprint store), without the stream's own
-    recording properties (they would collide with a base recording's), then checked: the file sink reports some
-    failures only in its log, so a file whose footer does not read back is an error, not a success."""
+def write_atomically(store: ChunkStore, output: OutputPlan) -> Path:
     target = output.path
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
@@ -25,9 +22,9 @@ def write_atomically(store: ChunkStore, output: OutputPlan, blueprint: Blueprint
         raise UserError(f"cannot create output directory {target.parent}: {exc}", output.where) from None
     partial = target.with_name(f".{target.name}.partial-{os.getpid()}")
     try:
-        _write(store, output, blueprint, partial)
+        store.write_rrd(partial, application_id=output.application_id, recording_id=output.recording_id)
         os.replace(partial, target)
-    except (OSError, RuntimeError) as exc:  # disk full, a directory in the way, permissions: the machine, not a bug
+    except OSError as exc:  # disk full, a directory in the way, permissions: the machine, not a bug
         partial.unlink(missing_ok=True)
         raise UserError(f"cannot write {target}: {exc}", output.where) from None
     except BaseException:
@@ -36,23 +33,14 @@ def write_atomically(store: ChunkStore, output: OutputPlan, blueprint: Blueprint
     return target
 
 
-def _write(store: ChunkStore, output: OutputPlan, blueprint: BlueprintLike | None, partial: Path) -> None:
-    import rerun as rr
-    from rerun.chunk import RrdReader
-
-    # NEVER: the store is already compacted for reading (OBJECT_STORE); the stream's batcher would only re-chunk it.
-    stream = rr.RecordingStream(
-        output.application_id, recording_id=output.recording_id, send_properties=False, batcher_config=rr.ChunkBatcherConfig.NEVER()
-    )
+def write_file_atomically(target: Path, write: Callable[[Path], None]) -> Path:
+    """`write(partial)` beside the target, then renamed into place (for files other than recordings: the blueprint)."""
+    partial = target.with_name(f".{target.name}.partial-{os.getpid()}")
     try:
-        stream.save(partial, default_blueprint=blueprint)
-        stream.send_chunks(store)
-        stream.flush()
-    finally:
-        stream.disconnect()
-    try:
-        written = [(str(e.application_id), str(e.recording_id)) for e in RrdReader(partial).recordings()]
-    except (OSError, ValueError, RuntimeError) as exc:
-        raise OSError(f"the written file does not read back ({exc})") from None
-    if written != [(output.application_id, output.recording_id)]:
-        raise OSError(f"the written file holds {written}, not ({output.application_id}, {output.recording_id})")
+        target.parent.mkdir(parents=True, exist_ok=True)
+        write(partial)
+        os.replace(partial, target)
+    except (OSError, RuntimeError) as exc:
+        partial.unlink(missing_ok=True)
+        raise UserError(f"cannot write {target}: {exc}") from None
+    return target
