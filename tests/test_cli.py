@@ -65,3 +65,14 @@ def test_module_entry_point(examples_dir: Path) -> None:
         [sys.executable, "-m", "urdf_pipeline", "validate", str(examples_dir / "demo.yaml")], capture_output=True, text=True
     )
     assert result.returncode == 0, result.stderr
+
+
+def test_a_closed_pipe_is_not_a_bug(examples_dir: Path) -> None:
+    """`urdf-pipeline plan CONFIG --format json | head -1`: the reader leaving early ends the command quietly."""
+    command = [sys.executable, "-m", "urdf_pipeline", "plan", str(examples_dir / "bimanual_pandas.yaml"), "--format", "json"]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert process.stdout is not None and process.stderr is not None
+    process.stdout.close()  # the reader is gone before the first line is written
+    err = process.stderr.read()
+    assert process.wait(timeout=60) == cli.EXIT_BROKEN_PIPE == 141
+    assert "Traceback" not in err and "internal error" not in err

@@ -2,7 +2,7 @@
 
 Exit status: 0 success, 1 a user error (one `error: FILE:LINE:COL: message` line each), 2 bad command-line usage,
 3 (`check` only) some joint's sampled values do not fit its limits with the config's corrections,
-70 an internal bug (with a traceback: please report it).
+70 an internal bug (with a traceback: please report it), 130 interrupted, 141 stdout closed early (`| head`).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 from .errors import UserError
 
-EXIT_OK, EXIT_USER_ERROR, EXIT_BUG, EXIT_INTERRUPTED = 0, 1, 70, 130
+EXIT_OK, EXIT_USER_ERROR, EXIT_BUG, EXIT_INTERRUPTED, EXIT_BROKEN_PIPE = 0, 1, 70, 130, 141
 
 if TYPE_CHECKING:
     from .segment_run import SegmentResult
@@ -276,6 +276,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except BrokenPipeError:  # `urdf-pipeline plan ... | head`: the reader left; not a bug
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # so the interpreter's final flush is quiet too
+        return EXIT_BROKEN_PIPE
     except Exception:
         traceback.print_exc()
         print("urdf-pipeline: internal error (a bug, not your config); please report it with the traceback above", file=sys.stderr)
