@@ -8,22 +8,10 @@ from pathlib import Path
 import numpy as np
 from mcap_ros2.writer import Writer
 
+from urdf_pipeline.examples import JOINT_STATE_MSGDEF
+
 from .source_helpers import PANDA_JOINTS, assert_panda_fk, panda_config, random_panda_q
 
-JOINT_STATE_MSGDEF = """std_msgs/Header header
-string[] name
-float64[] position
-float64[] velocity
-float64[] effort
-================================================================================
-MSG: std_msgs/Header
-builtin_interfaces/Time stamp
-string frame_id
-================================================================================
-MSG: builtin_interfaces/Time
-int32 sec
-uint32 nanosec
-"""
 T0_NS = 1_700_000_000_000_000_000
 STEP_NS = 10_000_000
 
