@@ -124,6 +124,23 @@ class JointChannel:
     def to_source_unit(self, urdf_value: float) -> float:
         return (urdf_value - self.bias) / self.gain
 
+    @property
+    def limits_in_source_unit(self) -> tuple[float, float] | None:
+        """The URDF limits divided by unit factor and scale, before sign and offset (how `plan` shows them); with
+        source_range, that range. None when the joint has no limits."""
+        if self.lower is None or self.upper is None:
+            return None
+        if self.source_range is not None:
+            return (min(self.source_range), max(self.source_range))
+        factor = self.factor * self.scale
+        low, high = sorted((self.lower / factor, self.upper / factor))
+        return (low, high)
+
+    @property
+    def slack_in_source_unit(self) -> float | None:
+        """limits.slack as the config gives it: the plan holds it in URDF units."""
+        return self.slack / abs(self.gain) if self.gain else None
+
 
 @dataclass(frozen=True)
 class MimicJoint:

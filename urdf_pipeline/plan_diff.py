@@ -282,10 +282,7 @@ def _collisions(robot: RobotPlan) -> str:
 
 def _slack(robot: RobotPlan) -> float | None:
     """The config's limits.slack (source units): each channel holds it in URDF units, times its gain."""
-    for channel in robot.channels:
-        if channel.gain:
-            return channel.slack / abs(channel.gain)
-    return None
+    return next((c.slack_in_source_unit for c in robot.channels if c.slack_in_source_unit is not None), None)
 
 
 def _channels_by_name(robot: RobotPlan) -> dict[str, list[JointChannel]]:

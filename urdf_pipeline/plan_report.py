@@ -303,13 +303,7 @@ def _joint_rows(robot: RobotPlan, model: UrdfModel, observed: dict[tuple[str, st
     rows = []
     for c in robot.channels:
         ranged = c.source_range is not None
-        limits = None
-        if c.lower is not None and c.upper is not None:
-            limits = (
-                sorted(c.source_range)
-                if c.source_range is not None
-                else sorted((c.lower / (c.factor * c.scale), c.upper / (c.factor * c.scale)))
-            )
+        limits = c.limits_in_source_unit
         report = observed.get((robot.key, c.source_name, c.joint))
         rows.append(
             _row(
@@ -325,7 +319,7 @@ def _joint_rows(robot: RobotPlan, model: UrdfModel, observed: dict[tuple[str, st
                 source_range=_rs(c.source_range),
                 target_range=_rs(c.target_range),
                 limits_source_units=_rs(limits),
-                slack_source_units=_r(c.slack / abs(c.gain)) if limits is not None else None,
+                slack_source_units=_r(slack) if limits is not None and (slack := c.slack_in_source_unit) is not None else None,
                 observed=_observed(report) if report is not None else None,
             )
         )
