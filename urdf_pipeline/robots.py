@@ -6,29 +6,33 @@ from pathlib import Path
 from typing import Any
 
 from .document import Document
-from .errors import Problems, UserError, listing, warn
+from .errors import Problems, UserError, UserErrors, listing, warn
 from .joint_mapping import compile_joints
 from .meshes import resolve_meshes, rewrite_mesh_uris
 from .plan import HeldJoint, JointChannel, MimicJoint, OnViolation, RobotPlan, SourcePlan
 from .urdf_model import UrdfModel, UrdfParseError, parse_urdf_text
 from .urdf_sources import LoadedUrdf, load_urdf_source
+from .urdf_text import rerun_loader_error, text_for_rerun
 
 
-def load_urdf(key: str, spec: dict[str, Any], package_paths: dict[str, Path], document: Document) -> tuple[LoadedUrdf, UrdfModel]:
+def load_urdf(key: str, spec: dict[str, Any], package_paths: dict[str, Path], document: Document) -> tuple[LoadedUrdf, UrdfModel, str]:
+    """The loaded URDF, its model and the text for Rerun's loader (axes normalised, what Rerun refuses repaired, with a
+    warning saying what); the model is read from that text, so a visual dropped there needs no mesh."""
     loaded = load_urdf_source(key, spec["urdf"], package_paths, document)
+    where = document.where("robots", key, "urdf")
     try:
-        return loaded, parse_urdf_text(loaded.text, str(loaded.path))
+        is_file = isinstance(spec["urdf"], str) or "xacro" not in spec["urdf"]  # an expanded xacro has no lines to point at
+        parse_urdf_text(loaded.text, str(loaded.path), source_lines=is_file)
+        text, notes = text_for_rerun(loaded.text, str(loaded.path))
+        model = parse_urdf_text(text, str(loaded.path))
     except UrdfParseError as exc:
-        raise UserError(str(exc), document.where("robots", key, "urdf")) from None
-
-
-def _check_mimics(model: UrdfModel, key: str, document: Document, problems: Problems) -> None:
-    names = {j.name for j in model.joints}
-    for joint in model.joints:
-        if joint.mimic is not None and joint.mimic.joint not in names:
-            problems.add(
-                f"URDF joint '{joint.name}' mimics '{joint.mimic.joint}', which the URDF lacks", document.where("robots", key, "urdf")
-            )
+        raise UserErrors([UserError(message, where) for message in exc.messages]) from None
+    loader_error = rerun_loader_error(text)
+    if loader_error is not None:  # what text_for_rerun does not repair: refused now rather than a crash in `run`
+        raise UserError(f"Rerun's URDF loader cannot read {loaded.path.name}: {loader_error}", where)
+    if notes:
+        warn(f"Rerun's URDF loader refuses parts of {loaded.path.name} that ROS tolerates; drawn without: {'; '.join(notes)}", where)
+    return loaded, model, text
 
 
 def compile_robot(
@@ -42,11 +46,10 @@ def compile_robot(
         if not folder.is_dir():
             problems.add(f"package '{name}' directory not found: {folder}", document.where(*here, "package_paths", name))
     try:
-        loaded, model = load_urdf(key, spec, package_paths, document)
+        loaded, model, rerun_text = load_urdf(key, spec, package_paths, document)
     except UserError as exc:
         problems.extend(exc)
         return None
-    _check_mimics(model, key, document, problems)
     urdf_path = loaded.path
     package_paths = {**loaded.package_paths, **package_paths}  # the config's own entries win
     keep_collisions = spec.get("collision_geometries", "drop") == "keep"
@@ -95,7 +98,7 @@ def compile_robot(
     plan = RobotPlan(
         key=key,
         urdf_path=urdf_path,
-        urdf_text=rewrite_mesh_uris(loaded.text, resolution.resolved),
+        urdf_text=rewrite_mesh_uris(rerun_text, resolution.resolved),
         urdf_origin=loaded.origin,
         urdf_sha256=loaded.sha256,
         robot_name=model.name,
