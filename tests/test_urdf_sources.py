@@ -185,3 +185,28 @@ def test_unknown_robot_description_suggests_names(tmp_path: Path, run_cli) -> No
     robot = {**so101_robot(), "urdf": {"robot_descriptions": "so_arm101_descriptoin"}}
     result = run_cli("validate", str(write_config(tmp_path, "so101_typo", robot, SO101_JOINTS, "d.parquet")))
     assert result.code == 1 and "did you mean so_arm101_description" in result.err
+
+
+def test_xacro_file_outside_the_config_folder_is_refused(tmp_path: Path, run_cli) -> None:
+    (tmp_path / "outside").mkdir()
+    (tmp_path / "outside" / "r.urdf.xacro").write_text("<robot name='r'><link name='base'/></robot>")
+    (tmp_path / "pr").mkdir()
+    write_joint_parquet(tmp_path / "pr" / "d.parquet", np.zeros((3, 1)))
+    robot = {"urdf": {"xacro": "../outside/r.urdf.xacro"}, "joints": {"source": "state", "map": {"j": "x"}}}
+    config = write_config(tmp_path / "pr", "r", robot, ["j"], "d.parquet")
+    result = run_cli("validate", str(config))
+    assert result.code == 1 and f"error: {config}:" in result.err
+    assert f"xacro file {tmp_path / 'outside' / 'r.urdf.xacro'} is outside the config's folder" in result.err
+
+
+def test_xacro_warnings_reach_stderr_and_the_expansion_is_used(tmp_path: Path, run_cli) -> None:
+    (tmp_path / "r.urdf.xacro").write_text(
+        '<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro"><xacro:property name="pi" value="3"/>'
+        '<link name="base"/><link name="l1"/><joint name="j_${pi}" type="revolute"><parent link="base"/><child link="l1"/>'
+        '<axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>'
+    )
+    write_joint_parquet(tmp_path / "d.parquet", np.zeros((3, 1)))
+    robot = {"urdf": {"xacro": "r.urdf.xacro"}, "joints": {"source": "state", "map": {"j": "j_3"}}}
+    result = run_cli("validate", str(write_config(tmp_path, "r", robot, ["j"], "d.parquet")))
+    assert result.code == 0, result.err  # the expanded URDF names its joint j_3
+    assert "warning: redefining global symbol: pi" in result.err  # xacro's own warning, from the child process

@@ -11,16 +11,16 @@ import difflib
 import hashlib
 import importlib
 import os
-import re
 import sys
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .confine import confinement_for
 from .document import Document
 from .errors import UserError, Where
-from .meshes import package_roots
+from .xacro_guard import XacroRequest, expand_xacro
 
 
 @dataclass(frozen=True)
@@ -60,73 +60,17 @@ def _plain(urdf: str, document: Document, where: Where) -> LoadedUrdf:
     return LoadedUrdf(_read(path, where), path, f"file {urdf}")
 
 
-class _UnknownPackage(Exception):
-    pass
-
-
-@contextlib.contextmanager
-def _find_from(package_paths: Mapping[str, Path]) -> Iterator[None]:
-    """Answer xacro's `$(find PKG)` from the robot's package_paths, then ROS_PACKAGE_PATH / AMENT_PREFIX_PATH.
-
-    The xacro package asks ament_index for it, which needs a ROS installation no laptop has.
-    """
-    import xacro.substitution_args as substitution
-
-    def find(package: str) -> str:
-        roots = ([package_paths[package]] if package in package_paths else []) + package_roots(package)
-        for root in roots:
-            if root.is_dir():
-                return str(root)
-        raise _UnknownPackage(package)
-
-    original = substitution._eval_find
-    original_eval = substitution._eval_dict["find"]
-    substitution._eval_find = find
-    substitution._eval_dict["find"] = find
-    try:
-        yield
-    finally:
-        substitution._eval_find = original
-        substitution._eval_dict["find"] = original_eval
-
-
 def _xacro(spec: dict[str, Any], package_paths: Mapping[str, Path], document: Document, where: Where) -> LoadedUrdf:
-    import xacro
-
+    """Expanded in a bounded child process that refuses code, the environment and files outside the config's roots."""
     path = (document.file.parent / spec["xacro"]).resolve()
+    confinement = confinement_for(document.file)
+    confinement.check_read(path, "xacro file", where)
     if not path.is_file():
         raise UserError(f"xacro file not found: {path} (paths are relative to the config file)", where)
     args = {name: _xacro_value(value) for name, value in spec.get("args", {}).items()}
-    try:
-        with _find_from(package_paths), contextlib.redirect_stdout(sys.stderr):
-            xacro.init_stacks(str(path))
-            doc = xacro.parse(None, str(path))
-            xacro.process_doc(doc, mappings=dict(args))
-    except Exception as exc:  # xacro wraps the causes; find the one the user can act on
-        cause = _root_cause(exc)
-        if isinstance(cause, _UnknownPackage):
-            package = cause.args[0]
-            raise UserError(f"xacro needs $(find {package}): add it to this robot's package_paths ({package}: DIR)", where) from None
-        undefined = re.search(r"Undefined substitution argument (\S+)", str(exc))
-        if isinstance(cause, xacro.substitution_args.ArgException) or undefined:
-            name = undefined.group(1) if undefined else cause.args[0]
-            raise UserError(f"xacro argument '{name}' has no value and no default: add it to urdf.args", where) from None
-        # Whatever else xacro raises is about the user's file, not a bug of ours.
-        raise UserError(f"xacro failed on {path.name}: {type(exc).__name__}: {exc}", where) from None
-    text = doc.toprettyxml(indent="  ")
+    text = expand_xacro(XacroRequest(path, str(spec["xacro"]), args, package_paths, confinement), where)
     shown = " ".join(f"{k}:={v}" for k, v in sorted(args.items()))
     return LoadedUrdf(text, path, f"xacro {spec['xacro']}" + (f" {shown}" if shown else ""))
-
-
-def _root_cause(exc: BaseException) -> BaseException:
-    seen: set[int] = set()
-    while id(exc) not in seen:
-        seen.add(id(exc))
-        inner = getattr(exc, "exc", None) or exc.__cause__ or exc.__context__
-        if inner is None:
-            break
-        exc = inner
-    return exc
 
 
 def _xacro_value(value: Any) -> str:
