@@ -230,3 +230,30 @@ def test_document_keeps_a_column_per_path() -> None:
     assert Document(Path("g.json"), doc.data, doc.lines).where("b", "c").column == 3  # lines carry their columns along
     assert Where(Path("f.yaml"), 3, "b.c").prefix() == "f.yaml:3"  # no column: as before
     assert Where(Path("f.yaml"), 0).prefix() == "f.yaml"
+
+
+HOSTILE = ("yaml_alias_bomb", "yaml_deep_nesting", "yaml_python_apply_tag", "yaml_nul_byte", "yaml_flow_mapping_unclosed")
+
+
+def test_hostile_configs_do_not_stop_the_others(here: Path, run_cli) -> None:
+    """`validate A B C` with hostile configs among valid and invalid ones: each hostile one is an error at its line,
+    and every other config is still validated and reported, in every format; exit 1."""
+    for name in HOSTILE:
+        shutil.copyfile(BY_NAME[name].file, here / _config(name))
+    configs = ["demo.yaml", *(_config(name) for name in HOSTILE), _config("unknown_key"), _config("warnings")]
+
+    text = run_cli("validate", *configs)
+    assert text.code == 1 and text.out == "ok: demo.yaml\nok: formats_warnings.yaml\n", text.out
+    assert "Traceback" not in text.err and "internal error" not in text.err
+    for name in (*HOSTILE, "unknown_key"):
+        assert f"error: {_config(name)}:{BY_NAME[name].line}:" in text.err, name
+
+    for format in ("json", "github"):
+        result = run_cli("validate", "--format", format, *configs)
+        assert result.code == 1 and result.err == "ok: demo.yaml\nok: formats_warnings.yaml\n", result.err
+        items = json.loads(result.out) if format == "json" else None
+        for name in (*HOSTILE, "unknown_key"):
+            if items is not None:
+                assert any(i["file"] == _config(name) and i["line"] == BY_NAME[name].line and i["severity"] == "error" for i in items), name
+            else:
+                assert f"::error file={_config(name)},line={BY_NAME[name].line}," in result.out, name

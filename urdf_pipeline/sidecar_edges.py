@@ -12,7 +12,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .document import Document, PathKey, load_document, parse_document
+from .confine import confinement_for
+from .document import MAX_DEPTH, Document, PathKey, load_document, parse_document, read_text
 from .errors import Problems, UserError, Where
 from .schema import validate_document
 
@@ -43,12 +44,17 @@ def expand_edge_specs(specs: list[dict[str, Any]], document: Document, problems:
 
 def _sidecar_specs(name: str, document: Document, here: PathKey, problems: Problems) -> list[EdgeSpec]:
     path = document.file.parent / name
+    try:
+        confinement_for(document.file).check_read(path, "edges file", document.where(*here))  # before existence: no probing
+    except UserError as exc:
+        problems.extend(exc)
+        return []
     if not path.is_file():
         problems.add(f"edges file not found: {path.resolve()} (paths are relative to the config file)", document.where(*here))
         return []
     try:
-        sidecar = _load_json(path) if path.suffix == ".json" else load_document(path)
-    except UserError as exc:  # syntax errors and duplicate keys, at the sidecar's line
+        sidecar = _load_json(path) if path.suffix == ".json" else load_document(path, "edges file")
+    except UserError as exc:  # syntax errors, duplicate keys, beyond the bounds: at the sidecar's line
         problems.extend(exc)
         return []
     if sidecar.data is None:
@@ -74,19 +80,20 @@ def _sidecar_specs(name: str, document: Document, here: PathKey, problems: Probl
 
 def _load_json(path: Path) -> Document:
     """JSON read as JSON (YAML 1.1 would read 1e-05 as a string and refuse tab indentation), lines taken from the
-    same text parsed as YAML: the structure is identical, and raw tabs can only be whitespace in valid JSON."""
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UserError(f"cannot read the edges file: {exc}", Where(path, 0)) from None
+    same text parsed as YAML: the structure is identical, and raw tabs can only be whitespace in valid JSON. The text
+    is read within the same bounds as YAML (size, UTF-8), and the YAML parse applies the same nesting and size bounds."""
+    text = read_text(path, "edges file")
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
         raise UserError(f"JSON syntax error: {exc.msg} (column {exc.colno})", Where(path, exc.lineno)) from None
+    except RecursionError:  # nested beyond Python's limit: the YAML parse below names the line where it gets too deep
+        parse_document(text.replace("\t", " "), path)
+        raise UserError(f"nested too deeply (more than {MAX_DEPTH} levels)", Where(path, 1)) from None
     try:
         lines = parse_document(text.replace("\t", " "), path).lines
     except UserError as exc:
-        if exc.message.startswith("duplicate key"):
-            raise
+        if not exc.message.startswith("YAML syntax error"):
+            raise  # a duplicate key, or beyond the bounds (nesting, nodes)
         lines = {}  # valid JSON that PyYAML cannot follow: errors then point at line 1
     return Document(path, data, lines)
