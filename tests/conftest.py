@@ -39,6 +39,13 @@ def erd_share() -> Path:
 
 
 @pytest.fixture
+def allow_examples(examples_dir: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """For tests whose configs live elsewhere but read the session's examples: the runner allows that folder."""
+    monkeypatch.setenv("URDF_PIPELINE_ALLOW_PATHS", str(examples_dir))
+    return examples_dir
+
+
+@pytest.fixture
 def run_cli(capsys: pytest.CaptureFixture[str]):
     def run(*args: str) -> CliResult:
         code = cli.main(list(args))

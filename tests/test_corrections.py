@@ -6,12 +6,15 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 import yaml
 
 from urdf_pipeline.examples import write_joint_parquet
 
 from .reference_fk import PinocchioRobot
 from .rrd_frames import read_frames, rotation_angle
+
+pytestmark = pytest.mark.usefixtures("allow_examples")  # configs elsewhere read the session's examples
 
 ARM = [f"panda_joint{i}" for i in range(1, 8)]
 

@@ -32,6 +32,8 @@ from .reference_fk import PinocchioRobot
 from .rrd_frames import read_frames
 from .test_fk_against_pinocchio import check_robot
 
+pytestmark = pytest.mark.usefixtures("allow_examples")  # configs elsewhere read the session's examples
+
 EPISODE_LENGTHS = [300, 150, 100, 75]  # the examples' so101 dataset (prepare(frames=300))
 
 

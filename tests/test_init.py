@@ -17,6 +17,8 @@ from urdf_pipeline.examples import write_joint_parquet, write_lerobot_dataset
 from urdf_pipeline.scaffold import match_names, parse_source_spec
 from urdf_pipeline.urdf_model import read_urdf
 
+pytestmark = pytest.mark.usefixtures("allow_examples")  # configs elsewhere read the session's examples
+
 REPO = Path(__file__).resolve().parents[1]
 ROBOTS = {
     "panda": "panda_description/urdf/panda.urdf",

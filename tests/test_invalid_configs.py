@@ -31,6 +31,13 @@ CASES_DIR = Path(__file__).resolve().parent / "configs" / "invalid"
 ERROR_LINE = re.compile(r"^error: .+:\d+: ")
 FRAMES = 300
 MISSING_MESH_URI = "package://example-robot-data/robots/panda_description/meshes/visual/no_such_link3.dae"
+MESH_VARIANTS = {  # robots/panda_NAME.urdf: link3's visual mesh at this URI
+    "mesh_outside": "/etc/hostname",
+    "mesh_file_uri_outside": "file:///etc/hostname",
+    "package_escape": "package://example-robot-data/../../panda.urdf",
+    "garbage_stl": "meshes/garbage.stl",
+    "garbage_dae": "meshes/renamed.dae",
+}
 
 
 @dataclass(frozen=True)
@@ -138,6 +145,12 @@ def invalid_dir(examples_dir: Path) -> Path:
     assert text.count(original) == 1
     (robots / "panda_missing_mesh.urdf").write_text(text.replace(original, MISSING_MESH_URI), encoding="utf-8")
     shutil.copyfile(panda_urdf, robots / "panda.urdf.xacro")
+    # The path_* and mesh_* cases: link3's visual mesh replaced (see tests/test_meshes.py for every form).
+    for variant, uri in MESH_VARIANTS.items():
+        (robots / f"panda_{variant}.urdf").write_text(text.replace(original, uri), encoding="utf-8")
+    (robots / "meshes").mkdir(exist_ok=True)
+    (robots / "meshes" / "garbage.stl").write_bytes(np.random.default_rng(0).bytes(300))  # not 84 + 50 n bytes
+    (robots / "meshes" / "renamed.dae").write_text("a text file renamed to .dae\n", encoding="utf-8")
 
     for case in CASES:
         shutil.copyfile(case.file, _config(examples_dir, case))

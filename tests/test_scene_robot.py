@@ -5,9 +5,12 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 import yaml
 
 from .rrd_frames import read_frames
+
+pytestmark = pytest.mark.usefixtures("allow_examples")  # configs elsewhere read the session's examples
 
 SCENE = """<?xml version="1.0"?>
 <robot name="scene">

@@ -47,12 +47,10 @@ REFUSED = {
     # Pre-ROS-2 xacro (<property> without the xacro: prefix) that today's xacro cannot expand: no reference either.
     "rtb-data/xacro/kuka_description/kuka_kr210/urdf/kr210l150.xacro": "name 'deg' is not defined",
 }
-# Refused for their meshes while mesh resolution is being reworked (package:///path, file:// outside the package):
-# either refused for a mesh or matching pinocchio. The mesh rules have tests of their own.
+# Refused for a mesh (either refused for a mesh or matching pinocchio); the mesh rules have tests of their own
+# (tests/test_meshes.py). talos_full_v2's package:///example-robot-data/... meshes resolve (as pinocchio reads them).
 MESH_REFUSALS = {
-    "example-robot-data/romeo_description/urdf/romeo_laas_small.urdf",  # file:///usr/Romeo/... meshes, not shipped
-    "example-robot-data/talos_data/robots/talos_full_v2.urdf",  # package:///example-robot-data/...
-    "example-robot-data/talos_data/robots/talos_full_v2_box.urdf",
+    "example-robot-data/romeo_description/urdf/romeo_laas_small.urdf",  # file:///usr/Romeo/...: outside the config's roots
 }
 
 

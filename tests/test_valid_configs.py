@@ -11,6 +11,7 @@ import pytest
 import yaml
 from rerun.chunk import RrdReader
 
+from urdf_pipeline.confine import ALLOW_ENV
 from urdf_pipeline.examples import prepare
 
 from .conftest import CONFIGS, SHARED
@@ -19,6 +20,12 @@ from .rrd_frames import read_frames, rotation_angle
 
 VALID = Path(__file__).parent / "configs" / "valid"
 G1_DATA = SHARED / "data" / "lerobot_g1_inspire_v21"
+
+
+@pytest.fixture(autouse=True)
+def _allow_shared_data(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The real G1 recording is linked in from ../shared, outside the config's folder: the runner allows it, as a user would."""
+    monkeypatch.setenv(ALLOW_ENV, str(G1_DATA))
 
 
 def needs_shared(config: Path) -> bool:

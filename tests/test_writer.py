@@ -4,7 +4,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 import yaml
+
+pytestmark = pytest.mark.usefixtures("allow_examples")  # configs elsewhere read the session's examples
 
 
 def test_a_directory_at_the_output_path_is_a_user_error(examples_dir: Path, run_cli, tmp_path: Path) -> None:

@@ -5,10 +5,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from .confine import confinement_for
 from .document import Document
 from .errors import Problems, UserError, UserErrors, listing, warn
 from .joint_mapping import compile_joints
-from .meshes import resolve_meshes, rewrite_mesh_uris
+from .meshes import garbage_meshes, resolve_meshes, rewrite_mesh_uris
 from .plan import HeldJoint, JointChannel, MimicJoint, OnViolation, RobotPlan, SourcePlan
 from .urdf_model import UrdfModel, UrdfParseError, parse_urdf_text
 from .urdf_sources import LoadedUrdf, load_urdf_source
@@ -42,7 +43,13 @@ def compile_robot(
     (a broken source is reported once)."""
     here = ("robots", key)
     package_paths = {name: (document.file.parent / folder).resolve() for name, folder in spec.get("package_paths", {}).items()}
+    confinement = confinement_for(document.file)
     for name, folder in package_paths.items():
+        try:  # kept in package_paths: xacro and mesh lookups check each file they read, and say which one
+            confinement.check_read(folder, f"package '{name}' folder", document.where(*here, "package_paths", name))
+        except UserError as exc:
+            problems.extend(exc)
+            continue
         if not folder.is_dir():
             problems.add(f"package '{name}' directory not found: {folder}", document.where(*here, "package_paths", name))
     try:
@@ -54,10 +61,19 @@ def compile_robot(
     package_paths = {**loaded.package_paths, **package_paths}  # the config's own entries win
     keep_collisions = spec.get("collision_geometries", "drop") == "keep"
     # Resolve every mesh (so Rerun needs no ROS environment); only those that will be drawn must resolve.
-    resolution = resolve_meshes(model.meshes, package_paths, urdf_path.parent)
+    where_urdf = document.where(*here, "urdf")
+    resolution = resolve_meshes(model.meshes, package_paths, urdf_path, confinement, where_urdf)
+    drawn = [m for m in model.meshes if m.kind == "visual" or keep_collisions]
+    for error in [*resolution.refused, *garbage_meshes(drawn, resolution.resolved, urdf_path.name, where_urdf)]:
+        problems.extend(error)  # a mesh outside the config's roots, leaving its package, or not a mesh: never allowed
     missing = [m for m in resolution.missing if m.kind == "visual" or keep_collisions]
     if missing:
-        shown = listing([f"{m.uri} ({m.kind} of link '{m.link}')" for m in missing], limit=5, separator="; ")
+        reasons = resolution.reasons
+        shown = listing(
+            [f"{m.uri} ({m.kind} of link '{m.link}'{': ' + reasons[m.uri] if m.uri in reasons else ''})" for m in missing],
+            limit=5,
+            separator="; ",
+        )
         message = f"{len(missing)} mesh(es) do not resolve: {shown}"
         if spec.get("allow_missing_meshes", False):
             warn(f"{message}; they will be invisible (allow_missing_meshes: true)", document.where(*here))

@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from .confine import confinement_for
 from .document import Document
 from .errors import Problems, UserError, Where, listing
 from .plan import DatasetPlan, LeRobotSourcePlan, Segment, SourcePlan
@@ -52,8 +53,11 @@ def compile_sources(data: dict[str, Any], document: Document, problems: Problems
 def _compile_glob(name: str, kind: str, spec: dict[str, Any], document: Document, problems: Problems) -> dict[str, SourcePlan]:
     """Every file a source's glob matches, each checked like a single file (metadata only), keyed by stem."""
     pattern = spec[kind] if Path(spec[kind]).is_absolute() else str(document.file.parent / spec[kind])
-    paths = sorted(Path(os.path.abspath(p)) for p in glob.glob(pattern, recursive=True) if Path(p).is_file())
     where = document.where("sources", name, kind)
+    # The folder the glob walks from must be readable; each match is checked again, as a file, by compile_source.
+    fixed = itertools.takewhile(lambda part: not GLOB_CHARACTERS.search(part), Path(pattern).parts)
+    confinement_for(document.file).check_read(Path(*fixed), f"{kind} glob folder", where)
+    paths = sorted(Path(os.path.abspath(p)) for p in glob.glob(pattern, recursive=True) if Path(p).is_file())
     if not paths:
         raise UserError(f"'{spec[kind]}' matches no file (paths are relative to the config file: {document.file.parent})", where)
     by_stem: dict[str, SourcePlan] = {}
@@ -285,7 +289,28 @@ def _dataset_plan(output: dict[str, Any], document: Document, segments: tuple[Se
     else:
         directory = _fixed_directory(output["path"], document.file.parent)
         manifest = directory / f"{document.file.stem}.manifest.json"
+    if not _outputs_confined(segments, model, manifest, document, problems):
+        return None
     return DatasetPlan(layout, segments, model, manifest, document.where("output", "segment"))
+
+
+def _outputs_confined(segments: tuple[Segment, ...], model: Path | None, manifest: Path, document: Document, problems: Problems) -> bool:
+    """Every file a run writes (recordings, model, manifest, the blueprint beside it) obeys confine.py's write rule."""
+    confinement = confinement_for(document.file)
+    blueprint = manifest.parent / f"{document.file.stem}.rbl"
+    writes = [(s.output, "the recording", ("output", "path")) for s in segments]
+    writes += [(model, "the model", ("output", "model"))] if model is not None else []
+    manifest_key = ("output", "manifest") if "manifest" in document.data["output"] else ("output", "path")
+    writes += [(manifest, "the manifest", manifest_key), (blueprint, "the blueprint", manifest_key)]
+    refused: set[tuple[str, ...]] = set()
+    for path, what, key in writes:
+        if key not in refused and not confinement.may_write(path):
+            refused.add(key)  # one error per key: every segment of a template outside the folder is outside
+            try:
+                confinement.check_write(path, what, document.where(*key))
+            except UserError as error:
+                problems.extend(error)
+    return not refused
 
 
 def _fixed_directory(template: str, base: Path) -> Path:

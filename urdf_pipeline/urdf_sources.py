@@ -55,6 +55,7 @@ def _plain(urdf: str, document: Document, where: Where) -> LoadedUrdf:
     path = (document.file.parent / urdf).resolve()
     if path.name.endswith(".xacro"):
         raise UserError(f"'{urdf}' is a xacro file, not a URDF; use the xacro form: urdf: {{xacro: {urdf}, args: {{...}}}}", where)
+    confinement_for(document.file).check_read(path, "URDF file", where)  # before its existence is checked: no probing
     if not path.is_file():
         raise UserError(f"URDF file not found: {path} (paths are relative to the config file)", where)
     return LoadedUrdf(_read(path, where), path, f"file {urdf}")

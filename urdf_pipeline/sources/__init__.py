@@ -10,6 +10,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
+from ..confine import confinement_for
 from ..document import Document
 from ..errors import UserError
 from ..plan import SourcePlan
@@ -35,6 +36,9 @@ def module_for(plan: SourcePlan) -> ModuleType:
 def resolve_input(document: Document, config_dir: Path, path: str, *where: str | int, directory: bool = False) -> Path:
     """A path from the config, relative to the config file; it must exist."""
     resolved = (config_dir / path).resolve() if not Path(path).is_absolute() else Path(path)
+    if config_dir == document.file.parent:  # a config's path; `init` passes the input's own folder: named at the terminal
+        what = f"{where[-1]} {'folder' if directory else 'file'}"  # "parquet file", "lerobot folder"
+        confinement_for(document.file).check_read(resolved, what, document.where(*where))  # before existence: no probing
     ok = resolved.is_dir() if directory else resolved.is_file()
     if not ok:
         kind = "directory" if directory else "file"
