@@ -8,6 +8,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import pytest
 import yaml
 
 from urdf_pipeline.check import check_channel
@@ -60,7 +61,8 @@ def test_prismatic_values_in_mm_declared_as_metres() -> None:
     assert r.verdict == "fits" and r.paste == "f: {joint: finger, unit: mm}"
 
 
-def test_cli_json_and_exit_status(examples_dir: Path, run_cli, tmp_path: Path) -> None:
+def test_cli_json_and_exit_status(examples_dir: Path, run_cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("URDF_PIPELINE_ALLOW_PATHS", str(examples_dir))  # the negated config reads the examples (confine.py)
     result = run_cli("check", str(examples_dir / "demo.yaml"), "--format", "json")
     assert result.code == 0, result.err
     reports = json.loads(result.out)

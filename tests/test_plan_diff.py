@@ -77,6 +77,8 @@ def _git(folder: Path, *args: str) -> None:
 def workspace(examples_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     """A folder of its own holding the example configs, whose robots/ and data/ are the session's examples."""
     monkeypatch.setenv("GIT_CEILING_DIRECTORIES", str(tmp_path.parent))  # tmp_path is in no git repository
+    monkeypatch.setenv("URDF_PIPELINE_ALLOW_PATHS", str(examples_dir))  # robots/ and data/ link there (confine.py)
+    monkeypatch.setenv("URDF_PIPELINE_ALLOW_PATHS", str(examples_dir))  # robots/ and data/ link there, outside the folder
     folder = tmp_path / "work"
     folder.mkdir()
     for name in ("robots", "data"):
@@ -218,9 +220,11 @@ def test_robot_limits_sources_and_output_changes(run_cli, workspace: Path) -> No
         "robot arm: limits on_violation error -> clamp",
         "robot arm: j3 -> panda_joint3: scale 1 -> 2",
         "robot arm: j3 -> panda_joint3: offset 0.1 -> 0.2",
+        "robot arm: j3 -> panda_joint3: limits (source units) [-171.733, 160.273] -> [-88.7311, 77.272]",
         "robot arm: j6 -> panda_joint6: wrap none -> 360",
         "robot arm: j7 -> panda_joint7: removed (now ignored)",
         "robot arm: finger -> panda_finger_joint1: unit mm -> m",
+        "robot arm: finger -> panda_finger_joint1: limits (source units) [0, 40] -> [0, 0.04]",
         "robot arm: hold panda_joint7 = 0: added",
         "edge world -> panda_link0: removed (was static, translation [0, 0, 0.5], quaternion_xyzw [0, 0, 0, 1])",
         "edge world -> robot_panda_link0: added (static, translation [0, 0, 0.5], quaternion_xyzw [0, 0, 0, 1])",
@@ -264,6 +268,7 @@ def test_a_changed_urdf(run_cli, workspace: Path) -> None:
         "robot arm: URDF joints added: panda_hand_mount",
         "robot arm: URDF joints removed: panda_hand_joint",
         "robot arm: URDF joint panda_joint4: limits [-3.0718, -0.0698] -> [-3.1, -0.0698]",
+        "robot arm: j4 -> panda_joint4: limits (source units) [-176.001, -3.99925] -> [-177.617, -3.99925]",
     ]
 
 

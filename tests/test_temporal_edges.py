@@ -157,7 +157,7 @@ def test_zero_quaternion_rows_stop_the_run(examples_dir: Path, run_cli) -> None:
 @pytest.mark.parametrize(
     ("edit", "message"),
     [
-        (lambda edge: edge.update(translation=["x", "y", "zz"]), "source 'base_pose' has no value named 'zz' (did you mean 'z'?)"),
+        (lambda edge: edge.update(translation=["x", "y", "zz"]), "source 'base_pose' has no value named 'zz'; it has: x, y, z"),
         (lambda edge: edge.update(source="arm_state"), "source 'arm_state' has no value named 'x'"),
     ],
 )

@@ -69,7 +69,7 @@ class JointReport:
     rows: int
     raw_min: float | None
     raw_max: float | None
-    limits_in_source_unit: tuple[float, float] | None  # URDF limits / unit factor: before sign, offset and wrap
+    limits_in_source_unit: tuple[float, float] | None  # JointChannel.limits_in_source_unit: the config's corrections
     verdict: str  # "fits" | "ambiguous" | "none" | "no limits" | "no values"
     current_fits: bool
     fitting: list[str] = field(default_factory=list)
@@ -86,6 +86,8 @@ def _angular(channel: JointChannel) -> bool:
 def _linear_unit(factor: float) -> tuple[str, float]:
     if math.isclose(factor, 1.0):
         return "m", 1.0
+    if math.isclose(factor, 1e-2):
+        return "cm", 1.0
     if math.isclose(factor, 1e-3):
         return "mm", 1.0
     return "m", factor
@@ -141,8 +143,7 @@ def check_channel(robot: RobotPlan, channel: JointChannel, raw: np.ndarray) -> J
         report.message = "the joint has no limits: nothing to check against"
         return report
     lower, upper, slack = channel.lower, channel.upper, channel.slack
-    unit_factor = channel.factor * channel.scale if channel.source_range is None else abs(channel.gain)
-    report.limits_in_source_unit = (lower / unit_factor, upper / unit_factor)
+    report.limits_in_source_unit = channel.limits_in_source_unit
     current = _current_values(channel, finite)
     report.current_fits = bool(np.all((current >= lower - slack) & (current <= upper + slack)))
     outside = (current < lower) | (current > upper)
@@ -151,7 +152,6 @@ def check_channel(robot: RobotPlan, channel: JointChannel, raw: np.ndarray) -> J
         report.slack_rows = int(outside.sum())
         report.slack_worst = float(finite[np.argmax(excess)])
     if channel.source_range is not None:  # the config maps the range itself: only the fit is to check
-        report.limits_in_source_unit = (min(channel.source_range), max(channel.source_range))
         report.verdict = "fits" if report.current_fits else "none"
         report.message = (
             "source_range maps the values onto the joint's range"

@@ -230,8 +230,16 @@ def _link(link: Path, target: Path) -> None:
     link.symlink_to(target, target_is_directory=True)
 
 
-def prepare(directory: Path, frames: int = 900) -> None:
-    """Create directory/robots and directory/data as the example configs expect them."""
+MISSING_EXTRAS = {  # config -> (what it needs, the package that provides it): the inputs prepare cannot make without it
+    "aloha_bimanual.yaml": ("robots/rtbdata (the ViperX xacro)", "rtb-data"),
+    "ur5_ros2_bag.yaml": ("data/ur5_joint_states.mcap", "mcap-ros2-support"),
+}
+
+
+def prepare(directory: Path, frames: int = 900) -> list[str]:
+    """Create directory/robots and directory/data as the example configs expect them. Returns the configs whose inputs
+    could not be made because an optional package is missing (one line each, naming the package)."""
+    missing: list[str] = []
     share = example_robot_data_share()
     robots = directory / "robots"
     _link(robots / "share" / "example-robot-data", share)
@@ -244,6 +252,8 @@ def prepare(directory: Path, frames: int = 900) -> None:
     rtb = _rtb_xacro()
     if rtb is not None:
         _link(robots / "rtbdata", rtb)
+    else:
+        missing.append("aloha_bimanual.yaml")
     for episode in range(3):  # ALOHA records one HDF5 file per episode
         write_aloha_episode(directory / "data" / "aloha" / f"episode_{episode}.hdf5", aloha_qpos(frames // (episode + 1), seed=4 + episode))
     _, so101 = read_urdf(share / "robots" / "so_arm_description" / "urdf" / "so101.urdf")
@@ -251,7 +261,8 @@ def prepare(directory: Path, frames: int = 900) -> None:
     write_lerobot_dataset(directory / "data" / "so101_lerobot", so101_episodes, SO101_NAMES)
     ur5_urdf = share / "robots" / "ur_description" / "urdf" / "ur5_robot.urdf"
     _, ur5 = read_urdf(ur5_urdf)
-    write_ros2_bag(directory / "data" / "ur5_joint_states.mcap", UR5_JOINTS, smooth_trajectory(ur5, UR5_JOINTS, frames, seed=8))
+    if not write_ros2_bag(directory / "data" / "ur5_joint_states.mcap", UR5_JOINTS, smooth_trajectory(ur5, UR5_JOINTS, frames, seed=8)):
+        missing.append("ur5_ros2_bag.yaml")
     _, g1 = read_urdf(share / "robots" / "g1_description" / "urdf" / "g1_29dof_rev_1_0.urdf")
     g1_episodes = []
     for episode in range(2):  # like the real G1 recording: 14 arm joints in radians, then 12 hand values in 0..1
@@ -259,7 +270,9 @@ def prepare(directory: Path, frames: int = 900) -> None:
         hands = np.clip(0.5 + 0.4 * np.sin(np.arange(len(arms))[:, None] / 20.0 + np.arange(12)), 0.0, 1.0)
         g1_episodes.append(np.concatenate([arms, hands], axis=1))
     write_lerobot_dataset(directory / "data" / "g1_lerobot", g1_episodes, G1_ARM_NAMES + G1_HAND_NAMES)
+    return [f"{config}: not prepared, {MISSING_EXTRAS[config][0]} needs pip install {MISSING_EXTRAS[config][1]}" for config in missing]
 
 
 if __name__ == "__main__":
-    prepare(Path(sys.argv[1]) if len(sys.argv) > 1 else Path("configs"))
+    for line in prepare(Path(sys.argv[1]) if len(sys.argv) > 1 else Path("configs")):
+        print(f"urdf_pipeline.examples: {line}", file=sys.stderr)

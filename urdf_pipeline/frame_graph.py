@@ -5,10 +5,10 @@ Without this check a frame with no edge to the root silently collapses onto the 
 
 from __future__ import annotations
 
-import difflib
 from dataclasses import dataclass
 
 from .errors import Problems, Where
+from .hints import closest, did_you_mean
 
 
 @dataclass(frozen=True)
@@ -70,12 +70,11 @@ def _disconnected_message(frame: str, root: str, urdf_frames: dict[str, Where], 
     if frame in urdf_frames:
         message += f"; add a calibration edge with parent: {root} (or a frame that reaches it) and child: {frame}"
         strays = [e.child for e in edges if e.child not in urdf_frames and e.configured]
-        close = difflib.get_close_matches(frame, strays, n=1, cutoff=0.85)
-        if close:
-            message += f" (edge child '{close[0]}' is in no URDF: a typo for '{frame}'?)"
+        stray = closest(frame, strays)
+        if stray is not None:
+            message += f" (edge child '{stray}' is in no URDF: a typo for '{frame}'?)"
     else:
-        close = difflib.get_close_matches(frame, sorted(urdf_frames), n=1, cutoff=0.6)
-        message += "; it is named only by an edge and by no URDF" + (f" (did you mean '{close[0]}'?)" if close else "")
+        message += "; it is named only by an edge and by no URDF" + did_you_mean(frame, sorted(urdf_frames))
     return message
 
 
@@ -103,8 +102,7 @@ def check_assume_identity(
         if frame == root:
             problems.add(f"'{frame}' is the root frame; frames.assume_identity lists frames to hang from it", where)
         elif frame not in named:
-            close = difflib.get_close_matches(frame, sorted(named), n=1, cutoff=0.6)
-            hint = f" (did you mean '{close[0]}'?)" if close else ""
+            hint = did_you_mean(frame, sorted(named))
             problems.add(f"frame '{frame}' is named by no URDF and no edge; remove it from frames.assume_identity{hint}", where)
         elif frame in parent_of:
             edge = parent_of[frame]

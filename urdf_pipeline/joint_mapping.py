@@ -1,25 +1,21 @@
 """Decide, before reading any value, which source value drives which URDF joint and how.
 
 Every moving URDF joint is covered exactly once (map, hold or <mimic>); every source name is mapped or ignored.
-Conversion order: unit conversion, then sign, then offset: urdf = (raw * factor) * sign + offset.
+Conversion order: unit conversion, then sign, then offset: urdf = (raw * factor) * sign + offset. The unit of a
+value is its entry's `unit`, else the robot's `joints.unit` for the joint's kind (units.robot_units).
 """
 
 from __future__ import annotations
 
-import difflib
 from dataclasses import replace
 from typing import Any
 
 from .document import Document
 from .errors import Problems, Where
+from .hints import did_you_mean as _hint
 from .plan import HeldJoint, JointChannel, MimicJoint, OnViolation
-from .units import FACTORS, fits, urdf_unit
+from .units import ANGULAR_UNITS, FACTORS, RobotUnits, fits, robot_units, urdf_unit
 from .urdf_model import UrdfModel
-
-
-def _hint(name: str, choices: list[str]) -> str:
-    close = difflib.get_close_matches(name, choices, n=1, cutoff=0.6)
-    return f" (did you mean '{close[0]}'?)" if close else ""
 
 
 def compile_joints(
@@ -32,7 +28,7 @@ def compile_joints(
 ) -> tuple[tuple[JointChannel, ...], tuple[HeldJoint, ...], tuple[MimicJoint, ...], OnViolation]:
     here = ("robots", robot_key, "joints")
     source = joints_spec["source"]
-    default_unit = joints_spec.get("unit", "rad")
+    units = robot_units(joints_spec.get("unit"))
     limit_spec = joints_spec.get("limits", {})
     slack_source = float(limit_spec.get("slack", 0.0))
     on_violation: OnViolation = limit_spec.get("on_violation", "error")
@@ -58,7 +54,7 @@ def compile_joints(
             continue
         for joint_name in joint_names:
             channel = _channel(
-                source_name, names.index(source_name), joint_name, spec, default_unit, slack_source, model, where, problems, covered
+                source_name, names.index(source_name), joint_name, spec, units, slack_source, model, where, problems, covered
             )
             if channel is not None:
                 covered[joint_name] = f"map entry '{source_name}'"
@@ -94,6 +90,8 @@ def compile_joints(
         elif name in joints_spec["map"]:
             problems.add(f"'{name}' is both mapped and ignored; keep one", where)
 
+    if units.given is not None:
+        _check_unit_applies(units.given, joints_spec, model, document.where(*here, "unit"), problems)
     unused = [n for n in names if n not in joints_spec["map"] and n not in ignored]
     if unused:
         problems.add(
@@ -135,7 +133,7 @@ def _channel(
     source_index: int,
     joint_name: str,
     spec: dict[str, Any],
-    default_unit: str,
+    units: RobotUnits,
     slack_source: float,
     model: UrdfModel,
     where: Where,
@@ -165,12 +163,11 @@ def _channel(
             f"joint '{joint_name}' has no URDF limits to map source_range onto; give joint_range: [low, high] in URDF units", where
         )
         return None
-    unit = "source_range" if source_range is not None else spec.get("unit", default_unit)
-    if source_range is None and not fits(unit, joint.angular):
-        origin = "its map entry" if "unit" in spec else "joints.unit"
+    unit = "source_range" if source_range is not None else spec.get("unit", units.for_joint(joint.angular))
+    if source_range is None and not fits(unit, joint.angular):  # only an entry's own unit can be of the other kind
         problems.add(
-            f"joint '{joint_name}' is {joint.type} (URDF unit {urdf_unit(joint.angular)}) but its source unit is {unit} (from {origin}); "
-            f"set unit: {'rad or deg' if joint.angular else 'm or mm'} on this entry",
+            f"joint '{joint_name}' is {joint.type} (URDF unit {urdf_unit(joint.angular)}) but its source unit is {unit} (from its map entry); "
+            f"set unit: {'rad or deg' if joint.angular else 'm, cm or mm'} on this entry",
             where,
         )
         return None
@@ -193,6 +190,26 @@ def _channel(
     wrap = spec.get("wrap")
     center = channel.to_source_unit((limits[0] + limits[1]) / 2) if limits else channel.to_source_unit(0.0)
     return replace(channel, slack=slack_source * abs(channel.gain), wrap=float(wrap) if wrap else None, wrap_center=center)
+
+
+def _check_unit_applies(given: str, joints_spec: dict[str, Any], model: UrdfModel, where: Where, problems: Problems) -> None:
+    """A single joints.unit applies to one joint kind only; naming a kind no mapped joint has is a mistake, not a no-op."""
+    angular = given in ANGULAR_UNITS
+    for entry in joints_spec["map"].values():
+        spec = {"joint": entry} if isinstance(entry, str) else entry
+        if "unit" in spec or "source_range" in spec:
+            continue
+        for name in spec["joint"] if isinstance(spec["joint"], list) else [spec["joint"]]:
+            joint = model.joint(name)
+            if joint is not None and joint.moving and joint.angular == angular:
+                return
+    kind, other = ("revolute or continuous", "prismatic") if angular else ("prismatic", "revolute and continuous")
+    problems.add(
+        f"joints.unit {given} applies to {kind} joints only, and no map entry without its own unit drives one; "
+        f"the {other} joints use {urdf_unit(not angular)}. Write unit: {'m, cm or mm' if angular else 'rad or deg'} "
+        f"(or {{angle: ..., length: ...}}), or omit it for the URDF's units",
+        where,
+    )
 
 
 def _order_mimics(model: UrdfModel, mimic_joints: set[str]) -> tuple[MimicJoint, ...]:

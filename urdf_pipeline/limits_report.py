@@ -8,8 +8,11 @@ from .plan import JointChannel
 
 
 def _limits_text(channel: JointChannel) -> str:
-    low, high = sorted((channel.to_source_unit(channel.lower or 0.0), channel.to_source_unit(channel.upper or 0.0)))
-    return f"[{low:.6g}, {high:.6g}] {channel.source_unit}"
+    """The limits as plan and check print them (JointChannel.limits_in_source_unit)."""
+    limits = channel.limits_in_source_unit
+    if limits is None:
+        return "none"
+    return f"[{limits[0]:.6g}, {limits[1]:.6g}] {channel.source_unit}"
 
 
 def check_joint_statistics(mapper: JointValueMapper, problems: Problems) -> list[str]:
@@ -29,7 +32,7 @@ def check_joint_statistics(mapper: JointValueMapper, problems: Problems) -> list
         )
     for channel, stats in zip(robot.channels, mapper.stats.channels, strict=False):
         label = f"robot '{robot.key}' joint '{channel.joint}' (source value '{channel.source_name}')"
-        slack = channel.slack / abs(channel.gain)
+        slack = channel.slack_in_source_unit or 0.0
         if stats.nonfinite_rows:
             problems.add(
                 f"{label}: {stats.nonfinite_rows} of {mapper.stats.rows} rows are NaN or infinite, the first at row {stats.first_nonfinite_row} "

@@ -126,14 +126,12 @@ class JointChannel:
 
     @property
     def limits_in_source_unit(self) -> tuple[float, float] | None:
-        """The URDF limits divided by unit factor and scale, before sign and offset (how `plan` shows them); with
-        source_range, that range. None when the joint has no limits."""
+        """The one meaning of "limits in source units" (plan, check, run, diff): the source values that the linear map
+        (unit, scale, sign, offset, or source_range onto target_range) sends onto the URDF limits, low <= high. A raw
+        value v is within the limits exactly when low <= v <= high (after wrap). None when the joint has no limits."""
         if self.lower is None or self.upper is None:
             return None
-        if self.source_range is not None:
-            return (min(self.source_range), max(self.source_range))
-        factor = self.factor * self.scale
-        low, high = sorted((self.lower / factor, self.upper / factor))
+        low, high = sorted((self.to_source_unit(self.lower), self.to_source_unit(self.upper)))
         return (low, high)
 
     @property

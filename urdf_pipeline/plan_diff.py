@@ -327,6 +327,14 @@ def _channel_changes(report: _Report, subject: str, name: str, old: list[JointCh
         report.field("robot", subject, f"{label}: source_range", o.source_range, n.source_range)
         if not (_follows_limits(o) and _follows_limits(n)):  # URDF limits changes are reported with the URDF
             report.field("robot", subject, f"{label}: joint_range", o.target_range, n.target_range)
+        if o.joint == n.joint:  # what the changes above (or the URDF's) mean for the data, as plan and check print it
+            report.field("robot", subject, f"{label}: limits (source units)", _limits(o), _limits(n))
+
+
+def _limits(c: JointChannel) -> tuple[float, ...] | None:
+    """JointChannel.limits_in_source_unit to 6 significant digits, as plan's text, check and the run print it."""
+    limits = c.limits_in_source_unit
+    return tuple(float(f"{v:.6g}") for v in limits) if limits is not None else None
 
 
 def _follows_limits(c: JointChannel) -> bool:

@@ -32,8 +32,14 @@ def _channel_text(c: JointChannel) -> str:
         steps.append(f"source_range {list(c.source_range)} onto {[round(v, 9) for v in c.target_range]}")
     else:
         steps.append(f"x {c.factor:g} ({c.source_unit})" + (f" x {c.scale:g}" if c.scale != 1 else "") + f" x {c.sign:g} + {c.offset:g}")
-    limits = f"[{c.lower:g}, {c.upper:g}]" if c.lower is not None else "none"
-    steps.append(f"limits {limits}, slack {c.slack:g}")
+    source = c.limits_in_source_unit
+    if source is None:
+        steps.append("limits none")
+    else:
+        unit = "source units" if c.source_range is not None else c.source_unit
+        steps.append(
+            f"limits {source[0]:.6g} .. {source[1]:.6g} {unit} (URDF [{c.lower:g}, {c.upper:g}]), slack {c.slack_in_source_unit or 0:g} {unit}"
+        )
     return "; ".join(steps)
 
 

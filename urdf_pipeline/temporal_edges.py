@@ -9,7 +9,6 @@ Rows with NaN/infinite values or an all-zero quaternion are counted and stop the
 
 from __future__ import annotations
 
-import difflib
 import re
 import threading
 from dataclasses import dataclass, field
@@ -20,6 +19,7 @@ import pyarrow as pa
 
 from .callbacks import CallbackErrors
 from .errors import Problems, listing
+from .hints import closest
 from .joint_values import raw_matrix
 from .plan import Plan, SourcePlan, TemporalEdgePlan
 from .sidecar_edges import EdgeSpec
@@ -65,8 +65,8 @@ def compile_temporal_edge(
     for key in ("translation", "quaternion_xyzw"):
         for index, value in enumerate(spec[key]):
             if value not in position:
-                close = difflib.get_close_matches(value, list(source.names), n=1)
-                hint = f" (did you mean '{close[0]}'?)" if close else f"; it has: {listing(source.names)}"
+                close = closest(value, source.names)
+                hint = f" (did you mean '{close}'?)" if close is not None else f"; it has: {listing(source.names)}"
                 problems.add(f"source '{name}' has no value named '{value}'{hint}", edge.where(key, index))
                 missing = True
     if missing:

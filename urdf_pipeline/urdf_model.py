@@ -7,13 +7,14 @@ cycle) is refused here too, naming the joint or link, before it could surface la
 
 from __future__ import annotations
 
-import difflib
 import math
 import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
 from xml.parsers.expat import ExpatError, ParserCreate
+
+from .hints import did_you_mean
 
 MOVING_TYPES = ("revolute", "continuous", "prismatic")
 ANGULAR_TYPES = ("revolute", "continuous")
@@ -157,8 +158,7 @@ class _Problems:
 
 
 def _hint(name: str, choices: list[str]) -> str:
-    close = difflib.get_close_matches(name, choices, n=1, cutoff=0.6)
-    return f" (did you mean '{close[0]}'?)" if close else ""
+    return did_you_mean(name, choices)  # the one rule of hints.py
 
 
 def _joint(element: ET.Element, problems: _Problems) -> Joint | None:
