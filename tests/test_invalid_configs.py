@@ -209,6 +209,12 @@ def test_validate_reports_every_config_at_once(invalid_dir: Path, run_cli) -> No
         assert f"error: {config}:" in result.err, f"{config.name} not reported"
 
 
+def _control_text(segment: str) -> str:
+    """The config the cases are made from, with its data fixed, writing `segment`."""
+    text = (CASES_DIR / "limit_violation.yaml").read_text(encoding="utf-8")
+    return text.replace("data/out_of_limits.parquet", "data/episode_000.parquet").replace("segment: limit_violation", f"segment: {segment}")
+
+
 @pytest.mark.parametrize("case", _params(DATA_CASES))
 def test_failing_run_leaves_existing_output_untouched(case: Case, invalid_dir: Path, run_cli) -> None:
     name = f"preexisting_{case.name}"
@@ -217,8 +223,11 @@ def test_failing_run_leaves_existing_output_untouched(case: Case, invalid_dir: P
     config = invalid_dir / f"invalid_{name}.yaml"
     config.write_text(text.replace(f"segment: {case.name}\n", f"segment: {name}\n"), encoding="utf-8")
     target = invalid_dir / "out" / "invalid" / f"{name}.rrd"
-    payload = b"an earlier recording that a failed run must not touch\n" * 64
-    target.write_bytes(payload)
+    # An earlier recording of the same segment, written by the pipeline (it replaces no file it did not write).
+    earlier = invalid_dir / f"invalid_{name}_earlier.yaml"
+    earlier.write_text(_control_text(name), encoding="utf-8")
+    assert run_cli("run", str(earlier)).code == 0 and target.is_file()
+    payload = target.read_bytes()
     stat = target.stat()
 
     result = run_cli("run", str(config))
@@ -233,12 +242,8 @@ def test_failing_run_leaves_existing_output_untouched(case: Case, invalid_dir: P
 
 def test_control_the_cases_base_config_runs(invalid_dir: Path, run_cli) -> None:
     """The config the cases are made from, with its data fixed, runs: each case fails for its own defect only."""
-    text = (CASES_DIR / "limit_violation.yaml").read_text(encoding="utf-8")
-    text = text.replace("data/out_of_limits.parquet", "data/episode_000.parquet").replace(
-        "segment: limit_violation", "segment: control_base"
-    )
     config = invalid_dir / "invalid_control_base.yaml"
-    config.write_text(text, encoding="utf-8")
+    config.write_text(_control_text("control_base"), encoding="utf-8")
     result = run_cli("run", str(config))
     assert result.code == 0, result.err
     assert (invalid_dir / "out" / "invalid" / "control_base.rrd").is_file()

@@ -2,7 +2,8 @@
 
 Exit status: 0 success, 1 a user error (one `error: FILE:LINE:COL: message` line each), 2 bad command-line usage,
 3 (`check` only) some joint's sampled values do not fit its limits with the config's corrections,
-70 an internal bug (with a traceback: please report it), 130 interrupted, 141 stdout closed early (`| head`).
+70 an internal bug (with a traceback: please report it), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM, handled as
+Ctrl-C: see interrupts.py), 141 stdout closed early (`| head`).
 """
 
 from __future__ import annotations
@@ -74,8 +75,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     for result in bugs:
         print(f"{result.label}: {result.reason}", file=sys.stderr)
     if run.interrupted:
-        print("interrupted: only complete outputs were kept", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        from .interrupts import describe, exit_status
+
+        print(f"interrupted ({describe(run.signal)}): only complete outputs were kept", file=sys.stderr)
+        return exit_status(run.signal)
     if args.catalog:  # what was written (or is up to date) is registered even when other segments failed
         say(register_outputs(run, args.catalog, args.dataset, args.layer).summary())
     if args.spawn or args.connect:
@@ -265,6 +268,20 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """SIGTERM is handled as Ctrl-C while a command runs (the caller's handler is given back: tests call this in-process)."""
+    from .interrupts import handle_sigterm, keep_sigterm_handler, restore_sigterm_handler
+
+    previous = keep_sigterm_handler()
+    handle_sigterm()
+    try:
+        return _main(argv)
+    finally:
+        restore_sigterm_handler(previous)
+
+
+def _main(argv: Sequence[str] | None) -> int:
+    from .interrupts import exit_status, signal_number
+
     args = build_parser().parse_args(argv)
     handler: Callable[[argparse.Namespace], int] = args.handler
     try:
@@ -273,9 +290,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         for line in exc.lines():
             print(line, file=sys.stderr)
         return EXIT_USER_ERROR
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as stop:  # Ctrl-C, or SIGTERM (interrupts.Terminated): 128 + the signal's number
         print("interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return exit_status(signal_number(stop))
     except BrokenPipeError:  # `urdf-pipeline plan ... | head`: the reader left; not a bug
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # so the interpreter's final flush is quiet too
         return EXIT_BROKEN_PIPE

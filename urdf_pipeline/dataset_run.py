@@ -1,7 +1,8 @@
 """Run every segment of a plan: skip what is up to date, run the rest on an executor, keep the manifest current.
 
-One failing segment does not stop the others; Ctrl-C stops the run, removes partial files and keeps the manifest
-true to the complete files.
+One failing segment does not stop the others; Ctrl-C or SIGTERM stops the run, removes partial files and keeps the
+manifest true to the complete files. Before anything is computed, every file the run would replace must be one the
+pipeline wrote, every output folder must take files, and partial files that killed runs left are removed.
 """
 
 from __future__ import annotations
@@ -13,12 +14,15 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
+from .errors import Problems, UserError
 from .execute import Parts
 from .fingerprint import model_hash, segment_hashes
+from .interrupts import describe, signal_number
 from .manifest import Manifest
 from .plan import Plan
 from .progress import SegmentProgress
 from .segment_run import SegmentJob, SegmentResult, install_run_plan, run_segment
+from .writer import remove_stale_partials, require_ours, require_writable
 
 if TYPE_CHECKING:
     from .catalog import CatalogReport
@@ -41,6 +45,7 @@ class DatasetRun:
     seconds: float
     manifest: Path
     interrupted: bool
+    signal: int = 0  # what interrupted it: SIGINT (Ctrl-C) or SIGTERM
 
 
 def build_jobs(plan: Plan) -> list[SegmentJob]:
@@ -59,7 +64,7 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
     assert plan.dataset is not None
     started = time.perf_counter()
     jobs = build_jobs(plan)
-    manifest = Manifest.load(plan.dataset.manifest, plan.output.application_id, plan.dataset.layout, plan.config_path)
+    manifest = Manifest.load(plan.dataset.manifest, plan.output.application_id, plan.dataset.layout, plan.config_path, plan.output.where)
     results: dict[str, SegmentResult] = {}
     to_run: list[SegmentJob] = []
     for job in jobs:
@@ -70,6 +75,7 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
             results[job.label] = SegmentResult(job.label, job.output, "skipped", job.content_hash, reason="up to date")
         else:
             to_run.append(job)
+    _prepare_outputs(plan, jobs, to_run)
     if progress is not None:
         progress.start(len(jobs), sum(j.frames_expected or 0 for j in to_run), skipped=len(jobs) - len(to_run))
 
@@ -89,7 +95,7 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
     work: Callable[[SegmentJob], SegmentResult] = run_segment
     if options.verbose and len(to_run) == 1 and options.executor == "local":
         to_run = [replace(to_run[0], verbose=True)]
-    interrupted = False
+    interrupted = 0
     try:
         if options.executor == "ray":
             from .ray_executor import run_on_ray
@@ -100,22 +106,50 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
 
             slim = [replace(job, run_plan=None) for job in to_run]  # workers get the plan once, from install_run_plan
             run_locally(work, slim, options.jobs, on_done, on_crash, install_run_plan, (plan,))
-    except KeyboardInterrupt:
-        interrupted = True
+    except KeyboardInterrupt as stop:  # Ctrl-C, or SIGTERM (interrupts.Terminated)
+        interrupted = signal_number(stop)
         _remove_partial_files([job.output for job in to_run])
         for job in to_run:
             if job.label in results:
                 continue
             if _adopt_if_written(job, manifest):  # finished by a worker stopped before its result arrived
-                results[job.label] = SegmentResult(job.label, job.output, "written", job.content_hash, reason="finished as Ctrl-C came")
+                reason = f"finished as {describe(interrupted)} came"
+                results[job.label] = SegmentResult(job.label, job.output, "written", job.content_hash, reason=reason)
             else:
-                results[job.label] = SegmentResult(job.label, job.output, "interrupted", job.content_hash, reason="Ctrl-C")
+                results[job.label] = SegmentResult(job.label, job.output, "interrupted", job.content_hash, reason=describe(interrupted))
     finally:
         if progress is not None:
             progress.finish()
         manifest.write()
     ordered = tuple(results[job.label] for job in jobs)
-    return DatasetRun(ordered, time.perf_counter() - started, manifest.path, interrupted)
+    return DatasetRun(ordered, time.perf_counter() - started, manifest.path, bool(interrupted), interrupted)
+
+
+def _prepare_outputs(plan: Plan, jobs: list[SegmentJob], to_run: list[SegmentJob]) -> None:
+    """Before computing anything: no file the pipeline did not write would be replaced (not even with --force), every
+    folder written to takes files, and the partial files of killed runs are gone. Every refusal at once, exit 1."""
+    from .blueprint import blueprint_path
+
+    assert plan.dataset is not None
+    where = plan.output.where
+    problems = Problems()
+    for job in to_run:
+        try:
+            require_ours(job.output, "recording", where)
+        except UserError as error:
+            problems.extend(error)
+    blueprint = blueprint_path(plan)
+    try:
+        require_ours(blueprint, "blueprint", where)
+    except UserError as error:
+        problems.extend(error)
+    for directory in dict.fromkeys([*(job.output.parent for job in to_run), plan.dataset.manifest.parent]):
+        try:
+            require_writable(directory, where)
+        except UserError as error:
+            problems.extend(error)
+    problems.raise_if_any()
+    remove_stale_partials(path.parent for path in [*(job.output for job in jobs), plan.dataset.manifest, blueprint])
 
 
 def _adopt_if_written(job: SegmentJob, manifest: Manifest) -> bool:

@@ -2,15 +2,23 @@
 
 Workers are forked from a fork server that imported Rerun and the pipeline once (a worker is up in milliseconds, not
 the second `spawn` takes to import them), and that never ran Rerun code, so no Rerun thread is forked. Workers ignore
-SIGINT: on Ctrl-C the main process cancels what has not started and terminates the workers, and the caller removes
-their partial files, so only complete outputs remain.
+SIGINT and SIGTERM (a terminal's Ctrl-C and `timeout` signal the whole process group): on either, the main process
+cancels what has not started and kills the workers, and the caller removes their partial files, so only complete
+outputs remain. A worker exits as soon as the main process is gone, even killed with SIGKILL (it would otherwise wait
+forever for its next job, and keep the fork server alive: each worker holds the fork server's "alive" pipe). Workers make their temporary files in a folder of the run that the main process removes at
+the end whatever happened: a pool worker exits without running `atexit` handlers.
 """
 
 from __future__ import annotations
 
 import multiprocessing
+import os
+import select
+import shutil
 import signal
+import tempfile
 import threading
+import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from typing import TypeVar
@@ -30,8 +38,11 @@ def start_fork_server() -> None:
     forkserver.ensure_running()
 
 
-def _start_worker(initializer: Callable[..., None] | None, initargs: tuple[object, ...]) -> None:
+def _start_worker(initializer: Callable[..., None] | None, initargs: tuple[object, ...], scratch: str, main: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    threading.Thread(target=_exit_with, args=(main,), name="urdf-pipeline-watch-main", daemon=True).start()
+    tempfile.tempdir = scratch  # removed by the main process, even when this worker is killed
     if initializer is not None:
         initializer(*initargs)
 
@@ -59,9 +70,28 @@ def run_locally(
         for job in jobs:
             _run_here(work, job, on_done, on_crash)
         return
+    scratch = tempfile.mkdtemp(prefix="urdf-pipeline-run-")
+    try:
+        _run_in_pool(work, jobs, helpers, on_done, on_crash, initializer, initargs, scratch)
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+
+
+def _run_in_pool(
+    work: Callable[[J], R],
+    jobs: Sequence[J],
+    helpers: int,
+    on_done: Callable[[J, R], None],
+    on_crash: Callable[[J, BaseException], None],
+    initializer: Callable[..., None] | None,
+    initargs: tuple[object, ...],
+    scratch: str,
+) -> None:
     context = multiprocessing.get_context("forkserver")
     context.set_forkserver_preload(PRELOAD)
-    pool = ProcessPoolExecutor(helpers, mp_context=context, initializer=_start_worker, initargs=(initializer, initargs))
+    pool = ProcessPoolExecutor(
+        helpers, mp_context=context, initializer=_start_worker, initargs=(initializer, initargs, scratch, os.getpid())
+    )
     ready = threading.Event()  # the worker processes are up: until then, this process works alone
 
     def start_workers() -> None:
@@ -93,9 +123,7 @@ def run_locally(
                 _run_here(work, queue.pop(), on_done, on_crash)
             elif pending:
                 finish(wait(pending, return_when=FIRST_COMPLETED)[0])
-    except BaseException:
-        for future in pending:
-            future.cancel()
+    except BaseException:  # futures are not cancelled one by one: Python 3.11's pool then fails on them (InvalidStateError)
         _terminate(pool)
         raise
     if ready.is_set():
@@ -108,6 +136,30 @@ def _started() -> None:
     """A no-op task: its completion says a worker process is up."""
 
 
+def _exit_with(main: int) -> None:
+    """A worker's watch: end this process when the main process `main` is gone, so no worker outlives a killed run."""
+    try:
+        handle = os.pidfd_open(main)  # Linux: readable once the process has exited, no polling
+    except ProcessLookupError:
+        os._exit(1)
+    except (AttributeError, OSError):  # another system: look once a second
+        while _alive(main):
+            time.sleep(1.0)
+        os._exit(1)
+    select.select([handle], [], [])
+    os._exit(1)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
 def _run_here(work: Callable[[J], R], job: J, on_done: Callable[[J, R], None], on_crash: Callable[[J, BaseException], None]) -> None:
     try:
         result = work(job)
@@ -118,14 +170,15 @@ def _run_here(work: Callable[[J], R], job: J, on_done: Callable[[J, R], None], o
 
 
 def _terminate(pool: ProcessPoolExecutor) -> None:
-    """Stop the workers now: a job in flight is abandoned and its partial file removed by the caller."""
+    """Stop the workers now (SIGKILL: they ignore SIGTERM): a job in flight is abandoned and its partial file removed by
+    the caller."""
     processes = list((getattr(pool, "_processes", None) or {}).values())  # no public API lists a pool's processes
     call_queue = getattr(pool, "_call_queue", None)
     if call_queue is not None:
         call_queue.cancel_join_thread()  # its feeder may be blocked writing to a dead worker: exiting must not wait for it
     for process in processes:
         if process.is_alive():
-            process.terminate()
+            process.kill()
     for process in processes:
         process.join(timeout=10)
     pool.shutdown(wait=False, cancel_futures=True)

@@ -1,6 +1,7 @@
 """The run's JSON manifest: every output with its content hash, so a re-run skips what is up to date.
 
 It is rewritten atomically as segments finish, so after a crash or Ctrl-C it lists exactly the complete files.
+An existing file at its path that lacks the manifest's `urdf_pipeline` key is not ours: it is refused, never replaced.
 Entries of segments not selected by this run (another `--episodes` range) are kept while their files exist.
 """
 
@@ -14,7 +15,8 @@ from pathlib import Path
 from typing import Any
 
 from . import __version__
-from .errors import UserError
+from .errors import UserError, Where
+from .writer import partial_path, require_ours
 
 FORMAT = 1
 
@@ -30,13 +32,15 @@ class Manifest:
     _last_write: float = 0.0
 
     @classmethod
-    def load(cls, path: Path, application_id: str, layout: str, config: Path) -> Manifest:
+    def load(cls, path: Path, application_id: str, layout: str, config: Path, where: Where | None = None) -> Manifest:
+        """The manifest at `path` (empty when there is none); a UserError when a file there is not a manifest of ours."""
         manifest = cls(path, application_id, layout, config)
+        require_ours(path, "manifest", where)
         if not path.is_file():
             return manifest
         try:
             data = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, json.JSONDecodeError):
+        except (OSError, ValueError):
             return manifest  # unreadable: start afresh, every output is checked again
         if data.get("format") != FORMAT or data.get("application_id") != application_id or data.get("layout") != layout:
             return manifest
@@ -92,7 +96,7 @@ class Manifest:
             "model": self.model,
             "segments": segments,
         }
-        partial = self.path.with_name(f".{self.path.name}.partial-{os.getpid()}")
+        partial = partial_path(self.path)
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             partial.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n", encoding="utf-8")
@@ -100,3 +104,6 @@ class Manifest:
         except OSError as exc:
             partial.unlink(missing_ok=True)
             raise UserError(f"cannot write the manifest {self.path}: {exc}") from None
+        except BaseException:  # a signal mid-write: no partial file stays behind
+            partial.unlink(missing_ok=True)
+            raise

@@ -4,6 +4,10 @@ Workers import `work` and the job types by reference, so every node needs `urdf_
 same Ray and Python versions as this process: install them in the cluster's environment, or run this CLI through
 `ray job submit --runtime-env-json ...` so Ray installs them. A cluster with token authentication needs
 `RAY_AUTH_MODE=token` and its token (`RAY_AUTH_TOKEN`, or `~/.ray/auth_token`) in this process's environment.
+
+Starting a local instance, Ray replaces this process's SIGTERM handler with one that kills its processes and exits 1 at
+once; the pipeline's handler is put back, so SIGTERM stops a Ray run as Ctrl-C does. Tasks of a local instance make
+their temporary files in a folder of the run, removed at the end: Ray kills its workers without running `atexit`.
 """
 
 from __future__ import annotations
@@ -11,12 +15,15 @@ from __future__ import annotations
 import logging
 import os
 import re
+import shutil
 import socket
+import tempfile
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from .errors import UserError
+from .interrupts import keep_sigterm_handler, restore_sigterm_handler
 
 if TYPE_CHECKING:
     from ray import ObjectRef
@@ -29,8 +36,10 @@ STOP_GRACE = 5.0  # seconds that interrupted tasks get to run their cleanup befo
 _ANSI_COLOUR = re.compile(r"\x1b\[[0-9;]*m")
 
 
-def _call(work: Callable[[J], R], job: J) -> R:
+def _call(work: Callable[[J], R], job: J, scratch: str | None = None) -> R:
     """The task body; top-level so Ray pickles it by reference."""
+    if scratch is not None and os.path.isdir(scratch):
+        tempfile.tempdir = scratch  # a worker of the run's own local instance: the driver removes the folder
     return work(job)
 
 
@@ -54,10 +63,28 @@ def run_on_ray(
         raise UserError("the ray executor needs Ray: pip install 'urdf-pipeline[ray]'", None) from None
     if not jobs:
         return
+    scratch = tempfile.mkdtemp(prefix="urdf-pipeline-run-") if address is None else None
+    try:
+        _run_tasks(ray, work, jobs, address, on_done, on_crash, num_cpus, scratch)
+    finally:
+        if scratch is not None:
+            shutil.rmtree(scratch, ignore_errors=True)
+
+
+def _run_tasks(
+    ray: Any,
+    work: Callable[[J], R],
+    jobs: Sequence[J],
+    address: str | None,
+    on_done: Callable[[J, R], None],
+    on_crash: Callable[[J, BaseException], None],
+    num_cpus: int | None,
+    scratch: str | None,
+) -> None:
     _connect(ray, address, num_cpus)
     try:
         task: Any = ray.remote(num_cpus=1, max_retries=0)(_call)  # a crashed segment is reported, not silently run again
-        pending: dict[ObjectRef[Any], J] = {task.remote(work, job): job for job in jobs}
+        pending: dict[ObjectRef[Any], J] = {task.remote(work, job, scratch): job for job in jobs}
         try:
             while pending:
                 ready, _ = ray.wait(list(pending), num_returns=1)
@@ -90,10 +117,13 @@ def _connect(ray: Any, address: str | None, num_cpus: int | None) -> None:
             _check_reachable(address)
         options["address"] = address
         what = f"could not connect to the Ray cluster at {address}"
+    handler = keep_sigterm_handler()
     try:
         with _quiet_token_notice():
             ray.init(**options)
+        restore_sigterm_handler(handler)
     except BaseException as error:
+        restore_sigterm_handler(handler)
         ray.shutdown()  # what a Ctrl-C or a failure left half started
         if isinstance(error, Exception):  # ConnectionError, ValueError (address format, ray[client] missing), RuntimeError, ...
             raise UserError(f"{what}: {error}{_auth_hint(address, error)}", None) from error
