@@ -11,6 +11,8 @@ import rerun as rr
 
 from .dataset_helpers import isolated_examples
 
+pytestmark = pytest.mark.usefixtures("allow_examples")  # configs elsewhere read the session's examples
+
 pytest.importorskip("datafusion", reason="needs the rerun-sdk[catalog] extra (a test dependency)")
 
 

@@ -9,6 +9,8 @@ import pytest
 
 from .dataset_helpers import isolated_examples, recording_content, status_lines
 
+pytestmark = pytest.mark.usefixtures("allow_examples")  # configs elsewhere read the session's examples
+
 pytest.importorskip("ray", reason="needs Ray (a test dependency: pip install -e '.[test]')")
 
 

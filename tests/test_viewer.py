@@ -10,6 +10,8 @@ from rerun.chunk import RrdReader
 
 from .dataset_helpers import isolated_examples
 
+pytestmark = pytest.mark.usefixtures("allow_examples")  # configs elsewhere read the session's examples
+
 
 def test_a_run_writes_its_blueprint_beside_the_outputs(examples_dir: Path, tmp_path: Path, run_cli) -> None:
     config = isolated_examples(examples_dir, tmp_path / "bp")
