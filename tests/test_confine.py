@@ -32,6 +32,20 @@ def test_reads_stay_under_the_config_folder(tmp_path: Path, clean_env: pytest.Mo
     assert not rule.may_read(Path("/etc/hostname"))
 
 
+def test_a_config_in_a_git_work_tree_reads_the_whole_work_tree(tmp_path: Path, clean_env: pytest.MonkeyPatch) -> None:
+    """configs/ beside robots/ and data/ in one repository: reads span the work tree (never .git), writes do not."""
+    repo = tmp_path / "repo"
+    (repo / ".git").mkdir(parents=True)
+    rule = confinement_for(repo / "configs" / "c.yaml")
+    assert rule.may_read(repo / "robots" / "r.urdf") and rule.may_read(repo / "data" / "e.parquet")
+    assert not rule.may_read(repo / ".git" / "config")
+    assert not rule.may_read(tmp_path / "elsewhere" / "r.urdf")
+    assert rule.may_write(repo / "configs" / "out" / "e.rrd") and not rule.may_write(repo / "out" / "e.rrd")
+    with pytest.raises(UserError) as error:
+        rule.check_read(tmp_path / "elsewhere" / "r.urdf", "URDF file", None)
+    assert f"is outside the config's git work tree or a declared package root ({repo.resolve()})" in error.value.message
+
+
 @pytest.mark.parametrize("variable", ["ROS_PACKAGE_PATH", "AMENT_PREFIX_PATH", "ROBOT_DESCRIPTIONS_CACHE", ALLOW_ENV])
 def test_the_environment_declares_more_roots(variable: str, tmp_path: Path, clean_env: pytest.MonkeyPatch) -> None:
     config, root = tmp_path / "pr" / "c.yaml", tmp_path / "declared"

@@ -2,7 +2,9 @@
 
 The rule (documented in docs/ci.md, "What a config can reach"):
 - A path a config names (URDF, xacro and what it includes, meshes, package_paths, sources, sidecar edge files) is
-  read only if it resolves, symlinks followed, under an allowed root: the config's own folder, or a root the
+  read only if it resolves, symlinks followed, under an allowed root: the config's own folder (or, when the config
+  is in a git work tree, that work tree: a repository keeps configs/ beside robots/ and data/, and everything in a
+  checkout is the pull request's own content already), or a root the
   environment of whoever runs the tool declares (ROS_PACKAGE_PATH, AMENT_PREFIX_PATH, ROBOT_DESCRIPTIONS_CACHE, this
   Python's site-packages where description packages install, and URDF_PIPELINE_ALLOW_PATHS). A config cannot widen
   this: only the environment can.
@@ -46,6 +48,14 @@ def _inside_git(path: Path) -> bool:
     return ".git" in path.parts
 
 
+def _work_tree(folder: Path) -> Path | None:
+    """The top of the git work tree holding `folder` (the nearest ancestor with a `.git` entry), if any."""
+    for candidate in (folder, *folder.parents):
+        if (candidate / ".git").exists():
+            return candidate
+    return None
+
+
 @dataclass(frozen=True)
 class Confinement:
     """The allowed roots for one config file; see the module's docstring for the rule."""
@@ -53,6 +63,7 @@ class Confinement:
     config_dir: Path  # resolved
     read_roots: tuple[Path, ...]
     write_roots: tuple[Path, ...]
+    work_tree: Path | None = None  # the git work tree holding the config, read like the config's folder
 
     def may_read(self, path: Path) -> bool:
         resolved = _resolved(path)
@@ -78,9 +89,11 @@ class Confinement:
         shown = f" (resolves to {resolved})" if resolved != path else ""
         if _inside_git(resolved):
             return f"{shown} is inside a .git folder, which a config may never {'write' if writing else 'read'}"
-        where = "the config's folder" if writing else "the config's folder or a declared package root"
+        home = self.config_dir if writing or self.work_tree is None else self.work_tree
+        where = "the config's folder" if home == self.config_dir else "the config's git work tree"
+        where += "" if writing else " or a declared package root"
         return (
-            f"{shown} is outside {where} ({self.config_dir}); a config may only "
+            f"{shown} is outside {where} ({home}); a config may only "
             f"{'write' if writing else 'read'} there. To allow another folder, the person running the tool sets "
             f"{ALLOW_ENV}=/that/folder (a config cannot)"
         )
@@ -88,7 +101,8 @@ class Confinement:
 
 @lru_cache(maxsize=64)
 def _confinement(config_dir: Path, environment: tuple[Path, ...], allowed: tuple[Path, ...]) -> Confinement:
-    return Confinement(config_dir, (config_dir, *environment, *allowed), (config_dir, *allowed))
+    tree = _work_tree(config_dir)
+    return Confinement(config_dir, (tree or config_dir, *environment, *allowed), (config_dir, *allowed), tree)
 
 
 def confinement_for(config_file: Path) -> Confinement:

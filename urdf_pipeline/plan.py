@@ -28,6 +28,7 @@ class ParquetSourcePlan:
     index: IndexPlan
     names: tuple[str, ...]
     where: Where
+    duplicates: str = "error"  # two rows at one index value: "error" or "keep_last" (the later row wins)
 
 
 @dataclass(frozen=True)
@@ -39,6 +40,7 @@ class LeRobotSourcePlan:
     names: tuple[str, ...]
     where: Where
     per_segment: bool = False  # no `episode` in the config: each segment reads its own episode
+    duplicates: str = "error"  # two rows at one index value: "error" or "keep_last" (the later row wins)
 
 
 @dataclass(frozen=True)
@@ -51,6 +53,7 @@ class McapSourcePlan:
     timeline: str  # the one timeline kept: "ros2_timestamp" (header stamp), "message_log_time" or "message_publish_time"
     names: tuple[str, ...]  # the names the messages may carry, from the config or the first message
     where: Where
+    duplicates: str = "error"  # two rows at one index value: "error" or "keep_last" (the later row wins)
 
 
 @dataclass(frozen=True)
@@ -64,6 +67,7 @@ class Hdf5SourcePlan:
     rows: int
     names: tuple[str, ...]
     where: Where
+    duplicates: str = "error"  # two rows at one index value: "error" or "keep_last" (the later row wins)
 
 
 @dataclass(frozen=True)
@@ -77,6 +81,7 @@ class RrdSourcePlan:
     named_rows: bool  # each row carries its own SeriesLines:names: values are mapped by name per row
     names: tuple[str, ...]
     where: Where
+    duplicates: str = "error"  # two rows at one index value: "error" or "keep_last" (the later row wins)
 
 
 SourcePlan = ParquetSourcePlan | LeRobotSourcePlan | McapSourcePlan | Hdf5SourcePlan | RrdSourcePlan

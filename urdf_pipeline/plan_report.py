@@ -125,8 +125,8 @@ DASH = "—"
 ORDER_NOTE = (
     "Per source value, in this order: wrap (source units) → value × unit factor × scale × sign + offset (offset in URDF "
     "units), or source_range mapped onto the joint's range → limits (clamped within the slack) → mimic joints. "
-    "Limits in source units are the URDF limits divided by the unit factor and scale, before sign and offset (as "
-    "`urdf-pipeline check` shows them); with source_range, the source range."
+    "Limits in source units are the raw values these corrections send onto the URDF limits, low to high (as "
+    "`urdf-pipeline check` and a run's limit error show them)."
 )
 ARROWS = {  # mermaid link per edge origin
     "urdf_moving_joint": "-->",

@@ -147,7 +147,8 @@ def _failure(request: XacroRequest, limits: Limits, code: int, err: IO[bytes]) -
             f"xacro expansion of {request.shown} used more than {limits.timeout_s:g} s of CPU time and was stopped (a macro "
             f"or expression that never ends?); the person running the tool can raise the bound with {TIMEOUT_ENV}"
         )
-    if "MemoryError" in last or code == -signal.SIGSEGV:
+    # Out of address space shows as MemoryError, a crash, or a shared library that cannot be mapped while importing.
+    if "MemoryError" in last or "failed to map segment" in last or "cannot allocate memory" in last.lower() or code == -signal.SIGSEGV:
         return (
             f"xacro expansion of {request.shown} needs more than {limits.memory_mb} MB of memory (a property or macro "
             f"that grows without end?); the person running the tool can raise the bound with {MEMORY_ENV}"

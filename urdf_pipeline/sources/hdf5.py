@@ -13,6 +13,8 @@ from typing import Any
 from ..document import Document
 from ..errors import UserError, listing
 from ..plan import Hdf5SourcePlan, IndexPlan
+from .integrity import read_hdf5_datasets
+from .ordering import in_time_order, with_duplicates
 from .parquet import compile_index
 from .stream import SourceStream, index_column
 
@@ -76,10 +78,12 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
                 f"dataset '{dataset}' holds {width} values per row but {len(names)} names are given", document.where(*here, "names")
             )
         if rows == 0:
-            raise UserError(f"dataset '{dataset}' has zero rows; nothing would move", document.where(*here, "dataset"))
+            raise UserError(f"dataset '{dataset}' of {path} has zero rows; nothing would move", document.where(*here, "dataset"))
         if index is not None:
             _check_index(file, index, rows, path, document, here)
-    return Hdf5SourcePlan(name, path, dataset, index, rows, names, document.where(*here))
+    # Every chunk decodes (a corrupt one is a user error here, not a RuntimeError inside Rerun's reader).
+    read_hdf5_datasets(path, [dataset, *([index.column] if index is not None else [])], document.where(*here, "hdf5"))
+    return with_duplicates(Hdf5SourcePlan(name, path, dataset, index, rows, names, document.where(*here)), spec)
 
 
 def _check_index(file: Any, index: IndexPlan, rows: int, path: Path, document: Document, here: tuple[str, str]) -> None:
@@ -117,4 +121,6 @@ def open_stream(plan: Hdf5SourcePlan) -> SourceStream:
         ignore_datasets=ignored or None,
         use_structs=False,
     ).filter(content=entity, is_static=False, components=component)
+    if plan.index is not None:  # without an index, Rerun numbers the rows: nothing to check
+        stream = in_time_order(stream, plan.index.column, plan, plan.path)
     return SourceStream(stream, entity, component, len(plan.names))

@@ -11,8 +11,10 @@ import pyarrow as pa
 import pyarrow.compute  # noqa: F401  (pa.compute)
 
 from ..document import Document
-from ..errors import UserError
+from ..errors import UserError, Where
 from ..plan import LeRobotSourcePlan
+from .integrity import read_parquet_columns
+from .ordering import in_time_order, with_duplicates
 from .stream import SourceStream
 
 if TYPE_CHECKING:
@@ -68,14 +70,16 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
             document.where(*here, "names" if "names" in spec else "feature"),
         )
     if "episode" not in spec:  # one segment per episode; segments.py picks them and fills in `episode`
-        return LeRobotSourcePlan(name, root, feature_key, -1, names, document.where(*here), per_segment=True)
+        return with_duplicates(LeRobotSourcePlan(name, root, feature_key, -1, names, document.where(*here), per_segment=True), spec)
     episode = int(spec["episode"])
     total = info.get("total_episodes")
     if isinstance(total, int) and episode >= total:
         raise UserError(
             f"episode {episode} does not exist: the dataset has {total} episodes (0..{total - 1})", document.where(*here, "episode")
         )
-    return LeRobotSourcePlan(name, root, feature_key, episode, names, document.where(*here))
+    plan = with_duplicates(LeRobotSourcePlan(name, root, feature_key, episode, names, document.where(*here)), spec)
+    check_episode_data(plan, document.where(*here, "episode"))
+    return plan
 
 
 def _info(root: Path) -> dict[str, Any]:
@@ -128,6 +132,31 @@ def episode_inputs(plan: LeRobotSourcePlan) -> tuple[Path, ...]:
     return (meta, *sorted((plan.root / "data").glob("**/*.parquet")))  # unknown layout: every data file, to be safe
 
 
+def check_episode_data(plan: LeRobotSourcePlan, where: Where | None) -> None:
+    """The episode has rows (by the dataset's metadata) and its data files decode (pyarrow, before Rerun's reader)."""
+    import pyarrow.parquet as pq
+
+    try:
+        length = episodes(plan).get(plan.episode)
+        files = episode_inputs(plan)[1:]
+    except (OSError, ValueError, KeyError, TypeError, pa.ArrowException) as exc:
+        raise UserError(f"cannot read the episode metadata of LeRobot dataset {plan.root}: {exc}", where) from None
+    if length == 0:
+        raise UserError(
+            f"episode {plan.episode} of LeRobot dataset {plan.root} has zero frames (meta says length 0); nothing would move", where
+        )
+    for file in files:  # one iteration per data file
+        try:
+            present = set(pq.read_schema(file).names)
+        except (pa.ArrowException, OSError) as exc:
+            raise UserError(f"episode {plan.episode}: cannot read parquet file {file}: {exc}", where) from None
+        columns = [c for c in (plan.feature, "frame_index", "episode_index") if c in present]
+        try:
+            read_parquet_columns(file, columns, where)
+        except UserError as exc:
+            raise UserError(f"episode {plan.episode}: {exc.message}", where) from None
+
+
 def _one_vector_per_row(chunk: Chunk) -> list[Chunk]:
     """Scalars:scalars holds a row's values as instances; repack them as one list instance per row.
 
@@ -149,10 +178,12 @@ def open_stream(plan: LeRobotSourcePlan) -> SourceStream:
     reader = LeRobotReader(plan.root)
     if plan.episode not in reader.episodes():
         raise UserError(f"episode {plan.episode} is not in {plan.root}", plan.where)
+    check_episode_data(plan, plan.where)
     entity = f"/{plan.feature}"
     stream = (
         reader.stream(plan.episode, video_mode="skip")
         .filter(content=entity, is_static=False, components="Scalars:scalars")
         .flat_map(_one_vector_per_row)
     )
+    stream = in_time_order(stream, "frame_index", plan, plan.root)
     return SourceStream(stream, entity, VECTOR_COMPONENT, len(plan.names))

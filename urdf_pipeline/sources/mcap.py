@@ -7,7 +7,6 @@ schema, message count); when the config gives no `names`, the first message of t
 
 from __future__ import annotations
 
-import re
 from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -20,43 +19,28 @@ from ..document import Document
 from ..errors import UserError, Where
 from ..named_rows import NAME_FIELD, NAMED_COMPONENT, VALUE_FIELD, named_rows_column
 from ..plan import McapSourcePlan
+from .mcap_probe import MESSAGE_COMPONENT, probe, topic_entity, topic_messages
+from .ordering import in_time_order, with_duplicates
 from .stream import SourceStream
 
 if TYPE_CHECKING:
-    from rerun.chunk import Chunk, LazyChunkStream
+    from rerun.chunk import Chunk
 
 PLAN_TYPE = McapSourcePlan
 JOINT_STATE = "sensor_msgs/msg/JointState"
-MESSAGE_COMPONENT = "sensor_msgs.msg.JointState:message"  # what the ros2_reflection decoder emits per message
 TIMELINES = {"header": "ros2_timestamp", "log_time": "message_log_time", "publish_time": "message_publish_time"}
 ALL_TIMELINES = tuple(TIMELINES.values())
 
 
-def topic_entity(topic: str) -> str:
-    return topic if topic.startswith("/") else f"/{topic}"
-
-
-def _messages(path: Path, topic: str) -> LazyChunkStream:
-    """The topic's messages, one struct per row; nothing else of the file is decoded."""
-    from rerun.chunk import McapReader
-
-    entity = topic_entity(topic)
-    reader = McapReader(path, decoders=["ros2_reflection"], include_topic_regex=[f"^{re.escape(entity)}$"])
-    return reader.stream().filter(content=entity, is_static=False, components=MESSAGE_COMPONENT)
-
-
 def _first_message_names(path: Path, topic: str, where: Where) -> tuple[str, ...]:
-    for chunk in _messages(path, topic):
-        batch = chunk.to_record_batch()
-        messages = batch.column(batch.schema.get_field_index(MESSAGE_COMPONENT)).flatten()
-        if len(messages):
-            names = pc.struct_field(messages, NAME_FIELD)[0].as_py()
-            if not names:
-                raise UserError(f"the first message on '{topic}' names no joints; give the names with names: [...]", where)
-            if len(set(names)) != len(names):
-                raise UserError(f"the first message on '{topic}' names a joint twice: {', '.join(names)}", where)
-            return tuple(names)
-    raise UserError(f"topic '{topic}' has no messages Rerun's MCAP reader can decode; a source with zero rows", where)
+    names = probe(path, topic, first_only=True, where=where)  # in a child: a corrupt file cannot hang this process
+    if names is None:
+        raise UserError(f"topic '{topic}' of {path} has no messages Rerun's MCAP reader can decode; a source with zero rows", where)
+    if not names:
+        raise UserError(f"the first message on '{topic}' names no joints; give the names with names: [...]", where)
+    if len(set(names)) != len(names):
+        raise UserError(f"the first message on '{topic}' names a joint twice: {', '.join(names)}", where)
+    return names
 
 
 def compile_source(name: str, spec: dict[str, Any], document: Document, config_dir: Path) -> McapSourcePlan:
@@ -87,10 +71,10 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
             )
     counts = [channel.message_count for channel in channels]
     if all(count is not None for count in counts) and sum(counts) == 0:  # type: ignore[arg-type]
-        raise UserError(f"topic '{spec['topic']}' has no messages in {path.name}; a source with zero rows", document.where(*here, "topic"))
+        raise UserError(f"topic '{spec['topic']}' has no messages in {path}; a source with zero rows", document.where(*here, "topic"))
     timeline = TIMELINES[spec.get("timeline", "header")]
     names = tuple(spec["names"]) if "names" in spec else _first_message_names(path, topic, document.where(*here, "topic"))
-    return McapSourcePlan(name, path, topic, timeline, names, document.where(*here))
+    return with_duplicates(McapSourcePlan(name, path, topic, timeline, names, document.where(*here)), spec)
 
 
 def _named_rows(plan: McapSourcePlan, chunk: Chunk) -> list[Chunk]:
@@ -124,5 +108,6 @@ def _named_rows(plan: McapSourcePlan, chunk: Chunk) -> list[Chunk]:
 
 
 def open_stream(plan: McapSourcePlan) -> SourceStream:
-    stream = _messages(plan.path, plan.topic).flat_map(partial(_named_rows, plan))
+    probe(plan.path, plan.topic, first_only=False, where=plan.where)  # the whole topic, in a child, before Rerun reads it here
+    stream = in_time_order(topic_messages(plan.path, plan.topic).flat_map(partial(_named_rows, plan)), plan.timeline, plan, plan.path)
     return SourceStream(stream, plan.topic, NAMED_COMPONENT, len(plan.names), named=True)

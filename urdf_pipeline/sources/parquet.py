@@ -11,6 +11,8 @@ import pyarrow.parquet as pq
 from ..document import Document
 from ..errors import UserError
 from ..plan import IndexPlan, ParquetSourcePlan
+from .integrity import read_parquet_columns, refuse_empty_parquet
+from .ordering import in_time_order, with_duplicates
 from .stream import SourceStream
 
 PLAN_TYPE = ParquetSourcePlan
@@ -71,7 +73,9 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
         pa.types.is_integer(index_type) or pa.types.is_floating(index_type) or pa.types.is_timestamp(index_type)
     ):
         raise UserError(f"index column '{index.column}' is {index_type}, not a time", document.where(*here, "index"))
-    return ParquetSourcePlan(name, path, column, index, names, document.where(*here))
+    refuse_empty_parquet(path, document.where(*here, "parquet"))  # from the footer, before any data page
+    read_parquet_columns(path, [column, index.column], document.where(*here, "parquet"))  # corrupt pages: a user error here
+    return with_duplicates(ParquetSourcePlan(name, path, column, index, names, document.where(*here)), spec)
 
 
 def open_stream(plan: ParquetSourcePlan) -> SourceStream:
@@ -87,4 +91,5 @@ def open_stream(plan: ParquetSourcePlan) -> SourceStream:
         index_column = IndexColumn.duration(index.column, input_unit=index.unit)  # type: ignore[arg-type]
     entity = f"/{plan.column}"
     stream = ParquetReader(plan.path).stream(index_columns=[index_column], column_grouping="individual").filter(content=entity)
+    stream = in_time_order(stream, index.column, plan, plan.path)
     return SourceStream(stream, entity, plan.column, len(plan.names))

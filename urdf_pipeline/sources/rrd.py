@@ -20,6 +20,7 @@ from ..errors import UserError
 from ..named_rows import NAMED_COMPONENT, named_rows_column
 from ..plan import RrdSourcePlan
 from .lerobot import VECTOR_COMPONENT
+from .ordering import in_time_order, read_all, with_duplicates
 from .stream import SourceStream
 
 if TYPE_CHECKING:
@@ -133,7 +134,8 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
         raise UserError(f"'{entity}' carries no {NAMES_COMPONENT}; give the names with names: [...]", document.where(*here))
     if len(set(names)) != len(names):
         raise UserError(f"the names recorded on '{entity}' name a value twice: {', '.join(names)}", document.where(*here))
-    return RrdSourcePlan(name, path, entity, component, named_rows, names, document.where(*here))
+    read_all(store.stream().filter(content=entity, is_static=False, components=component), path, document.where(*here, "rrd"))
+    return with_duplicates(RrdSourcePlan(name, path, entity, component, named_rows, names, document.where(*here)), spec)
 
 
 def _component_field(name: str, column: pa.Array) -> pa.Field:
@@ -190,5 +192,6 @@ def open_stream(plan: RrdSourcePlan) -> SourceStream:
         .filter(content=plan.entity, is_static=False, components=components)
         .flat_map(partial(_one_instance_per_row, plan))
     )
+    stream = in_time_order(stream, None, plan, plan.path)
     component = NAMED_COMPONENT if plan.named_rows else VECTOR_COMPONENT
     return SourceStream(stream, plan.entity, component, len(plan.names), named=plan.named_rows)

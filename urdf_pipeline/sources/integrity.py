@@ -1,0 +1,88 @@
+"""Data files are checked with pyarrow and h5py before Rerun's native readers see them.
+
+Rerun's readers do not survive every corrupt file: a parquet data page that fails to decompress panics a reader
+thread (the process aborts, or waits forever), an HDF5 chunk that fails to inflate surfaces as a bare RuntimeError.
+pyarrow and h5py raise ordinary exceptions, which become one user error naming the file and the row group or
+dataset. (MCAP files are probed in a child process instead: see mcap_probe.py.)
+
+Corruption that decodes (flipped bits inside plain float values of a file written without page checksums) cannot
+be told from data; limits and NaN checks still apply to it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from ..errors import UserError, Where
+
+
+def _reason(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return text[0] if text else type(exc).__name__
+
+
+def parquet_rows(path: Path, where: Where | None) -> int:
+    """The row count from the footer alone (no data page is read)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    try:
+        return int(pq.read_metadata(path).num_rows)
+    except (pa.ArrowException, OSError, ValueError) as exc:
+        raise UserError(f"cannot read the parquet footer of {path}: {_reason(exc)}", where) from None
+
+
+def refuse_empty_parquet(path: Path, where: Where | None) -> None:
+    if parquet_rows(path, where) == 0:
+        raise UserError(f"parquet file {path} has zero rows (its footer says so); a source with zero rows moves nothing", where)
+
+
+def read_parquet_columns(path: Path, columns: Sequence[str], where: Where | None) -> Any:
+    """The columns as a pyarrow Table, decoded row group by row group; a corrupt page names its row group.
+
+    Page checksums, when the writer stored them, are verified.
+    """
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    try:
+        file = pq.ParquetFile(path, page_checksum_verification=True)
+    except (pa.ArrowException, OSError, ValueError) as exc:
+        raise UserError(f"cannot read parquet file {path}: {_reason(exc)}", where) from None
+    groups = file.metadata.num_row_groups
+    tables = []
+    for group in range(groups):  # one iteration per row group, not per row
+        try:
+            tables.append(file.read_row_group(group, columns=list(columns)))
+        except (pa.ArrowException, OSError, ValueError) as exc:
+            raise UserError(
+                f"parquet file {path} is corrupt: row group {group} of {groups} ({', '.join(columns)}) cannot be decoded: "
+                f"{_reason(exc)}; re-export or replace the file",
+                where,
+            ) from None
+    if not tables:
+        return file.schema_arrow.empty_table().select(list(columns))
+    return pa.concat_tables(tables)
+
+
+def read_hdf5_datasets(path: Path, datasets: Sequence[str], where: Where | None) -> list[Any]:
+    """Each dataset read in full with h5py (joint data is small); a corrupt chunk or a truncated file names both."""
+    import h5py
+
+    try:
+        file = h5py.File(path, "r")
+    except OSError as exc:
+        raise UserError(f"cannot open HDF5 file {path}: {_reason(exc)}", where) from None
+    values = []
+    with file:
+        for dataset in datasets:
+            try:
+                values.append(file[dataset][()])
+            except (OSError, KeyError, ValueError, RuntimeError) as exc:
+                raise UserError(
+                    f"HDF5 file {path} is corrupt: dataset '{dataset}' cannot be read: {_reason(exc)}; re-export or replace the file",
+                    where,
+                ) from None
+    return values
