@@ -34,7 +34,7 @@ VARIANTS = {"config": "config-driven (urdf_pipeline)", "hand": "hand-written (Re
 
 def prepare_inputs(workdir: Path, frames: int) -> Path:
     from urdf_pipeline.examples import panda_raw_values, prepare, write_joint_parquet
-    from urdf_pipeline.urdf_model import read_urdf
+    from urdf_pipeline.urdf.model import read_urdf
 
     prepare(workdir, frames=10)  # robots/panda.urdf, robots/share/example-robot-data, small example data
     _, panda = read_urdf(workdir / "robots" / "panda.urdf")
@@ -50,8 +50,8 @@ def prepare_inputs(workdir: Path, frames: int) -> Path:
 
 
 def run_config(workdir: Path) -> Path:
-    from urdf_pipeline.compile import compile_config
-    from urdf_pipeline.execute import execute
+    from urdf_pipeline.compile.compiler import compile_config
+    from urdf_pipeline.execute.segment import execute
 
     return execute(compile_config(workdir / "demo.yaml")).output
 
@@ -147,8 +147,8 @@ def child(variant: str, workdir: Path) -> None:
     import rerun.chunk  # noqa: F401
     import rerun.urdf  # noqa: F401
 
-    import urdf_pipeline.compile  # noqa: F401
-    import urdf_pipeline.execute  # noqa: F401
+    import urdf_pipeline.compile.compiler  # noqa: F401
+    import urdf_pipeline.execute.segment  # noqa: F401
 
     baseline_kib = peak_rss_kib()
     before = resource.getrusage(resource.RUSAGE_SELF)

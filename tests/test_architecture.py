@@ -58,3 +58,46 @@ def test_no_import_cycle() -> None:
         if module not in state:
             visit(module, [module])
     assert not cycles, "import cycles: " + "; ".join(" -> ".join(c) for c in cycles)
+
+
+# The stages, lowest first: a module may import its own stage and the stages before it, never a later one.
+LAYERS = (
+    ("urdf_pipeline", "urdf_pipeline.errors", "urdf_pipeline.plan", "urdf_pipeline.confine", "urdf_pipeline.progress"),
+    ("urdf_pipeline.config",),
+    ("urdf_pipeline.urdf",),
+    ("urdf_pipeline.sources",),
+    ("urdf_pipeline.compile",),
+    ("urdf_pipeline.execute",),
+    ("urdf_pipeline.dataset",),
+    ("urdf_pipeline.review",),
+    ("urdf_pipeline.cli", "urdf_pipeline.examples", "urdf_pipeline.__main__"),
+)
+TOP_LEVEL_MODULES = 8
+
+
+def _layer(module: str) -> int:
+    """The stage of `module`: the longest layer prefix that names it or its package."""
+    best = (-1, 0)
+    for index, names in enumerate(LAYERS):
+        for name in names:
+            if (module == name or module.startswith(name + ".")) and len(name) > best[1]:
+                best = (index, len(name))
+    assert best[0] >= 0, f"{module} is in no layer: add it to LAYERS and to ARCHITECTURE.md"
+    return best[0]
+
+
+def test_no_upward_import() -> None:
+    files = sorted(PACKAGE.rglob("*.py"))
+    modules = {_module_name(f) for f in files}
+    upward = [
+        f"{_module_name(f)} -> {target}"
+        for f in files
+        for target in sorted(_imports(f, modules))
+        if target != "urdf_pipeline" and _layer(target) > _layer(_module_name(f))
+    ]
+    assert not upward, "imports of a later stage: " + "; ".join(upward)
+
+
+def test_the_top_level_stays_small() -> None:
+    top = sorted(path.name for path in PACKAGE.glob("*.py"))
+    assert len(top) <= TOP_LEVEL_MODULES, f"{len(top)} modules at the top level: {', '.join(top)}"

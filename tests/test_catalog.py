@@ -13,7 +13,7 @@ import rerun as rr
 from rerun.catalog import CatalogClient, DatasetEntry
 from rerun.chunk import Chunk, LazyChunkStream
 
-from urdf_pipeline.catalog import register_in_catalog
+from urdf_pipeline.dataset.catalog import register_in_catalog
 from urdf_pipeline.errors import UserError
 
 SEGMENTS = ("ep0", "ep1", "ep2")

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 import yaml
 
-from urdf_pipeline.check import check_channel
 from urdf_pipeline.errors import Where
 from urdf_pipeline.examples import write_joint_parquet
 from urdf_pipeline.plan import JointChannel
+from urdf_pipeline.review.check import check_channel
 
 HERE = Where(Path("c.yaml"), 1)
 

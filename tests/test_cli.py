@@ -27,9 +27,9 @@ def test_a_bug_exits_70_with_a_traceback(monkeypatch, run_cli, examples_dir: Pat
     def broken(*args, **kwargs):
         raise ZeroDivisionError("boom")
 
-    import urdf_pipeline.execute
+    import urdf_pipeline.execute.segment
 
-    monkeypatch.setattr(urdf_pipeline.execute, "execute", broken)
+    monkeypatch.setattr(urdf_pipeline.execute.segment, "execute", broken)
     # --force: an earlier test may have left the demo's recording up to date, and an up-to-date run computes nothing
     result = run_cli("run", str(examples_dir / "demo.yaml"), "--force")
     assert result.code == cli.EXIT_BUG == 70

@@ -9,8 +9,8 @@ from typing import Any
 import jsonschema
 import pytest
 
-from urdf_pipeline.config_reference import keys, reference_markdown
-from urdf_pipeline.schema import schema
+from urdf_pipeline.config.reference import keys, reference_markdown
+from urdf_pipeline.config.schema import schema
 
 REPO = Path(__file__).resolve().parents[1]
 REFERENCE = REPO / "docs" / "config-reference.md"
@@ -19,7 +19,7 @@ SCHEMA_LINE = re.compile(r"^# yaml-language-server: \$schema=(\S+)$")
 
 def test_reference_is_generated_from_the_current_schema() -> None:
     assert REFERENCE.read_text(encoding="utf-8") == reference_markdown(), (
-        "docs/config-reference.md is stale: python -m urdf_pipeline.config_reference > docs/config-reference.md"
+        "docs/config-reference.md is stale: python -m urdf_pipeline.config.reference > docs/config-reference.md"
     )
 
 

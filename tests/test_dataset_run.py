@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 from rerun.chunk import RrdReader
 
+from urdf_pipeline.execute.segment_run import SegmentResult
 from urdf_pipeline.progress import SegmentProgress
-from urdf_pipeline.segment_run import SegmentResult
 
 from .dataset_helpers import (
     SO101_JOINTS,

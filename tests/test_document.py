@@ -4,8 +4,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from urdf_pipeline import document
-from urdf_pipeline.document import format_path, load_document, parse_document
+from urdf_pipeline.config import document
+from urdf_pipeline.config.document import format_path, load_document, parse_document
 from urdf_pipeline.errors import UserError, Where
 
 

@@ -10,8 +10,8 @@ import pytest
 import yaml
 
 from urdf_pipeline.examples import write_joint_parquet
-from urdf_pipeline.fixed_chain import NoFixedChain, compose_chain, find_fixed_chain
-from urdf_pipeline.urdf_model import parse_urdf_text
+from urdf_pipeline.urdf.fixed_chain import NoFixedChain, compose_chain, find_fixed_chain
+from urdf_pipeline.urdf.model import parse_urdf_text
 
 from .edge_helpers import RIG_URDF, matrix, panda_config, random_panda_parquet, rig_config, write_config, write_rig
 from .reference_fk import PinocchioRobot

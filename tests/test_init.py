@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 import yaml
 
-from urdf_pipeline.compile import compile_config
+from urdf_pipeline.compile.compiler import compile_config
 from urdf_pipeline.errors import UserError, UserErrors
 from urdf_pipeline.examples import write_joint_parquet, write_lerobot_dataset
-from urdf_pipeline.scaffold import match_names, parse_source_spec
-from urdf_pipeline.urdf_model import read_urdf
+from urdf_pipeline.review.scaffold import match_names, parse_source_spec
+from urdf_pipeline.urdf.model import read_urdf
 
 pytestmark = pytest.mark.usefixtures("allow_examples")  # configs elsewhere read the session's examples
 

@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 from urdf_pipeline.examples import panda_raw_values, write_joint_parquet
-from urdf_pipeline.urdf_model import read_urdf
+from urdf_pipeline.urdf.model import read_urdf
 
 from .source_inputs import write_source_inputs
 

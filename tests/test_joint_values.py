@@ -11,9 +11,9 @@ import pyarrow as pa
 import pytest
 
 from urdf_pipeline.errors import Problems, UserError, Where
-from urdf_pipeline.joint_values import JointValueMapper
-from urdf_pipeline.limits_report import check_joint_statistics
+from urdf_pipeline.execute.limits_report import check_joint_statistics
 from urdf_pipeline.plan import HeldJoint, IndexPlan, JointChannel, MimicJoint, ParquetSourcePlan, RobotPlan
+from urdf_pipeline.sources.joint_values import JointValueMapper
 
 HERE = Where(Path("c.yaml"), 1)
 

@@ -12,8 +12,8 @@ import yaml
 
 from urdf_pipeline.confine import ALLOW_ENV, confinement_for
 from urdf_pipeline.examples import write_joint_parquet
-from urdf_pipeline.meshes import MeshUriRefused, MeshUriUnread, candidates, mesh_content_problem, resolve_meshes
-from urdf_pipeline.urdf_model import MeshRef
+from urdf_pipeline.urdf.meshes import MeshUriRefused, MeshUriUnread, candidates, mesh_content_problem, resolve_meshes
+from urdf_pipeline.urdf.model import MeshRef
 
 MESH_SUFFIXES = (".stl", ".dae", ".obj", ".gltf", ".glb")
 COLLADA = b'<?xml version="1.0" encoding="utf-8"?>\n<COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1"/>'

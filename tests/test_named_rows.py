@@ -9,8 +9,8 @@ import pyarrow as pa
 import pytest
 
 from urdf_pipeline.errors import UserError, Where
-from urdf_pipeline.named_rows import NAME_FIELD, VALUE_FIELD, is_named_rows, named_matrix, named_rows_column
 from urdf_pipeline.plan import McapSourcePlan
+from urdf_pipeline.sources.named_rows import NAME_FIELD, VALUE_FIELD, is_named_rows, named_matrix, named_rows_column
 
 SOURCE = McapSourcePlan("js", Path("run.mcap"), "/joint_states", "ros2_timestamp", ("a", "b", "c"), Where(Path("c.yaml"), 3))
 

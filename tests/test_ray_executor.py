@@ -20,9 +20,9 @@ import pytest
 import ray
 from ray import cloudpickle
 
-from urdf_pipeline import ray_executor
+from urdf_pipeline.dataset import ray_executor
+from urdf_pipeline.dataset.ray_executor import run_on_ray
 from urdf_pipeline.errors import UserError
-from urdf_pipeline.ray_executor import run_on_ray
 
 try:
     from ray._private.authentication_test_utils import reset_auth_token_state  # what Ray's own tests use

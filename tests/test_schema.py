@@ -4,9 +4,9 @@ from pathlib import Path
 import jsonschema
 import pytest
 
-from urdf_pipeline.document import parse_document
+from urdf_pipeline.config.document import parse_document
+from urdf_pipeline.config.schema import schema, schema_text, validate_document
 from urdf_pipeline.errors import UserError
-from urdf_pipeline.schema import schema, schema_text, validate_document
 
 REPO = Path(__file__).resolve().parents[1]
 

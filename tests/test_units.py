@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 import yaml
 
+from urdf_pipeline.errors import closest, did_you_mean
 from urdf_pipeline.examples import write_joint_parquet
-from urdf_pipeline.hints import closest, did_you_mean
 
 # A robot with both joint kinds: a revolute elbow in [-1, 2] rad and a prismatic slider in [0, 0.05] m.
 TWO_KINDS_URDF = """<?xml version="1.0"?>

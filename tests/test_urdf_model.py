@@ -13,8 +13,8 @@ import pytest
 import yaml
 
 from urdf_pipeline.examples import example_robot_data_share, write_joint_parquet
-from urdf_pipeline.urdf_model import UrdfParseError, parse_urdf_text
-from urdf_pipeline.urdf_text import rerun_loader_error, text_for_rerun
+from urdf_pipeline.urdf.model import UrdfParseError, parse_urdf_text
+from urdf_pipeline.urdf.repair import rerun_loader_error, text_for_rerun
 
 from .test_urdf_sweep import SweepCase, run_case
 

@@ -14,9 +14,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from urdf_pipeline.annotations import Annotation
-from urdf_pipeline.document import Document, parse_document
+from urdf_pipeline.config.document import Document, parse_document
 from urdf_pipeline.errors import Where
+from urdf_pipeline.review.annotations import Annotation
 
 from .test_invalid_configs import CASES, MISSING_MESH_URI
 

@@ -21,9 +21,9 @@ import yaml
 from urdf_pipeline.confine import confinement_for
 from urdf_pipeline.errors import UserError
 from urdf_pipeline.examples import example_robot_data_share, write_joint_parquet
-from urdf_pipeline.meshes import package_roots
-from urdf_pipeline.xacro_guard import XacroRequest, expand_xacro
-from urdf_pipeline.xacro_sandbox import refused_name
+from urdf_pipeline.urdf.meshes import package_roots
+from urdf_pipeline.urdf.xacro_guard import XacroRequest, expand_xacro
+from urdf_pipeline.urdf.xacro_sandbox import refused_name
 
 RTB_XACRO = Path(rtbdata.__file__).parent / "xacro"
 XACRO_NS = 'xmlns:xacro="http://www.ros.org/wiki/xacro"'

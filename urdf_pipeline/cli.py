@@ -21,7 +21,7 @@ from .errors import UserError
 EXIT_OK, EXIT_USER_ERROR, EXIT_BUG, EXIT_INTERRUPTED, EXIT_BROKEN_PIPE = 0, 1, 70, 130, 141
 
 if TYPE_CHECKING:
-    from .segment_run import SegmentResult
+    from .execute.segment_run import SegmentResult
 
 
 def _positive(text: str) -> int:
@@ -32,10 +32,10 @@ def _positive(text: str) -> int:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from .compile import compile_config
-    from .dataset_run import RunOptions, register_outputs, run_dataset
+    from .compile.compiler import compile_config
+    from .dataset.run import RunOptions, register_outputs, run_dataset
+    from .dataset.summary import summary_table, totals_line, write_report
     from .progress import SegmentProgress, say
-    from .run_summary import summary_table, totals_line, write_report
 
     if args.catalog and not args.dataset:
         raise UserError("--catalog needs --dataset NAME: the catalog dataset to register the outputs in")
@@ -43,7 +43,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     for robot in plan.robots:
         say(f"robot {robot.key}: URDF sha256 {robot.urdf_sha256} from {robot.urdf_origin}")
     if args.base:
-        from .base_check import check_base
+        from .dataset.base_check import check_base
 
         say(f"all {check_base(plan, args.base)} segment id(s) found among the base recordings in {args.base}")
     assert plan.dataset is not None
@@ -52,7 +52,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     if many:
         say(f"{segments} segment(s), layout {plan.dataset.layout}, {args.jobs} job(s) on the {args.executor} executor")
     if many and args.jobs > 1 and args.executor == "local":
-        from .local_executor import start_fork_server
+        from .dataset.local_executor import start_fork_server
 
         start_fork_server()  # its imports overlap with hashing the inputs
     options = RunOptions(args.jobs, args.executor, args.ray_address, args.force, verbose=not many)
@@ -60,7 +60,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.report:
         write_report(Path(args.report), plan, run, options)
     if not run.interrupted and any(r.status in ("written", "skipped") for r in run.results):
-        from .blueprint import write_blueprint
+        from .execute.blueprint import write_blueprint
 
         say(f"blueprint (a 3D view of the scene and one per robot): {write_blueprint(plan)}")
     if many or run.interrupted:
@@ -75,14 +75,14 @@ def cmd_run(args: argparse.Namespace) -> int:
     for result in bugs:
         print(f"{result.label}: {result.reason}", file=sys.stderr)
     if run.interrupted:
-        from .interrupts import describe, exit_status
+        from .dataset.interrupts import describe, exit_status
 
         print(f"interrupted ({describe(run.signal)}): only complete outputs were kept", file=sys.stderr)
         return exit_status(run.signal)
     if args.catalog:  # what was written (or is up to date) is registered even when other segments failed
         say(register_outputs(run, args.catalog, args.dataset, args.layer).summary())
     if args.spawn or args.connect:
-        from .viewer import send_to_viewer
+        from .execute.viewer import send_to_viewer
 
         say(f"sent {send_to_viewer(plan, run.results, args.connect, args.spawn)} segment(s) to the viewer")
     if bugs:
@@ -105,11 +105,11 @@ def cmd_validate(args: argparse.Namespace) -> int:
     """text: `ok: CONFIG` on stdout, `error:` / `warning: FILE:LINE:COL: ...` lines on stderr. github / json: stdout
     holds only the annotations (workflow commands, or one JSON list), `ok: CONFIG` goes to stderr. Exit 1 if any
     config has an error (warnings alone: 0)."""
-    from .compile import compile_config
+    from .compile.compiler import compile_config
     from .errors import Problems
 
     if args.format != "text":
-        from .annotations import render, validate_configs
+        from .review.annotations import render, validate_configs
 
         findings = validate_configs(args.configs)
         sys.stdout.write(render(findings.sorted(), args.format))
@@ -130,8 +130,8 @@ def cmd_validate(args: argparse.Namespace) -> int:
 def cmd_check(args: argparse.Namespace) -> int:
     import json
 
-    from .check import as_json, as_text, check_plan, exit_code, read_sample
-    from .compile import compile_config
+    from .compile.compiler import compile_config
+    from .review.check import as_json, as_text, check_plan, exit_code, read_sample
 
     plan = compile_config(Path(args.config))
     sample = {source.name: read_sample(source, args.rows) for source in plan.sources if plan.robots_for(source.name)}
@@ -143,7 +143,7 @@ def cmd_check(args: argparse.Namespace) -> int:
 def cmd_plan(args: argparse.Namespace) -> int:
     """text (default): the free-form account; markdown / json: the deterministic report for PR comments. Joint values
     are read only with --sample (then Rerun is imported)."""
-    from .plan_report import plan_command
+    from .review.report import plan_command
 
     if args.rows is not None and not args.sample:
         print("urdf-pipeline plan: error: --rows needs --sample", file=sys.stderr)
@@ -154,14 +154,14 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
 
 def cmd_schema(args: argparse.Namespace) -> int:
-    from .schema import schema_text
+    from .config.schema import schema_text
 
     sys.stdout.write(schema_text())
     return EXIT_OK
 
 
 def cmd_init(args: argparse.Namespace) -> int:
-    from .scaffold import init_config
+    from .review.scaffold import init_config
 
     result, said = init_config(Path(args.urdf), args.source, Path(args.output) if args.output else None, args.force)
     if not args.output:
@@ -174,7 +174,7 @@ def cmd_init(args: argparse.Namespace) -> int:
 def cmd_diff(args: argparse.Namespace) -> int:
     import json
 
-    from .plan_diff import diff_files, diff_git, report_json, report_text
+    from .review.diff import diff_files, diff_git, report_json, report_text
 
     if (args.git is None) == (args.new is None):
         print("urdf-pipeline diff: error: give OLD NEW, or CONFIG --git REV", file=sys.stderr)
@@ -269,7 +269,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """SIGTERM is handled as Ctrl-C while a command runs (the caller's handler is given back: tests call this in-process)."""
-    from .interrupts import handle_sigterm, keep_sigterm_handler, restore_sigterm_handler
+    from .dataset.interrupts import handle_sigterm, keep_sigterm_handler, restore_sigterm_handler
 
     previous = keep_sigterm_handler()
     handle_sigterm()
@@ -280,7 +280,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _main(argv: Sequence[str] | None) -> int:
-    from .interrupts import exit_status, signal_number
+    from .dataset.interrupts import exit_status, signal_number
 
     args = build_parser().parse_args(argv)
     handler: Callable[[argparse.Namespace], int] = args.handler

@@ -10,8 +10,8 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
+from ..config.document import Document
 from ..confine import confinement_for
-from ..document import Document
 from ..errors import UserError
 from ..plan import SourcePlan
 from . import hdf5, lerobot, mcap, parquet, rrd

@@ -10,7 +10,7 @@ import posixpath
 from pathlib import Path
 from typing import Any
 
-from ..document import Document
+from ..config.document import Document
 from ..errors import UserError, listing
 from ..plan import Hdf5SourcePlan, IndexPlan
 from .integrity import read_hdf5_datasets

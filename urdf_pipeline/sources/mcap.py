@@ -1,7 +1,7 @@
 """ROS 2 sensor_msgs/msg/JointState messages of one MCAP topic, decoded by Rerun's McapReader (ros2_reflection).
 
 Every message carries its own names, in an order that may change from message to message: values are mapped by
-name, row by row (`urdf_pipeline.named_rows`), never by position. Validation reads the file's summary only (topic,
+name, row by row (`urdf_pipeline.sources.named_rows`), never by position. Validation reads the file's summary only (topic,
 schema, message count); when the config gives no `names`, the first message of the topic is read for them.
 """
 
@@ -15,11 +15,11 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 
-from ..document import Document
+from ..config.document import Document
 from ..errors import UserError, Where
-from ..named_rows import NAME_FIELD, NAMED_COMPONENT, VALUE_FIELD, named_rows_column
 from ..plan import McapSourcePlan
 from .mcap_probe import MESSAGE_COMPONENT, probe, topic_entity, topic_messages
+from .named_rows import NAME_FIELD, NAMED_COMPONENT, VALUE_FIELD, named_rows_column
 from .ordering import in_time_order, with_duplicates
 from .stream import SourceStream
 

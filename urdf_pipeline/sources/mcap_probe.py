@@ -99,7 +99,7 @@ def probe(path: Path, topic: str, first_only: bool, where: Where | None) -> tupl
 def _child(path: str, topic: str, mode: str) -> None:
     import pyarrow.compute as pc
 
-    from ..named_rows import NAME_FIELD
+    from .named_rows import NAME_FIELD
 
     names: list[str] | None = None
     for chunk in topic_messages(Path(path), topic):

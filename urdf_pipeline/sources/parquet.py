@@ -8,7 +8,7 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from ..document import Document
+from ..config.document import Document
 from ..errors import UserError
 from ..plan import IndexPlan, ParquetSourcePlan
 from .integrity import read_parquet_columns, refuse_empty_parquet

@@ -15,11 +15,11 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 
-from ..document import Document
+from ..config.document import Document
 from ..errors import UserError
-from ..named_rows import NAMED_COMPONENT, named_rows_column
 from ..plan import RrdSourcePlan
 from .lerobot import VECTOR_COMPONENT
+from .named_rows import NAMED_COMPONENT, named_rows_column
 from .ordering import in_time_order, read_all, with_duplicates
 from .stream import SourceStream
 

@@ -17,7 +17,7 @@ class SourceStream:
 
     The instance is either a joint-value vector (a list of `width` numbers, in the order of the source's names), or,
     when `named` is true, a struct {name: list<string>, position: list<double>} whose values are mapped by name, row
-    by row (see `urdf_pipeline.named_rows`): MCAP JointState messages and recordings with per-row names.
+    by row (see `urdf_pipeline.sources.named_rows`): MCAP JointState messages and recordings with per-row names.
     """
 
     stream: LazyChunkStream

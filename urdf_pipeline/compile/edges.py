@@ -1,0 +1,186 @@
+"""Compile calibration edges (static, fixed_chain, temporal, assumed identity) and the frame graph's edge list."""
+
+from __future__ import annotations
+
+import difflib
+import math
+from collections.abc import Mapping
+from typing import Any
+
+from ..config.document import Document
+from ..config.sidecar import EdgeSpec
+from ..errors import Problems, warn
+from ..plan import EdgePlan, FixedChain, RobotPlan, SourcePlan, TemporalEdgePlan
+from ..urdf.fixed_chain import NoFixedChain, compose_chain, find_fixed_chain
+from ..urdf.geometry import normalized_quaternion, quaternion_from_rpy
+from ..urdf.model import UrdfModel
+from .frame_graph import FrameEdge, check_assume_identity
+from .temporal_edges import compile_temporal_edge
+
+
+def compile_edges(
+    specs: list[EdgeSpec],
+    robots: list[RobotPlan] | None,
+    models: Mapping[str, UrdfModel],
+    sources: dict[str, SourcePlan],
+    defined_sources: set[str],
+    problems: Problems,
+) -> tuple[list[EdgePlan], list[TemporalEdgePlan], list[EdgeSpec]]:
+    """Static and fixed_chain edges (logged on /calibration), temporal edges, and the edges that failed (reported; they
+    still count in the frame graph so one mistake is one error). `robots` is None when frame names cannot be traced to
+    robots (a robot failed, or prefixes collide): fixed chains are then skipped, already in error."""
+    edges: list[EdgePlan] = []
+    temporal: list[TemporalEdgePlan] = []
+    broken: list[EdgeSpec] = []
+    taken_entities: set[str] = set()
+    for edge in specs:
+        spec = edge.spec
+        if "source" in spec:
+            compiled = compile_temporal_edge(edge, sources, defined_sources, taken_entities, problems)
+            if compiled is not None:
+                temporal.append(compiled)
+            else:
+                broken.append(edge)
+            continue
+        if "fixed_chain" in spec:
+            chained = _fixed_chain_edge(edge, robots, models, problems) if robots is not None else None
+            if chained is not None:
+                edges.append(chained)
+            else:
+                broken.append(edge)
+            continue
+        nonfinite = [key for key in ("translation", "quaternion_xyzw", "rpy", "rpy_deg") if not all(map(math.isfinite, spec.get(key, ())))]
+        if nonfinite:  # YAML .nan / .inf, JSON NaN / Infinity
+            for key in nonfinite:
+                problems.add(f"{key} holds a NaN or infinite value", edge.where(key))
+            broken.append(edge)
+            continue
+        if "quaternion_xyzw" in spec:
+            quaternion = normalized_quaternion(tuple(spec["quaternion_xyzw"]))
+            if quaternion is None:
+                problems.add("quaternion_xyzw is zero; write [0, 0, 0, 1] for no rotation", edge.where("quaternion_xyzw"))
+                broken.append(edge)
+                continue
+        else:
+            rpy = spec["rpy"] if "rpy" in spec else [math.radians(v) for v in spec["rpy_deg"]]
+            quaternion = quaternion_from_rpy(*rpy)
+        translation = tuple(float(v) for v in spec["translation"])
+        edges.append(EdgePlan(spec["parent"], spec["child"], translation, quaternion, edge.where(), label=edge.label))  # type: ignore[arg-type]
+    return edges, temporal, broken
+
+
+def _owner(frame: str, robots: list[RobotPlan]) -> RobotPlan | None:
+    """The robot whose URDF emits `frame` (a link name with its frame_prefix applied)."""
+    for robot in robots:
+        if frame.startswith(robot.frame_prefix) and frame[len(robot.frame_prefix) :] in robot.links:
+            return robot
+    return None
+
+
+def _fixed_chain_edge(edge: EdgeSpec, robots: list[RobotPlan], models: Mapping[str, UrdfModel], problems: Problems) -> EdgePlan | None:
+    spec = edge.spec
+    start, end = spec["fixed_chain"]["from"], spec["fixed_chain"]["to"]
+    all_links = sorted(robot.frame_prefix + link for robot in robots for link in robot.links)
+    owners = {}
+    for key in ("from", "to"):
+        frame = spec["fixed_chain"][key]
+        owners[key] = _owner(frame, robots)
+        if owners[key] is None:
+            close = difflib.get_close_matches(frame, all_links, n=1, cutoff=0.6)
+            hint = f" (did you mean '{close[0]}'?)" if close else ""
+            problems.add(f"fixed_chain.{key} '{frame}' is a link of no URDF{hint}", edge.where("fixed_chain", key))
+    robot, other = owners["from"], owners["to"]
+    if robot is None or other is None:
+        return None
+    prefix = robot.frame_prefix
+    if other is not robot:
+        problems.add(
+            f"no fixed chain from {start} to {end}; stuck at {start}: '{end}' is a link of robot '{other.key}', "
+            f"'{start}' of robot '{robot.key}'",
+            edge.where("fixed_chain"),
+        )
+        return None
+    model = models.get(robot.key)
+    if model is None:
+        return None
+    try:
+        joints = find_fixed_chain(model, start[len(prefix) :], end[len(prefix) :])
+    except NoFixedChain as stuck:
+        if stuck.blocking is not None:
+            reason = (
+                f"the next joint toward {end}, '{stuck.blocking.name}', is {stuck.blocking.type}, not fixed "
+                f"({prefix}{stuck.stuck} is the deepest link toward {end} that fixed joints reach)"
+            )
+        elif stuck.end_is_above:
+            reason = f"'{end}' is above '{start}' in URDF '{model.name}', not below it; swap from and to"
+        else:
+            reason = f"'{end}' is not below '{start}' in URDF '{model.name}'"
+        problems.add(f"no fixed chain from {start} to {end}; stuck at {prefix}{stuck.stuck}: {reason}", edge.where("fixed_chain"))
+        return None
+    translation, quaternion = compose_chain(joints)
+    chain = FixedChain(robot.key, start, end, tuple(joint.name for joint in joints))
+    return EdgePlan(spec["parent"], spec["child"], translation, quaternion, edge.where(), "fixed_chain", edge.label, chain)
+
+
+def assumed_identity_edges(
+    data: dict[str, Any], document: Document, robots: list[RobotPlan], graph: list[FrameEdge], root: str, problems: Problems
+) -> list[EdgePlan]:
+    """frames.assume_identity: an identity edge root -> frame for each listed frame, with a warning naming it."""
+    listed = data.get("frames", {}).get("assume_identity", [])
+    if not listed:
+        return []
+    wheres = {frame: document.where("frames", "assume_identity", index) for index, frame in enumerate(listed)}
+    accepted = check_assume_identity(list(wheres.items()), graph, urdf_frames(robots), root, problems)
+    result = []
+    for frame in accepted:
+        where = wheres[frame]
+        warn(
+            f"frame '{frame}' has no calibration; logging an identity edge from root '{root}' (frames.assume_identity): "
+            "its pose is assumed, not measured",
+            where,
+        )
+        label = where.path
+        result.append(EdgePlan(root, frame, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0), where, "assume_identity", label))
+    return result
+
+
+def frame_edges(
+    robots: list[RobotPlan],
+    edges: list[EdgePlan],
+    temporal: list[TemporalEdgePlan],
+    models: Mapping[str, UrdfModel],
+    broken: list[EdgeSpec] | None = None,
+) -> list[FrameEdge]:
+    # A temporal edge may drive the child of a URDF floating/planar joint (a floating pelvis) when it has the joint's
+    # parent: like the FK over a moving joint's rest pose, the temporal value overrides the joint's static identity.
+    driven = {(edge.parent, edge.child) for edge in temporal}
+    result = []
+    for robot in robots:
+        overridable = set()
+        if driven:
+            model = models.get(robot.key)
+            overridable = {j.name for j in model.joints if j.type in ("floating", "planar")} if model is not None else set()
+        for joint, parent, child in robot.joint_links:
+            if joint in overridable and (robot.frame_prefix + parent, robot.frame_prefix + child) in driven:
+                continue
+            result.append(
+                FrameEdge(
+                    robot.frame_prefix + parent,
+                    robot.frame_prefix + child,
+                    f"URDF '{robot.robot_name}' joint '{joint}' of robot '{robot.key}'",
+                    robot.where,
+                )
+            )
+    result += [FrameEdge(edge.parent, edge.child, f"{edge.label} at line {edge.where.line}", edge.where, True) for edge in edges]
+    result += [
+        FrameEdge(edge.parent, edge.child, f"temporal {edge.label} at line {edge.where.line}", edge.where, True) for edge in temporal
+    ]
+    result += [
+        FrameEdge(edge.spec["parent"], edge.spec["child"], f"{edge.label} at line {edge.where().line}", edge.where(), True)
+        for edge in broken or []
+    ]
+    return result
+
+
+def urdf_frames(robots: list[RobotPlan]) -> dict[str, Any]:
+    return {robot.frame_prefix + link: robot.where for robot in robots for link in robot.links}

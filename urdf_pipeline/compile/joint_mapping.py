@@ -1,0 +1,229 @@
+"""Decide, before reading any value, which source value drives which URDF joint and how.
+
+Every moving URDF joint is covered exactly once (map, hold or <mimic>); every source name is mapped or ignored.
+Conversion order: unit conversion, then sign, then offset: urdf = (raw * factor) * sign + offset. The unit of a
+value is its entry's `unit`, else the robot's `joints.unit` for the joint's kind (units.robot_units).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+from ..config.document import Document
+from ..errors import Problems, Where
+from ..errors import did_you_mean as _hint
+from ..plan import HeldJoint, JointChannel, MimicJoint, OnViolation
+from ..urdf.model import UrdfModel
+from .units import ANGULAR_UNITS, FACTORS, RobotUnits, fits, robot_units, urdf_unit
+
+
+def compile_joints(
+    robot_key: str,
+    joints_spec: dict[str, Any],
+    names: tuple[str, ...],
+    model: UrdfModel,
+    document: Document,
+    problems: Problems,
+) -> tuple[tuple[JointChannel, ...], tuple[HeldJoint, ...], tuple[MimicJoint, ...], OnViolation]:
+    here = ("robots", robot_key, "joints")
+    source = joints_spec["source"]
+    units = robot_units(joints_spec.get("unit"))
+    limit_spec = joints_spec.get("limits", {})
+    slack_source = float(limit_spec.get("slack", 0.0))
+    on_violation: OnViolation = limit_spec.get("on_violation", "error")
+    moving = [j.name for j in model.joints if j.moving]
+    all_joints = [j.name for j in model.joints]
+    mimic_joints = {j.name for j in model.joints if j.mimic is not None}
+
+    channels: list[JointChannel] = []
+    covered: dict[str, str] = {}  # joint -> how ("map entry 'j1'", "hold")
+    attempted: set[str] = set()  # joints named by a rejected entry: already reported, not "not driven" too
+    for source_name, entry in joints_spec["map"].items():
+        where = document.where(*here, "map", source_name)
+        spec = {"joint": entry} if isinstance(entry, str) else entry
+        joint_names = spec["joint"] if isinstance(spec["joint"], list) else [spec["joint"]]
+        attempted.update(joint_names)
+        if source_name not in names:
+            problems.add(
+                f"'{source_name}' is not a name of source '{source}'{_hint(source_name, list(names))}; its names are: {', '.join(names)}",
+                where,
+            )
+            continue
+        if not _corrections_consistent(spec, where, problems):
+            continue
+        for joint_name in joint_names:
+            channel = _channel(
+                source_name, names.index(source_name), joint_name, spec, units, slack_source, model, where, problems, covered
+            )
+            if channel is not None:
+                covered[joint_name] = f"map entry '{source_name}'"
+                channels.append(channel)
+
+    holds: list[HeldJoint] = []
+    for joint_name, value in joints_spec.get("hold", {}).items():
+        where = document.where(*here, "hold", joint_name)
+        joint = model.joint(joint_name)
+        attempted.add(joint_name)
+        if joint is None:
+            problems.add(f"URDF '{model.name}' has no joint '{joint_name}'{_hint(joint_name, all_joints)}", where)
+        elif not joint.moving:
+            problems.add(f"joint '{joint_name}' is {joint.type}; only moving joints can be held", where)
+        elif joint.mimic is not None:
+            problems.add(f"joint '{joint_name}' is a <mimic> of '{joint.mimic.joint}' and is computed from it; remove it from hold", where)
+        elif joint_name in covered:
+            problems.add(f"joint '{joint_name}' is both held and driven by {covered[joint_name]}; keep one", where)
+        elif joint.has_limits and not (joint.lower <= value <= joint.upper):  # type: ignore[operator]
+            problems.add(
+                f"hold value {value} for '{joint_name}' is outside its URDF limits [{joint.lower}, {joint.upper}] {urdf_unit(joint.angular)}",
+                where,
+            )
+        else:
+            covered[joint_name] = "hold"
+            holds.append(HeldJoint(joint_name, float(value)))
+
+    ignored = [str(name) for name in joints_spec.get("ignore", [])]  # 7 and "7": a value named by its index
+    for index, name in enumerate(ignored):
+        where = document.where(*here, "ignore", index)
+        if name not in names:
+            problems.add(f"ignored name '{name}' is not a name of source '{source}'{_hint(name, list(names))}", where)
+        elif name in joints_spec["map"]:
+            problems.add(f"'{name}' is both mapped and ignored; keep one", where)
+
+    if units.given is not None:
+        _check_unit_applies(units.given, joints_spec, model, document.where(*here, "unit"), problems)
+    unused = [n for n in names if n not in joints_spec["map"] and n not in ignored]
+    if unused:
+        problems.add(
+            f"source names neither mapped nor ignored: {', '.join(unused)}; map each to a URDF joint or list it under ignore",
+            document.where(*here, "map"),
+        )
+    mimics = _order_mimics(model, mimic_joints)
+    uncovered = [j for j in moving if j not in covered and j not in mimic_joints and j not in attempted]
+    if uncovered:
+        problems.add(
+            f"URDF joints not driven by any source value: {', '.join(uncovered)}; add each to map, or to hold with a fixed value",
+            document.where(*here, "map"),
+        )
+    return tuple(channels), tuple(holds), mimics, on_violation
+
+
+def _corrections_consistent(spec: dict[str, Any], where: Where, problems: Problems) -> bool:
+    """source_range maps straight into URDF units, so it cannot be combined with the unit path's corrections."""
+    if "joint_range" in spec and "source_range" not in spec:
+        problems.add("joint_range needs source_range (the source values mapped onto it)", where)
+        return False
+    if "source_range" in spec:
+        mixed = [key for key in ("unit", "scale", "sign", "offset") if key in spec]
+        if mixed:
+            problems.add(
+                f"source_range maps values straight onto the joint's range; remove {', '.join(mixed)} (write source_range: [max, min] to flip)",
+                where,
+            )
+            return False
+        low, high = spec["source_range"]
+        if low == high:
+            problems.add(f"source_range [{low}, {high}] is empty", where)
+            return False
+    return True
+
+
+def _channel(
+    source_name: str,
+    source_index: int,
+    joint_name: str,
+    spec: dict[str, Any],
+    units: RobotUnits,
+    slack_source: float,
+    model: UrdfModel,
+    where: Where,
+    problems: Problems,
+    covered: dict[str, str],
+) -> JointChannel | None:
+    """One (source value, URDF joint) pair, or None after reporting why it cannot be."""
+    joint = model.joint(joint_name)
+    all_joints = [j.name for j in model.joints]
+    if joint is None:
+        problems.add(f"URDF '{model.name}' has no joint '{joint_name}'{_hint(joint_name, all_joints)}", where)
+        return None
+    if not joint.moving:
+        problems.add(f"joint '{joint_name}' is {joint.type}; only revolute, continuous and prismatic joints can be driven", where)
+        return None
+    if joint.mimic is not None:
+        problems.add(f"joint '{joint_name}' is a <mimic> of '{joint.mimic.joint}' and is computed from it; remove it from map", where)
+        return None
+    if joint_name in covered:
+        problems.add(f"joint '{joint_name}' is driven twice: by {covered[joint_name]} and by map entry '{source_name}'", where)
+        return None
+    limits = (float(joint.lower), float(joint.upper)) if joint.has_limits and joint.lower is not None and joint.upper is not None else None
+    source_range = tuple(float(v) for v in spec["source_range"]) if "source_range" in spec else None
+    target_range = tuple(float(v) for v in spec.get("joint_range", limits or ())) or None
+    if source_range is not None and target_range is None:
+        problems.add(
+            f"joint '{joint_name}' has no URDF limits to map source_range onto; give joint_range: [low, high] in URDF units", where
+        )
+        return None
+    unit = "source_range" if source_range is not None else spec.get("unit", units.for_joint(joint.angular))
+    if source_range is None and not fits(unit, joint.angular):  # only an entry's own unit can be of the other kind
+        problems.add(
+            f"joint '{joint_name}' is {joint.type} (URDF unit {urdf_unit(joint.angular)}) but its source unit is {unit} (from its map entry); "
+            f"set unit: {'rad or deg' if joint.angular else 'm, cm or mm'} on this entry",
+            where,
+        )
+        return None
+    channel = JointChannel(
+        joint=joint_name,
+        source_name=source_name,
+        source_index=source_index,
+        source_unit=unit if source_range is None else "source units",
+        factor=FACTORS.get(unit, 1.0),
+        sign=float(spec.get("sign", 1)),
+        offset=float(spec.get("offset", 0.0)),
+        lower=limits[0] if limits else None,
+        upper=limits[1] if limits else None,
+        slack=0.0,
+        where=where,
+        scale=float(spec.get("scale", 1.0)),
+        source_range=source_range,  # type: ignore[arg-type]
+        target_range=target_range,  # type: ignore[arg-type]
+    )
+    wrap = spec.get("wrap")
+    center = channel.to_source_unit((limits[0] + limits[1]) / 2) if limits else channel.to_source_unit(0.0)
+    return replace(channel, slack=slack_source * abs(channel.gain), wrap=float(wrap) if wrap else None, wrap_center=center)
+
+
+def _check_unit_applies(given: str, joints_spec: dict[str, Any], model: UrdfModel, where: Where, problems: Problems) -> None:
+    """A single joints.unit applies to one joint kind only; naming a kind no mapped joint has is a mistake, not a no-op."""
+    angular = given in ANGULAR_UNITS
+    for entry in joints_spec["map"].values():
+        spec = {"joint": entry} if isinstance(entry, str) else entry
+        if "unit" in spec or "source_range" in spec:
+            continue
+        for name in spec["joint"] if isinstance(spec["joint"], list) else [spec["joint"]]:
+            joint = model.joint(name)
+            if joint is not None and joint.moving and joint.angular == angular:
+                return
+    kind, other = ("revolute or continuous", "prismatic") if angular else ("prismatic", "revolute and continuous")
+    problems.add(
+        f"joints.unit {given} applies to {kind} joints only, and no map entry without its own unit drives one; "
+        f"the {other} joints use {urdf_unit(not angular)}. Write unit: {'m, cm or mm' if angular else 'rad or deg'} "
+        f"(or {{angle: ..., length: ...}}), or omit it for the URDF's units",
+        where,
+    )
+
+
+def _order_mimics(model: UrdfModel, mimic_joints: set[str]) -> tuple[MimicJoint, ...]:
+    """Mimic joints in dependency order (a mimic may follow another mimic)."""
+    ordered: list[MimicJoint] = []
+    done: set[str] = set()
+    pending = [j for j in model.joints if j.name in mimic_joints]
+    while pending:
+        ready = [j for j in pending if j.mimic and (j.mimic.joint not in mimic_joints or j.mimic.joint in done)]
+        if not ready:
+            break  # a mimic cycle; reported by the caller's URDF checks
+        for joint in ready:
+            assert joint.mimic is not None
+            ordered.append(MimicJoint(joint.name, joint.mimic.joint, joint.mimic.multiplier, joint.mimic.offset))
+            done.add(joint.name)
+        pending = [j for j in pending if j.name not in done]
+    return tuple(ordered)

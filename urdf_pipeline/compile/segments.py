@@ -1,0 +1,319 @@
+"""Which segments a run writes: one per LeRobot episode or per globbed input file, each with its own sources and output.
+
+A config names its segments with a template (`output.segment: episode_{episode:06d}`); two segments with the same
+id would overwrite each other's recording, so that is refused here, before anything runs.
+"""
+
+from __future__ import annotations
+
+import glob
+import itertools
+import os
+import re
+import string
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+from ..config.document import Document
+from ..confine import confinement_for
+from ..errors import Problems, UserError, Where, listing
+from ..plan import DatasetPlan, LeRobotSourcePlan, Segment, SourcePlan
+from ..sources import KINDS, compile_source, kind_of
+
+GLOB_CHARACTERS = re.compile(r"[*?\[]")
+EPISODES_RANGE = re.compile(r"^(\d*):(\d*)$")
+
+
+@dataclass(frozen=True)
+class CompiledSources:
+    """The config's sources: one plan each (the first file of a glob), and every file of each globbed source by stem."""
+
+    plans: dict[str, SourcePlan]
+    files: dict[str, dict[str, SourcePlan]]  # globbed source name -> stem -> plan of that file
+
+
+def compile_sources(data: dict[str, Any], document: Document, problems: Problems) -> CompiledSources:
+    plans: dict[str, SourcePlan] = {}
+    files: dict[str, dict[str, SourcePlan]] = {}
+    for name, spec in data["sources"].items():
+        kind = kind_of(spec)
+        try:
+            if kind != "lerobot" and GLOB_CHARACTERS.search(spec[kind]):
+                files[name] = _compile_glob(name, kind, spec, document, problems)
+                if files[name]:
+                    plans[name] = next(iter(files[name].values()))
+            else:
+                plans[name] = compile_source(name, spec, document)
+        except UserError as exc:
+            problems.extend(exc)
+    return CompiledSources(plans, files)
+
+
+def _compile_glob(name: str, kind: str, spec: dict[str, Any], document: Document, problems: Problems) -> dict[str, SourcePlan]:
+    """Every file a source's glob matches, each checked like a single file (metadata only), keyed by stem."""
+    pattern = spec[kind] if Path(spec[kind]).is_absolute() else str(document.file.parent / spec[kind])
+    where = document.where("sources", name, kind)
+    # The folder the glob walks from must be readable; each match is checked again, as a file, by compile_source.
+    fixed = itertools.takewhile(lambda part: not GLOB_CHARACTERS.search(part), Path(pattern).parts)
+    confinement_for(document.file).check_read(Path(*fixed), f"{kind} glob folder", where)
+    paths = sorted(Path(os.path.abspath(p)) for p in glob.glob(pattern, recursive=True) if Path(p).is_file())
+    if not paths:
+        raise UserError(f"'{spec[kind]}' matches no file (paths are relative to the config file: {document.file.parent})", where)
+    by_stem: dict[str, SourcePlan] = {}
+    seen: dict[str, Path] = {}
+    for path in paths:
+        stem = path.name.split(".", 1)[0]  # the name as matched: a symlink is named by its own name, not its target's
+        if stem in seen:
+            problems.add(f"two files matched by '{spec[kind]}' share the stem '{stem}' ({seen[stem]} and {path}); rename one", where)
+            continue
+        seen[stem] = path
+        try:
+            by_stem[stem] = KINDS[kind].compile_source(name, {**spec, kind: str(path)}, document, document.file.parent)
+        except UserError as exc:
+            problems.extend(exc)
+    return by_stem
+
+
+def parse_episodes(spec: str | list[int], where: Where | None) -> str | list[int] | tuple[int | None, int | None]:
+    """`all`, a list of indices, or `A:B` (either side may be empty) -> "all", the list, or (A, B)."""
+    if isinstance(spec, list) or spec == "all":
+        return spec
+    match = EPISODES_RANGE.match(spec.strip())
+    if match is None:
+        numbers = [part.strip() for part in spec.split(",")]
+        if all(part.isdigit() for part in numbers):
+            return [int(part) for part in numbers]
+        raise UserError(f"episodes '{spec}' is not all, a list of indices (0,3,7) or a range A:B (10:20)", where)
+    start, stop = (int(g) if g else None for g in match.groups())
+    return (start, stop)
+
+
+def _select(available: list[int], selection: str | list[int] | tuple[int | None, int | None], what: str, where: Where) -> list[int]:
+    if selection == "all":
+        return available
+    if isinstance(selection, tuple):
+        start, stop = selection
+        chosen = [e for e in available if (start is None or e >= start) and (stop is None or e < stop)]
+        if not chosen:
+            raise UserError(
+                f"episodes {start if start is not None else ''}:{stop if stop is not None else ''} selects none of {what} ({_span(available)})",
+                where,
+            )
+        return chosen
+    assert isinstance(selection, list)
+    missing = sorted(set(selection) - set(available))
+    if missing:
+        raise UserError(f"episode(s) {listing([str(m) for m in missing])} do not exist ({what}: {_span(available)})", where)
+    return sorted(set(selection))
+
+
+def _span(indices: list[int]) -> str:
+    if not indices:
+        return "none"
+    return f"{indices[0]}..{indices[-1]}" if indices == list(range(indices[0], indices[-1] + 1)) else listing([str(i) for i in indices])
+
+
+def expand_segments(
+    data: dict[str, Any], document: Document, sources: CompiledSources, episodes_override: str | None, problems: Problems
+) -> DatasetPlan | None:
+    """The run's segments, each with its sources, id and output path; None (with problems added) when they cannot be named."""
+    from ..sources import lerobot
+
+    output = data["output"]
+    where_segment = document.where("output", "segment")
+    episodic = {n: p for n, p in sources.plans.items() if isinstance(p, LeRobotSourcePlan) and p.per_segment}
+    if episodes_override is not None:
+        where_selection = Where(Path("--episodes"), 0)
+        selection = parse_episodes(episodes_override, where_selection)
+    else:
+        selection = parse_episodes(output.get("episodes", "all"), document.where("output", "episodes"))
+        where_selection = document.where("output", "episodes") if "episodes" in output else where_segment
+    if episodic and sources.files:
+        problems.add(
+            f"segments come either from LeRobot episodes ({listing(sorted(episodic))}) or from globbed files "
+            f"({listing(sorted(sources.files))}), not both; pin the LeRobot episode with `episode:` or list one file",
+            document.where("sources"),
+        )
+        return None
+
+    keys: list[tuple[int | None, str | None]]  # (episode, stem) per segment
+    frames: dict[int, int | None] = {}
+    if episodic:
+        available: set[int] | None = None
+        for plan in episodic.values():
+            known = lerobot.episodes(plan)
+            frames = frames or known
+            available = set(known) if available is None else available & set(known)
+        chosen = _select(sorted(available or ()), selection, "the dataset's episodes", where_selection)
+        keys = [(e, None) for e in chosen]
+    elif sources.files:
+        stems = _common_stems(sources.files, document, problems)
+        if stems is None:
+            return None
+        positions = _select(list(range(len(stems))), selection, f"{len(stems)} files", where_selection)
+        keys = [(i, stems[i]) for i in positions]
+    else:
+        if episodes_override is not None or "episodes" in output:
+            problems.add(
+                "episodes selects LeRobot episodes (a lerobot source without `episode:`) or globbed files; this config has neither",
+                where_selection,
+            )
+            return None
+        pinned = [p.episode for p in sources.plans.values() if isinstance(p, LeRobotSourcePlan)]
+        keys = [(pinned[0] if len(pinned) == 1 else None, None)]
+
+    ids = _segment_ids(output["segment"], keys, where_segment, problems)
+    if ids is None:
+        return None
+    paths = _output_paths(output["path"], ids, document, problems)
+    if paths is None:
+        return None
+    segments = []
+    for (episode, stem), segment_id, path in zip(keys, ids, paths, strict=True):
+        own = tuple(_source_for(plan, sources, episode, stem) for plan in sources.plans.values())
+        inputs = tuple(dict.fromkeys(p for plan in own for p in _inputs_of(plan)))
+        rows = frames.get(episode) if episodic and episode is not None else None
+        segments.append(Segment(segment_id, episode, stem, own, path, rows, inputs))
+    return _dataset_plan(output, document, tuple(segments), problems)
+
+
+def _common_stems(files: dict[str, dict[str, SourcePlan]], document: Document, problems: Problems) -> list[str] | None:
+    """Globbed sources pair up by file stem: every one must match the same stems."""
+    names = sorted(files)
+    reference = set(files[names[0]])
+    for name in names[1:]:
+        if set(files[name]) != reference:
+            only_first = sorted(reference - set(files[name]))
+            only_this = sorted(set(files[name]) - reference)
+            problems.add(
+                f"globbed sources '{names[0]}' and '{name}' must match files with the same stems (one segment per stem); "
+                f"only in '{names[0]}': {listing(only_first, empty='none')}; only in '{name}': {listing(only_this, empty='none')}",
+                document.where("sources", name),
+            )
+            return None
+    return sorted(reference)
+
+
+def _segment_ids(template: str, keys: list[tuple[int | None, str | None]], where: Where, problems: Problems) -> list[str] | None:
+    fields = {name for _, name, _, _ in string.Formatter().parse(template) if name is not None}
+    known = {"episode": any(e is not None for e, _ in keys), "stem": any(s is not None for _, s in keys)}
+    unknown = sorted(fields - set(known))
+    if unknown:
+        problems.add(
+            f"output.segment uses unknown placeholder(s) {listing(['{' + n + '}' for n in unknown])}; known: {{episode}}, {{stem}}", where
+        )
+        return None
+    unavailable = sorted(f for f in fields if not known[f])
+    if unavailable:
+        problems.add(
+            f"output.segment uses {listing(['{' + n + '}' for n in unavailable])}, which this config does not give: "
+            "{episode} needs a LeRobot source (or globbed files), {stem} globbed files",
+            where,
+        )
+        return None
+    try:
+        ids = [template.format(episode=e, stem=s) for e, s in keys]
+    except (ValueError, TypeError) as exc:
+        problems.add(f"output.segment '{template}' cannot be formatted: {exc}", where)
+        return None
+    duplicated = sorted({i for i in ids if ids.count(i) > 1}) if len(set(ids)) != len(ids) else []
+    if duplicated:
+        problems.add(
+            f"{len(ids)} segments but output.segment '{template}' names several of them {listing(duplicated)}: two segments with "
+            "the same id would overwrite each other; put {episode} or {stem} in it",
+            where,
+        )
+        return None
+    bad = [i for i in ids if "/" in i or "\\" in i or i in (".", "..")]
+    if bad:
+        problems.add(f"segment id(s) {listing(bad)} contain a path separator; a segment id is a recording_id, not a path", where)
+        return None
+    return ids
+
+
+def _output_paths(template: str, ids: list[str], document: Document, problems: Problems) -> list[Path] | None:
+    where = document.where("output", "path")
+    fields = [name for _, name, _, _ in string.Formatter().parse(template) if name is not None]
+    unknown = [name for name in fields if name != "segment"]
+    if unknown:
+        problems.add(
+            f"output.path uses unknown placeholder(s) {listing(['{' + n + '}' for n in unknown])}; only {{segment}} is known", where
+        )
+        return None
+    if len(ids) > 1 and "segment" not in fields:
+        problems.add(f"{len(ids)} segments would all be written to '{template}'; put {{segment}} in output.path", where)
+        return None
+    return [(document.file.parent / template.format(segment=i)).resolve() for i in ids]
+
+
+def _source_for(plan: SourcePlan, sources: CompiledSources, episode: int | None, stem: str | None) -> SourcePlan:
+    if isinstance(plan, LeRobotSourcePlan) and plan.per_segment:
+        assert episode is not None  # segments of per-episode sources are keyed by episode
+        return replace(plan, episode=episode)
+    if plan.name in sources.files and stem is not None:
+        return sources.files[plan.name][stem]
+    return plan
+
+
+def _inputs_of(plan: SourcePlan) -> tuple[Path, ...]:
+    from ..sources import lerobot
+
+    if isinstance(plan, LeRobotSourcePlan):
+        return lerobot.episode_inputs(plan)
+    return (plan.path,)
+
+
+def _dataset_plan(output: dict[str, Any], document: Document, segments: tuple[Segment, ...], problems: Problems) -> DatasetPlan | None:
+    layout = output.get("layout", "single")
+    model: Path | None = None
+    if layout == "split":
+        if "model" not in output:
+            problems.add(
+                "layout: split writes the robot model once: give its path in output.model (e.g. out/model.rrd)",
+                document.where("output", "layout"),
+            )
+            return None
+        if "{" in output["model"]:
+            problems.add("output.model is written once for all segments: it takes no placeholder", document.where("output", "model"))
+            return None
+        model = (document.file.parent / output["model"]).resolve()
+        if any(s.output == model for s in segments):
+            problems.add(f"output.model {model} is also a segment's output path", document.where("output", "model"))
+            return None
+    elif "model" in output:
+        problems.add("output.model is only used with layout: split; remove it or set layout: split", document.where("output", "model"))
+        return None
+    if "manifest" in output:
+        manifest = (document.file.parent / output["manifest"]).resolve()
+    else:
+        directory = _fixed_directory(output["path"], document.file.parent)
+        manifest = directory / f"{document.file.stem}.manifest.json"
+    if not _outputs_confined(segments, model, manifest, document, problems):
+        return None
+    return DatasetPlan(layout, segments, model, manifest, document.where("output", "segment"))
+
+
+def _outputs_confined(segments: tuple[Segment, ...], model: Path | None, manifest: Path, document: Document, problems: Problems) -> bool:
+    """Every file a run writes (recordings, model, manifest, the blueprint beside it) obeys confine.py's write rule."""
+    confinement = confinement_for(document.file)
+    blueprint = manifest.parent / f"{document.file.stem}.rbl"
+    writes = [(s.output, "the recording", ("output", "path")) for s in segments]
+    writes += [(model, "the model", ("output", "model"))] if model is not None else []
+    manifest_key = ("output", "manifest") if "manifest" in document.data["output"] else ("output", "path")
+    writes += [(manifest, "the manifest", manifest_key), (blueprint, "the blueprint", manifest_key)]
+    refused: set[tuple[str, ...]] = set()
+    for path, what, key in writes:
+        if key not in refused and not confinement.may_write(path):
+            refused.add(key)  # one error per key: every segment of a template outside the folder is outside
+            try:
+                confinement.check_write(path, what, document.where(*key))
+            except UserError as error:
+                problems.extend(error)
+    return not refused
+
+
+def _fixed_directory(template: str, base: Path) -> Path:
+    """The deepest directory of output.path before any placeholder: where the manifest goes by default."""
+    fixed = itertools.takewhile(lambda part: "{" not in part, Path(template).parent.parts)
+    return base.joinpath(*fixed).resolve()

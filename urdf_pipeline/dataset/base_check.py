@@ -1,0 +1,56 @@
+"""`run --base`: a layer attaches to a base recording only through equal recording ids; check them before running.
+
+A layer whose segment id is not among the base recordings would be written, registered, and never seen next to its
+episode. Reads only each base file's manifest (its store ids), not its data.
+"""
+
+from __future__ import annotations
+
+import glob
+from pathlib import Path
+
+from ..errors import UserError, Where, listing
+from ..plan import Plan
+
+WHERE = Where(Path("--base"), 0)
+
+
+def base_recordings(base: str) -> dict[str, str]:
+    """recording_id -> application_id of every .rrd in a directory (recursively) or matching a glob."""
+    from rerun.chunk import RrdReader
+
+    root = Path(base)
+    paths = sorted(root.glob("**/*.rrd")) if root.is_dir() else sorted(Path(p) for p in glob.glob(base, recursive=True))
+    if not paths:
+        raise UserError(f"no .rrd file in {base} (give a directory of base recordings or a glob such as 'base/*.rrd')", WHERE)
+    found: dict[str, str] = {}
+    for path in paths:
+        try:
+            entries = RrdReader(path).recordings()
+        except (OSError, ValueError, RuntimeError) as exc:
+            raise UserError(f"cannot read base recording {path}: {exc}", WHERE) from None
+        for entry in entries:
+            found[str(entry.recording_id)] = str(entry.application_id)
+    return found
+
+
+def check_base(plan: Plan, base: str) -> int:
+    """Every segment id must be a base recording's, with the same application id; returns how many were matched."""
+    found = base_recordings(base)
+    segments = [s.id for s in plan.segments]
+    missing = [s for s in segments if s not in found]
+    if missing:
+        close = sorted(found)[:3]
+        raise UserError(
+            f"{len(missing)} of {len(segments)} segment(s) have no base recording in {base}: {listing(missing)}; a layer attaches "
+            f"only to a recording with the same recording_id (the base has e.g. {listing(close, empty='none')}): fix output.segment",
+            plan.dataset.where if plan.dataset else WHERE,
+        )
+    other_apps = sorted({found[s] for s in segments if found[s] != plan.output.application_id})
+    if other_apps:
+        raise UserError(
+            f"the base recordings have application_id {listing(other_apps)}, this config '{plan.output.application_id}': "
+            "a viewer shows them apart; set output.application_id to the base's",
+            plan.output.where,
+        )
+    return len(segments)

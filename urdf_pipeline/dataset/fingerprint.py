@@ -1,0 +1,101 @@
+"""Content hashes: an output is up to date when the hash of everything it was made from is unchanged.
+
+What goes in: the pipeline's version, the compiled plan for that output (joint mapping, corrections, edges, the
+resolved URDF text: what the YAML means, not its comments or key order), and the bytes of the files it reads
+(the segment's input files; for outputs holding the model, the mesh files).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import re
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+from .. import __version__
+from ..plan import Plan
+
+MESH_FILENAME = re.compile(r'filename\s*=\s*"([^"]+)"')
+
+
+def file_sha256(path: Path) -> str:
+    stat = path.stat()
+    return _file_sha256(path, stat.st_size, stat.st_mtime_ns)
+
+
+@cache
+def _file_sha256(path: Path, size: int, mtime_ns: int) -> str:  # size and mtime: a changed file is hashed again
+    digest = hashlib.sha256()
+    with path.open("rb") as file:
+        for block in iter(lambda: file.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def _canonical(value: Any) -> Any:
+    """JSON-able form of a plan part; `where` (config line numbers) is left out: moving a line changes no output."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {
+            "type": type(value).__name__,
+            **{f.name: _canonical(getattr(value, f.name)) for f in dataclasses.fields(value) if f.name != "where"},
+        }
+    if isinstance(value, tuple | list):
+        return [_canonical(v) for v in value]
+    if isinstance(value, dict):
+        return {str(k): _canonical(v) for k, v in value.items()}
+    if isinstance(value, Path):
+        return str(value)
+    if isinstance(value, float):
+        return repr(value)
+    return value
+
+
+def _mesh_files(plan: Plan) -> list[Path]:
+    paths = {Path(m) for robot in plan.robots for m in MESH_FILENAME.findall(robot.urdf_text)}
+    return sorted(p for p in paths if p.is_file())
+
+
+def _digest(parts: dict[str, Any]) -> str:
+    return hashlib.sha256(json.dumps(parts, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+
+def segment_hashes(plan: Plan, with_model: bool) -> dict[str, str]:
+    """The content hash of each segment's recording (single layout: with_model) or layer (split layout), by segment id."""
+    common = _digest(
+        {
+            "version": __version__,
+            "what": "single" if with_model else "layer",
+            "application_id": plan.output.application_id,
+            "robots": _canonical(plan.robots),
+            "edges": _canonical(plan.edges),
+            "temporal_edges": _canonical(plan.temporal_edges),
+            "root": plan.root_frame,
+            "meshes": [file_sha256(p) for p in _mesh_files(plan)] if with_model else [],
+        }
+    )
+    return {
+        segment.id: _digest(
+            {
+                "common": common,
+                "segment": _canonical(dataclasses.replace(segment, output=Path(segment.output.name))),
+                "inputs": [file_sha256(p) for p in segment.inputs],
+            }
+        )
+        for segment in plan.segments
+    }
+
+
+def model_hash(plan: Plan) -> str:
+    """The content hash of the split layout's model asset: the robots' URDFs, settings and meshes."""
+    return _digest(
+        {
+            "version": __version__,
+            "what": "model",
+            "application_id": plan.output.application_id,
+            "robots": [[r.key, r.urdf_text, r.entity_path_prefix, r.frame_prefix, r.keep_collisions] for r in plan.robots],
+            "meshes": [file_sha256(p) for p in _mesh_files(plan)],
+        }
+    )

@@ -1,0 +1,184 @@
+"""Run jobs on this machine: in the main process for one worker, else in a pool of worker processes.
+
+Workers are forked from a fork server that imported Rerun and the pipeline once (a worker is up in milliseconds, not
+the second `spawn` takes to import them), and that never ran Rerun code, so no Rerun thread is forked. Workers ignore
+SIGINT and SIGTERM (a terminal's Ctrl-C and `timeout` signal the whole process group): on either, the main process
+cancels what has not started and kills the workers, and the caller removes their partial files, so only complete
+outputs remain. A worker exits as soon as the main process is gone, even killed with SIGKILL (it would otherwise wait
+forever for its next job, and keep the fork server alive: each worker holds the fork server's "alive" pipe). Workers make their temporary files in a folder of the run that the main process removes at
+the end whatever happened: a pool worker exits without running `atexit` handlers.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import select
+import shutil
+import signal
+import tempfile
+import threading
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from typing import TypeVar
+
+PRELOAD = ["urdf_pipeline.execute.segment_run", "urdf_pipeline.execute.segment", "rerun.chunk", "rerun.urdf", "rerun.experimental"]
+J = TypeVar("J")
+R = TypeVar("R")
+
+
+def start_fork_server() -> None:
+    """Start the fork server now, in the background: its imports (~0.7 s) overlap with compiling the config and
+    hashing the inputs instead of delaying the first job."""
+    context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload(PRELOAD)
+    from multiprocessing import forkserver
+
+    forkserver.ensure_running()
+
+
+def _start_worker(initializer: Callable[..., None] | None, initargs: tuple[object, ...], scratch: str, main: int) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    threading.Thread(target=_exit_with, args=(main,), name="urdf-pipeline-watch-main", daemon=True).start()
+    tempfile.tempdir = scratch  # removed by the main process, even when this worker is killed
+    if initializer is not None:
+        initializer(*initargs)
+
+
+def run_locally(
+    work: Callable[[J], R],
+    jobs: Sequence[J],
+    workers: int,
+    on_done: Callable[[J, R], None],
+    on_crash: Callable[[J, BaseException], None],
+    initializer: Callable[..., None] | None = None,
+    initargs: tuple[object, ...] = (),
+) -> None:
+    """Call `on_done` for each job as it finishes; `on_crash` when its worker died or `work` raised (a bug).
+
+    This process runs jobs itself until the fork server has started the workers (about 0.7 s of imports), then
+    leaves the jobs to them: a small dataset is not slower with more workers. `initializer(*initargs)` runs once in
+    each worker process and here. At most two jobs per worker process are queued at a time, so an interrupted run
+    has little to unwind.
+    """
+    if initializer is not None:
+        initializer(*initargs)
+    helpers = min(workers, len(jobs)) if workers > 1 else 0
+    if helpers < 1:
+        for job in jobs:
+            _run_here(work, job, on_done, on_crash)
+        return
+    scratch = tempfile.mkdtemp(prefix="urdf-pipeline-run-")
+    try:
+        _run_in_pool(work, jobs, helpers, on_done, on_crash, initializer, initargs, scratch)
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+
+
+def _run_in_pool(
+    work: Callable[[J], R],
+    jobs: Sequence[J],
+    helpers: int,
+    on_done: Callable[[J, R], None],
+    on_crash: Callable[[J, BaseException], None],
+    initializer: Callable[..., None] | None,
+    initargs: tuple[object, ...],
+    scratch: str,
+) -> None:
+    context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload(PRELOAD)
+    pool = ProcessPoolExecutor(
+        helpers, mp_context=context, initializer=_start_worker, initargs=(initializer, initargs, scratch, os.getpid())
+    )
+    ready = threading.Event()  # the worker processes are up: until then, this process works alone
+
+    def start_workers() -> None:
+        try:  # blocks until the fork server has imported Rerun: in a thread, so this process works meanwhile
+            wait([pool.submit(_started) for _ in range(helpers)])
+        finally:
+            ready.set()
+
+    threading.Thread(target=start_workers, name="urdf-pipeline-start-workers", daemon=True).start()
+    pending: dict[Future[R], J] = {}
+    queue = list(reversed(jobs))
+
+    def finish(done: set[Future[R]] | list[Future[R]]) -> None:
+        for future in done:
+            job = pending.pop(future)
+            error = future.exception()
+            if error is None:
+                on_done(job, future.result())
+            else:
+                on_crash(job, error)
+
+    try:
+        while queue or pending:
+            while ready.is_set() and queue and len(pending) < 2 * helpers:
+                job = queue.pop()
+                pending[pool.submit(work, job)] = job
+            finish([future for future in pending if future.done()])
+            if queue and not ready.is_set():
+                _run_here(work, queue.pop(), on_done, on_crash)
+            elif pending:
+                finish(wait(pending, return_when=FIRST_COMPLETED)[0])
+    except BaseException:  # futures are not cancelled one by one: Python 3.11's pool then fails on them (InvalidStateError)
+        _terminate(pool)
+        raise
+    if ready.is_set():
+        pool.shutdown(wait=True)
+    else:  # every job was done here before the workers came up: they are not needed
+        _terminate(pool)
+
+
+def _started() -> None:
+    """A no-op task: its completion says a worker process is up."""
+
+
+def _exit_with(main: int) -> None:
+    """A worker's watch: end this process when the main process `main` is gone, so no worker outlives a killed run."""
+    try:
+        handle = os.pidfd_open(main)  # Linux: readable once the process has exited, no polling
+    except ProcessLookupError:
+        os._exit(1)
+    except (AttributeError, OSError):  # another system: look once a second
+        while _alive(main):
+            time.sleep(1.0)
+        os._exit(1)
+    select.select([handle], [], [])
+    os._exit(1)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _run_here(work: Callable[[J], R], job: J, on_done: Callable[[J, R], None], on_crash: Callable[[J, BaseException], None]) -> None:
+    try:
+        result = work(job)
+    except Exception as error:  # a bug in `work`: reported for this job, like one raised in a worker process
+        on_crash(job, error)
+    else:
+        on_done(job, result)
+
+
+def _terminate(pool: ProcessPoolExecutor) -> None:
+    """Stop the workers now (SIGKILL: they ignore SIGTERM): a job in flight is abandoned and its partial file removed by
+    the caller."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())  # no public API lists a pool's processes
+    call_queue = getattr(pool, "_call_queue", None)
+    if call_queue is not None:
+        call_queue.cancel_join_thread()  # its feeder may be blocked writing to a dead worker: exiting must not wait for it
+    for process in processes:
+        if process.is_alive():
+            process.kill()
+    for process in processes:
+        process.join(timeout=10)
+    pool.shutdown(wait=False, cancel_futures=True)

@@ -1,0 +1,109 @@
+"""The run's JSON manifest: every output with its content hash, so a re-run skips what is up to date.
+
+It is rewritten atomically as segments finish, so after a crash or Ctrl-C it lists exactly the complete files.
+An existing file at its path that lacks the manifest's `urdf_pipeline` key is not ours: it is refused, never replaced.
+Entries of segments not selected by this run (another `--episodes` range) are kept while their files exist.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .. import __version__
+from ..errors import UserError, Where
+from ..execute.writer import partial_path, require_ours
+
+FORMAT = 1
+
+
+@dataclass
+class Manifest:
+    path: Path
+    application_id: str
+    layout: str
+    config: Path
+    model: dict[str, Any] | None = None
+    segments: dict[str, dict[str, Any]] = field(default_factory=dict)
+    _last_write: float = 0.0
+
+    @classmethod
+    def load(cls, path: Path, application_id: str, layout: str, config: Path, where: Where | None = None) -> Manifest:
+        """The manifest at `path` (empty when there is none); a UserError when a file there is not a manifest of ours."""
+        manifest = cls(path, application_id, layout, config)
+        require_ours(path, "manifest", where)
+        if not path.is_file():
+            return manifest
+        try:
+            data = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return manifest  # unreadable: start afresh, every output is checked again
+        if data.get("format") != FORMAT or data.get("application_id") != application_id or data.get("layout") != layout:
+            return manifest
+        manifest.model = data.get("model")
+        manifest.segments = {entry["segment"]: entry for entry in data.get("segments", []) if "segment" in entry}
+        return manifest
+
+    def entry(self, label: str) -> dict[str, Any] | None:
+        return self.model if label == "model" else self.segments.get(label)
+
+    def up_to_date(self, label: str, output: Path, content_hash: str) -> bool:
+        """The manifest says this file was written from the same content, and the file is still that size."""
+        entry = self.entry(label)
+        if entry is None or entry.get("content_sha256") != content_hash:
+            return False
+        return self.resolve(entry["path"]) == output and output.is_file() and output.stat().st_size == entry.get("bytes")
+
+    def record(self, label: str, output: Path, content_hash: str, frames: int, extra: dict[str, Any]) -> None:
+        entry = {
+            "path": os.path.relpath(output, self.path.parent),
+            "content_sha256": content_hash,
+            "bytes": output.stat().st_size,
+            "frames": frames,
+            **extra,
+        }
+        if label == "model":
+            self.model = entry
+        else:
+            self.segments[label] = {"segment": label, **entry}
+
+    def resolve(self, relative: str) -> Path:
+        return (self.path.parent / relative).resolve()
+
+    def outputs(self) -> list[tuple[str, Path]]:
+        """(segment id, layer or recording path) of every segment the manifest lists whose file exists."""
+        return [(s, self.resolve(e["path"])) for s, e in sorted(self.segments.items()) if self.resolve(e["path"]).is_file()]
+
+    def write(self, every_seconds: float = 0.0) -> None:
+        """Atomically; `every_seconds` throttles the rewrites of a long run (the last one is always forced)."""
+        if self.model is None and not self.segments and not self.path.exists():
+            return  # nothing written, nothing to list: a failed first run leaves no file behind
+        now = time.monotonic()
+        if every_seconds and now - self._last_write < every_seconds:
+            return
+        self._last_write = now
+        segments = [e for _, e in sorted(self.segments.items()) if self.resolve(e["path"]).is_file()]
+        data = {
+            "format": FORMAT,
+            "urdf_pipeline": __version__,
+            "config": str(self.config),
+            "application_id": self.application_id,
+            "layout": self.layout,
+            "model": self.model,
+            "segments": segments,
+        }
+        partial = partial_path(self.path)
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            partial.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+            os.replace(partial, self.path)
+        except OSError as exc:
+            partial.unlink(missing_ok=True)
+            raise UserError(f"cannot write the manifest {self.path}: {exc}") from None
+        except BaseException:  # a signal mid-write: no partial file stays behind
+            partial.unlink(missing_ok=True)
+            raise

@@ -1,0 +1,68 @@
+"""The robot model stream: meshes and static joint transforms from Rerun's UrdfTree."""
+
+from __future__ import annotations
+
+import atexit
+import shutil
+import tempfile
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from ..plan import RobotPlan
+
+if TYPE_CHECKING:
+    from rerun.chunk import LazyChunkStream
+    from rerun.urdf import UrdfTree
+
+
+def load_tree(robot: RobotPlan, workdir: Path) -> UrdfTree:
+    """UrdfTree from the plan's URDF text, whose mesh URIs are already absolute paths."""
+    from rerun.urdf import UrdfTree
+
+    urdf_file = workdir / f"{robot.key}.urdf"
+    urdf_file.write_text(robot.urdf_text, encoding="utf-8")
+    return UrdfTree.from_file_path(
+        urdf_file,
+        entity_path_prefix=robot.entity_path_prefix.strip("/"),
+        frame_prefix=robot.frame_prefix or None,
+        static_transform_entity_path=robot.static_transform_entity,
+    )
+
+
+_TREES: dict[tuple[str, str, str, str], UrdfTree] = {}
+_TREE_DIRECTORY: Path | None = None
+
+
+def cached_tree(robot: RobotPlan) -> UrdfTree:
+    """A worker writing hundreds of segments of one robot parses its URDF once."""
+    key = (robot.key, robot.urdf_text, robot.entity_path_prefix, robot.frame_prefix)
+    if key not in _TREES:
+        _TREES[key] = load_tree(robot, _tree_directory())
+    return _TREES[key]
+
+
+def _tree_directory() -> Path:
+    """URDF files of cached trees live as long as the process (the trees may read them again)."""
+    global _TREE_DIRECTORY
+    if _TREE_DIRECTORY is None:
+        _TREE_DIRECTORY = Path(tempfile.mkdtemp(prefix="urdf-pipeline-trees-"))
+        atexit.register(shutil.rmtree, _TREE_DIRECTORY, True)
+    return _TREE_DIRECTORY
+
+
+def model_stream(robot: RobotPlan, tree: UrdfTree) -> LazyChunkStream:
+    # include_joint_transforms=True: with False, Rerun logs no fixed-joint edges at all.
+    stream = tree.stream(include_joint_transforms=True)
+    if robot.keep_collisions:
+        return stream
+    _assert_filter_matches(robot, tree)
+    return stream.drop(content=robot.collision_filter)
+
+
+def _assert_filter_matches(robot: RobotPlan, tree: UrdfTree) -> None:
+    """A drop filter that matches nothing fails silently; check it against the paths UrdfTree really emits."""
+    prefix = robot.collision_filter.removesuffix("**")
+    for link in robot.links:
+        for path in tree.get_collision_geometry_paths(link):
+            if not ("/" + path.lstrip("/")).startswith(prefix):
+                raise AssertionError(f"collision filter {robot.collision_filter} misses {path}")

@@ -1,0 +1,98 @@
+"""Run a plan: build the lazy streams, pull them once, check what the data pass found, then write."""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+from ..compile.temporal_edges import check_temporal_edges, temporal_edge_streams
+from ..errors import Problems
+from ..plan import Plan
+from ..progress import RowProgress, say
+from ..sources import module_for
+from ..sources.callbacks import CallbackErrors
+from ..sources.joint_values import JointValueMapper
+from .edges_stream import edges_stream
+from .fk_stream import JointTransformBatches, fk_stream
+from .limits_report import check_joint_statistics
+from .model_stream import cached_tree, model_stream
+from .provenance import provenance_stream
+from .writer import write_atomically
+
+Parts = Literal["all", "layer", "model"]  # single layout | split layout's per-segment layer | split layout's model asset
+
+
+@dataclass(frozen=True)
+class RunResult:
+    output: Path
+    rows: dict[str, int]  # robot key -> rows of joint values
+    notes: tuple[str, ...]
+    seconds: float
+
+
+def _note(note: str) -> None:
+    print(f"note: {note}", file=sys.stderr)
+
+
+def _silent(message: str) -> None:
+    """Progress lines of one segment among many are left out: the run's progress bar says it for all of them."""
+
+
+def execute(
+    plan: Plan,
+    parts: Parts = "all",
+    provenance: dict[str, str] | None = None,
+    on_note: Callable[[str], None] = _note,
+    quiet: bool = False,
+) -> RunResult:
+    """Write one recording. `provenance` adds fields (the content hash) to the recording's properties; `on_note` and
+    `quiet` (no progress lines) let a worker running many segments keep its output for the run's summary."""
+    log: Callable[[str], None] = _silent if quiet else say
+    from rerun.chunk import LazyChunkStream, OptimizationProfile
+
+    started = time.perf_counter()
+    errors = CallbackErrors()
+    mappers: list[JointValueMapper] = []
+    streams = []
+    trees = {robot.key: cached_tree(robot) for robot in plan.robots}
+    if parts != "layer":
+        for robot in plan.robots:
+            streams.append(model_stream(robot, trees[robot.key]))
+    if parts != "model":
+        for source in plan.sources:
+            driven = []
+            for robot in plan.robots_for(source.name):
+                mapper = JointValueMapper(robot, source)
+                mappers.append(mapper)
+                progress = None if quiet else RowProgress(f"robot {robot.key}")
+                batches = JointTransformBatches(mapper, trees[robot.key], progress)
+                driven.append((robot.key, robot.fk_entity, batches))
+            if driven:  # a source used only by temporal edges is read there
+                streams.append(fk_stream(module_for(source).open_stream(source), driven, errors))
+        streams.append(edges_stream(plan.edges))
+    streams.append(provenance_stream(plan, parts, provenance or {}))
+    # Temporal edges (a mobile base, a floating pelvis): their sources are opened again, see temporal_edges.py.
+    temporal_streams, temporal_values = temporal_edge_streams(plan, errors) if parts != "model" else ([], [])
+    streams += temporal_streams
+    if parts == "model":
+        log(f"writing the model of {len(plan.robots)} robot(s)")
+    else:
+        log(f"reading {len(plan.sources)} source(s), computing forward kinematics for {len(plan.robots)} robot(s)")
+    try:
+        store = LazyChunkStream.merge(*streams).collect(optimize=OptimizationProfile.OBJECT_STORE)
+    except (RuntimeError, ValueError) as exc:
+        errors.reraise_original(exc)
+        raise
+    problems = Problems()
+    notes = [note for mapper in mappers for note in check_joint_statistics(mapper, problems)]
+    check_temporal_edges(temporal_values, problems)
+    for note in notes:
+        on_note(note)
+    problems.raise_if_any()
+    log(f"writing {plan.output.path}")
+    written = write_atomically(store, plan.output)
+    return RunResult(written, {m.robot.key: m.stats.rows for m in mappers}, tuple(notes), time.perf_counter() - started)

@@ -1,0 +1,94 @@
+"""One segment's recording, written by a worker (a process of the local pool, a Ray task, or the main process).
+
+A job carries everything it needs (the plan for that one recording), so it can run anywhere; its result says what
+happened instead of raising, so one failing segment does not stop the others.
+"""
+
+from __future__ import annotations
+
+import os
+import resource
+import sys
+import time
+import traceback
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Literal
+
+from ..errors import UserError
+from ..plan import Plan, Segment
+from .segment import Parts
+
+Status = Literal["written", "skipped", "failed", "bug", "interrupted"]
+
+
+@dataclass(frozen=True)
+class SegmentJob:
+    """One recording to write: the run's plan and which segment of it (None: the split layout's model)."""
+
+    segment: Segment | None
+    parts: Parts
+    label: str  # the segment id, or "model"
+    output: Path
+    content_hash: str
+    frames_expected: int | None = None
+    verbose: bool = False  # the run's only job, in the main process: print progress and notes as they come
+    run_plan: Plan | None = None  # None when the worker was given the run's plan once, at its start (install_run_plan)
+
+    def plan(self) -> Plan:
+        run_plan = self.run_plan or _INSTALLED[0]
+        return run_plan.for_model() if self.segment is None else run_plan.for_segment(self.segment)
+
+
+_INSTALLED: list[Plan] = []
+
+
+def install_run_plan(plan: Plan) -> None:
+    """A pool worker's initializer: the run's plan (the robots' URDF text, ...) is sent once, not with every job."""
+    _INSTALLED[:] = [plan]
+
+
+@dataclass(frozen=True)
+class SegmentResult:
+    label: str
+    output: Path
+    status: Status
+    content_hash: str
+    frames: int = 0
+    seconds: float = 0.0
+    reason: str = ""  # the error lines of a failed segment, the traceback of a bug
+    bytes: int = 0
+    notes: tuple[str, ...] = ()
+    worker: str = ""  # host:pid of the process that ran it
+    peak_rss_mib: float = 0.0  # that process's peak resident memory so far
+
+
+def run_segment(job: SegmentJob) -> SegmentResult:
+    from .segment import execute
+
+    started = time.perf_counter()
+    notes: list[str] = []
+
+    def on_note(note: str) -> None:
+        notes.append(note)
+        if job.verbose:
+            print(f"note: {note}", file=sys.stderr)
+
+    failed = SegmentResult(job.label, job.output, "failed", job.content_hash)
+    try:
+        provenance = {"content_sha256": job.content_hash}
+        result = execute(job.plan(), job.parts, provenance, on_note=on_note, quiet=not job.verbose)
+    except UserError as exc:
+        return _finished(replace(failed, reason="\n".join(exc.lines()), notes=tuple(notes)), started)
+    except Exception:
+        return _finished(replace(failed, status="bug", reason=traceback.format_exc(), notes=tuple(notes)), started)
+    frames = max(result.rows.values(), default=0)
+    written = replace(failed, status="written", frames=frames, bytes=result.output.stat().st_size, notes=tuple(notes))
+    return _finished(written, started)
+
+
+def _finished(result: SegmentResult, started: float) -> SegmentResult:
+    """With the time it took and the worker's identity and peak memory (KiB on Linux), for the summary and --report."""
+    peak_mib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    worker = f"{os.uname().nodename}:{os.getpid()}"
+    return replace(result, seconds=time.perf_counter() - started, worker=worker, peak_rss_mib=peak_mib)

@@ -1,0 +1,117 @@
+"""Where a robot's URDF text comes from: a plain file, xacro with arguments, or a `robot_descriptions` package.
+
+Every form yields the same thing: the URDF text, the folder relative mesh paths start from, extra package
+roots for `package://` URIs, and an origin string; the text's sha256 goes into the recording so runs compare.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import difflib
+import hashlib
+import importlib
+import os
+import sys
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..config.document import Document
+from ..confine import confinement_for
+from ..errors import UserError, Where
+from .xacro_guard import XacroRequest, expand_xacro
+
+
+@dataclass(frozen=True)
+class LoadedUrdf:
+    text: str
+    path: Path  # the file the text came from (its folder anchors relative mesh paths)
+    origin: str  # human-readable, machine-independent where possible
+    package_paths: dict[str, Path] = field(default_factory=dict)  # extra package:// roots the form knows
+
+    @property
+    def sha256(self) -> str:
+        return hashlib.sha256(self.text.encode("utf-8")).hexdigest()
+
+
+def load_urdf_source(key: str, spec: Any, package_paths: Mapping[str, Path], document: Document) -> LoadedUrdf:
+    where = document.where("robots", key, "urdf")
+    if isinstance(spec, str):
+        return _plain(spec, document, where)
+    if "xacro" in spec:
+        return _xacro(spec, package_paths, document, where)
+    return _robot_descriptions(spec["robot_descriptions"], where)
+
+
+def _read(path: Path, where: Where) -> str:
+    try:
+        return path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UserError(f"cannot read {path}: {exc}", where) from None
+
+
+def _plain(urdf: str, document: Document, where: Where) -> LoadedUrdf:
+    path = (document.file.parent / urdf).resolve()
+    if path.name.endswith(".xacro"):
+        raise UserError(f"'{urdf}' is a xacro file, not a URDF; use the xacro form: urdf: {{xacro: {urdf}, args: {{...}}}}", where)
+    confinement_for(document.file).check_read(path, "URDF file", where)  # before its existence is checked: no probing
+    if not path.is_file():
+        raise UserError(f"URDF file not found: {path} (paths are relative to the config file)", where)
+    return LoadedUrdf(_read(path, where), path, f"file {urdf}")
+
+
+def _xacro(spec: dict[str, Any], package_paths: Mapping[str, Path], document: Document, where: Where) -> LoadedUrdf:
+    """Expanded in a bounded child process that refuses code, the environment and files outside the config's roots."""
+    path = (document.file.parent / spec["xacro"]).resolve()
+    confinement = confinement_for(document.file)
+    confinement.check_read(path, "xacro file", where)
+    if not path.is_file():
+        raise UserError(f"xacro file not found: {path} (paths are relative to the config file)", where)
+    args = {name: _xacro_value(value) for name, value in spec.get("args", {}).items()}
+    text = expand_xacro(XacroRequest(path, str(spec["xacro"]), args, package_paths, confinement), where)
+    shown = " ".join(f"{k}:={v}" for k, v in sorted(args.items()))
+    return LoadedUrdf(text, path, f"xacro {spec['xacro']}" + (f" {shown}" if shown else ""))
+
+
+def _xacro_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return str(value)
+
+
+def _robot_descriptions(name: str, where: Where) -> LoadedUrdf:
+    try:
+        from robot_descriptions._descriptions import DESCRIPTIONS
+    except ImportError:
+        raise UserError("the robot_descriptions package is not installed: pip install robot_descriptions", where) from None
+    if name not in DESCRIPTIONS:
+        close = difflib.get_close_matches(name, list(DESCRIPTIONS), n=3)
+        raise UserError(f"robot_descriptions has no '{name}'" + (f" (did you mean {', '.join(close)}?)" if close else ""), where)
+    cache = os.environ.get("ROBOT_DESCRIPTIONS_CACHE", "~/.cache/robot_descriptions")
+    sys.modules.pop(f"robot_descriptions.{name}", None)  # it fetches at import; import afresh for the current cache
+    try:
+        with contextlib.redirect_stdout(sys.stderr):
+            module = importlib.import_module(f"robot_descriptions.{name}")
+    except Exception as exc:  # git errors when offline, among others
+        raise UserError(
+            f"robot_descriptions could not provide '{name}' (no cached copy in ROBOT_DESCRIPTIONS_CACHE={cache} and the download failed: "
+            f"{type(exc).__name__}: {str(exc).strip().splitlines()[0] if str(exc).strip() else ''}); connect once, or point "
+            "ROBOT_DESCRIPTIONS_CACHE at a cache that holds it",
+            where,
+        ) from None
+    urdf_path = getattr(module, "URDF_PATH", None)
+    if urdf_path is None:
+        raise UserError(f"robot_descriptions '{name}' has no URDF_PATH (it may be MJCF-only or xacro-only)", where)
+    path = Path(urdf_path)
+    package_path = Path(getattr(module, "PACKAGE_PATH", path.parent))
+    repository = Path(getattr(module, "REPOSITORY_PATH", package_path))
+    try:
+        from robot_descriptions._cache import get_head_sha
+
+        commit = get_head_sha(str(repository)) or "unknown commit"
+    except ImportError:
+        commit = "unknown commit"
+    relative = path.relative_to(repository) if path.is_relative_to(repository) else path.name
+    roots = {package_path.name: package_path, repository.name: repository}
+    return LoadedUrdf(_read(path, where), path, f"robot_descriptions {name} @ {commit}: {relative}", roots)

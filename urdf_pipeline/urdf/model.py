@@ -1,0 +1,322 @@
+"""A light URDF reader: the joints, links and mesh URIs the compile stage checks, without importing Rerun.
+
+It reads a URDF as ROS does (urdfdom): the first of a repeated element counts, joint axes are normalised, and a
+structure ROS refuses (a joint naming a link that does not exist, two parents for a link, duplicate names, a mimic
+cycle) is refused here too, naming the joint or link, before it could surface later as a confusing frame-graph error.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+from xml.parsers.expat import ExpatError, ParserCreate
+
+from ..errors import did_you_mean
+
+MOVING_TYPES = ("revolute", "continuous", "prismatic")
+ANGULAR_TYPES = ("revolute", "continuous")
+JOINT_TYPES = (*MOVING_TYPES, "fixed", "floating", "planar")
+MAX_DEPTH = 100  # element nesting; a URDF needs about six levels
+# A decimal number as urdfdom reads it (no "inf", "nan", hex or "1_0", which Python's float() would take).
+_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
+
+
+@dataclass(frozen=True)
+class Mimic:
+    joint: str
+    multiplier: float
+    offset: float
+
+
+@dataclass(frozen=True)
+class Joint:
+    name: str
+    type: str
+    parent: str
+    child: str
+    xyz: tuple[float, float, float]
+    rpy: tuple[float, float, float]
+    axis: tuple[float, float, float]  # unit length, as ROS reads it (zero only for joints that do not use it)
+    lower: float | None
+    upper: float | None
+    mimic: Mimic | None
+
+    @property
+    def moving(self) -> bool:
+        return self.type in MOVING_TYPES
+
+    @property
+    def angular(self) -> bool:
+        return self.type in ANGULAR_TYPES
+
+    @property
+    def has_limits(self) -> bool:
+        """Continuous joints have none; a revolute/prismatic joint with lower >= upper has no usable range."""
+        return self.type != "continuous" and self.lower is not None and self.upper is not None and self.lower < self.upper
+
+
+@dataclass(frozen=True)
+class MeshRef:
+    link: str
+    uri: str
+    kind: str  # "visual" | "collision"
+
+
+@dataclass(frozen=True)
+class UrdfModel:
+    name: str
+    links: tuple[str, ...]
+    joints: tuple[Joint, ...]
+    meshes: tuple[MeshRef, ...]
+    root_link: str
+
+    def joint(self, name: str) -> Joint | None:
+        return next((j for j in self.joints if j.name == name), None)
+
+
+class UrdfParseError(Exception):
+    """The file is not a usable URDF; the caller turns each message into a user error at the config line."""
+
+    def __init__(self, *messages: str) -> None:
+        super().__init__("; ".join(messages))
+        self.messages = messages
+
+
+class InvalidNumber(ValueError):
+    """One malformed value, reported with the joint it belongs to."""
+
+
+def number(text: str, label: str = "value") -> float:
+    """A URDF number, read as urdfdom reads it; InvalidNumber (naming `label`, e.g. `<limit lower>`) otherwise."""
+    if not _NUMBER.fullmatch(text.strip()):
+        raise InvalidNumber(f"{label} '{text}' is not a number")
+    return float(text)
+
+
+def numbers(text: str | None, count: int, default: float, label: str = "value") -> tuple[float, ...]:
+    """`count` space-separated numbers (an absent attribute gives the default); InvalidNumber otherwise."""
+    if text is None:
+        return (default,) * count
+    parts = text.split()
+    if len(parts) != count or not all(_NUMBER.fullmatch(part) for part in parts):
+        raise InvalidNumber(f"{label} '{text}' is not {count} numbers")
+    return tuple(float(part) for part in parts)
+
+
+def unit_vector(vector: tuple[float, ...]) -> tuple[float, float, float] | None:
+    """The vector scaled to length 1 (URDF axis semantics); None for the zero vector."""
+    norm = math.sqrt(sum(v * v for v in vector))
+    if norm == 0.0:
+        return None
+    return (vector[0] / norm, vector[1] / norm, vector[2] / norm)
+
+
+def parse_root(text: str, origin: str) -> tuple[ET.Element, dict[int, int]]:
+    """The <robot> element and the line of each element (by id). Like ROS's parser (tinyxml2), namespace-unaware:
+    `<robot xmlns="...">` is a <robot>, a leftover `<xacro:property>` is no URDF element."""
+    builder, lines = ET.TreeBuilder(), {}
+    parser = ParserCreate()
+    depth = [0]
+
+    def start(tag: str, attributes: dict[str, str]) -> None:
+        depth[0] += 1
+        if depth[0] > MAX_DEPTH:  # a URDF is a few levels deep; thousands would exhaust recursion further on
+            raise UrdfParseError(f"{origin}:{parser.CurrentLineNumber}: elements nested more than {MAX_DEPTH} levels deep")
+        lines[id(builder.start(tag, attributes))] = parser.CurrentLineNumber
+
+    def end(tag: str) -> None:
+        depth[0] -= 1
+        builder.end(tag)
+
+    parser.StartElementHandler = start
+    parser.EndElementHandler = end
+    parser.CharacterDataHandler = builder.data
+    try:
+        parser.Parse(text, True)
+    except ExpatError as exc:
+        raise UrdfParseError(f"{origin} is not valid XML: {exc}") from None
+    robot = builder.close()
+    if robot.tag != "robot":
+        raise UrdfParseError(f"{origin}: root element is <{robot.tag}>, not <robot>")
+    return robot, lines
+
+
+@dataclass
+class _Problems:
+    """Messages `ORIGIN:LINE: message`, the line of the element at fault when the text is the file itself."""
+
+    origin: str
+    lines: dict[int, int] | None
+    messages: list[str] = field(default_factory=list)
+
+    def add(self, message: str, element: ET.Element | None = None) -> None:
+        line = self.lines.get(id(element)) if self.lines is not None and element is not None else None
+        self.messages.append(f"{self.origin}:{line}: {message}" if line else f"{self.origin}: {message}")
+
+
+def _hint(name: str, choices: list[str]) -> str:
+    return did_you_mean(name, choices)  # the one rule of errors.did_you_mean
+
+
+def _joint(element: ET.Element, problems: _Problems) -> Joint | None:
+    name, kind = element.get("name", ""), element.get("type", "")
+    if kind not in JOINT_TYPES:
+        problems.add(f"joint '{name}' has type '{kind}'; a URDF joint is one of {', '.join(JOINT_TYPES)}", element)
+        return None
+    links: dict[str, str] = {}
+    for end in ("parent", "child"):
+        found = element.find(end)
+        links[end] = "" if found is None else found.get("link", "")
+        if not links[end]:
+            problems.add(f"joint '{name}' has no <{end} link=\"...\"/>", element)
+    origin_el, axis_el, limit_el, mimic_el = (element.find(tag) for tag in ("origin", "axis", "limit", "mimic"))
+    try:
+        xyz = numbers(None if origin_el is None else origin_el.get("xyz"), 3, 0.0, "<origin xyz>")
+        rpy = numbers(None if origin_el is None else origin_el.get("rpy"), 3, 0.0, "<origin rpy>")
+        # urdfdom: no <axis> is 1 0 0; an <axis> without xyz is 0 0 0.
+        raw_axis = (1.0, 0.0, 0.0) if axis_el is None else numbers(axis_el.get("xyz", "0 0 0"), 3, 0.0, "<axis xyz>")
+        lower = upper = None
+        if limit_el is not None:
+            lower = number(limit_el.get("lower", "0"), "<limit lower>")
+            upper = number(limit_el.get("upper", "0"), "<limit upper>")
+        mimic = None
+        if mimic_el is not None and kind in MOVING_TYPES:  # a <mimic> on a joint that cannot move changes nothing
+            multiplier = number(mimic_el.get("multiplier", "1"), "<mimic multiplier>")
+            mimic = Mimic(mimic_el.get("joint", ""), multiplier, number(mimic_el.get("offset", "0"), "<mimic offset>"))
+    except InvalidNumber as exc:
+        problems.add(f"joint '{name}': {exc}", element)
+        return None
+    axis = unit_vector(raw_axis)
+    if axis is None and kind in MOVING_TYPES:
+        no_xyz = axis_el is not None and "xyz" not in axis_el.attrib
+        shown = "has an <axis> without xyz (ROS reads it as 0 0 0)" if no_xyz else "has axis 0 0 0"
+        problems.add(f"joint '{name}' ({kind}) {shown}; give <axis xyz=\"...\"/> the direction it moves along", element)
+        return None
+    if mimic is not None and not mimic.joint:
+        problems.add(f"joint '{name}' has a <mimic> without joint=\"...\"", element)
+        return None
+    if not all(links.values()):
+        return None
+    return Joint(name, kind, links["parent"], links["child"], xyz, rpy, axis or (0.0, 0.0, 0.0), lower, upper, mimic)  # type: ignore[arg-type]
+
+
+def _unique(kind: str, elements: list[ET.Element], problems: _Problems) -> None:
+    seen: set[str] = set()
+    for element in elements:
+        name = element.get("name", "")
+        if not name:
+            problems.add(f'a <{kind}> has no name="..."', element)
+        elif name in seen:
+            problems.add(f"two <{kind}> elements are named '{name}'; URDF {kind} names must be unique", element)
+        seen.add(name)
+
+
+def _check_tree(joints: dict[str, tuple[Joint, ET.Element]], links: tuple[str, ...], problems: _Problems) -> None:
+    known = set(links)
+    parent_joint: dict[str, Joint] = {}
+    for joint, element in joints.values():
+        for end, link in (("parent", joint.parent), ("child", joint.child)):
+            if link not in known:
+                problems.add(
+                    f"joint '{joint.name}' names {end} link '{link}', which the URDF does not define{_hint(link, sorted(known))}; "
+                    f'fix the joint\'s <{end} link="..."/> or add <link name="{link}"/>',
+                    element,
+                )
+        if joint.parent == joint.child:
+            problems.add(f"joint '{joint.name}' connects link '{joint.child}' to itself", element)
+        first = parent_joint.get(joint.child)
+        if first is not None:
+            problems.add(
+                f"link '{joint.child}' is the child of two joints, '{first.name}' and '{joint.name}'; a link has exactly one parent joint",
+                element,
+            )
+        parent_joint.setdefault(joint.child, joint)
+
+
+def _check_mimics(joints: dict[str, tuple[Joint, ET.Element]], declared: set[str], problems: _Problems) -> None:
+    """`declared`: every joint name in the file, those already refused included (no second error for them)."""
+    by_name = {name: joint for name, (joint, _) in joints.items()}
+    for joint, element in joints.values():
+        if joint.mimic is None or (joint.mimic.joint in declared and joint.mimic.joint not in by_name):
+            continue
+        driver = by_name.get(joint.mimic.joint)
+        if driver is None:
+            hint = _hint(joint.mimic.joint, sorted(by_name))
+            problems.add(f"joint '{joint.name}' mimics '{joint.mimic.joint}', which the URDF lacks{hint}", element)
+        elif not driver.moving:
+            problems.add(f"joint '{joint.name}' mimics '{driver.name}', a {driver.type} joint that never moves", element)
+    reported: set[str] = set()
+    for joint, element in joints.values():
+        chain = [joint.name]
+        current = joint
+        while current.mimic is not None and current.mimic.joint in by_name and current.mimic.joint not in chain:
+            current = by_name[current.mimic.joint]
+            chain.append(current.name)
+        if current.mimic is not None and current.mimic.joint in chain and not (reported & set(chain)):
+            cycle = chain[chain.index(current.mimic.joint) :]
+            reported.update(cycle)
+            problems.add(f"joints mimic each other in a cycle: {' -> '.join([*cycle, cycle[0]])}; one of them must be driven", element)
+
+
+def _root(joints: list[Joint], links: tuple[str, ...], origin: str) -> str:
+    if not links:
+        raise UrdfParseError(f"{origin}: the URDF defines no <link>")
+    children = {j.child for j in joints}
+    roots = [link for link in links if link not in children]
+    if len(roots) == 1:
+        below = {roots[0]}
+        frontier = [roots[0]]
+        children_of: dict[str, list[str]] = {}
+        for joint in joints:
+            children_of.setdefault(joint.parent, []).append(joint.child)
+        while frontier:
+            for child in children_of.get(frontier.pop(), ()):
+                if child not in below:
+                    below.add(child)
+                    frontier.append(child)
+        cut_off = [link for link in links if link not in below]
+        if cut_off:
+            raise UrdfParseError(f"{origin}: links {', '.join(cut_off)} form a cycle of joints, cut off from root link '{roots[0]}'")
+        return roots[0]
+    if not roots:
+        raise UrdfParseError(f"{origin}: every link has a parent joint, so the joints form a cycle and there is no root link")
+    raise UrdfParseError(
+        f"{origin}: expected one root link, found {len(roots)}: {', '.join(roots)}; connect them with joints so one link is the root"
+    )
+
+
+def parse_urdf_text(text: str, origin: str, source_lines: bool = True) -> UrdfModel:
+    """The model of a URDF text; UrdfParseError with one message per problem, each `origin:LINE:` when `source_lines`
+    (the text is the file itself, not expanded from xacro)."""
+    robot, lines = parse_root(text, origin)
+    problems = _Problems(origin, lines if source_lines else None)
+    link_elements = robot.findall("link")
+    links = tuple(link.get("name", "") for link in link_elements)
+    _unique("link", link_elements, problems)
+    meshes: list[MeshRef] = []
+    for link in link_elements:
+        for kind in ("visual", "collision"):
+            for element in link.findall(kind):
+                for mesh in element.findall("geometry/mesh"):
+                    meshes.append(MeshRef(link.get("name", ""), mesh.get("filename", ""), kind))
+    elements = robot.findall("joint")
+    _unique("joint", elements, problems)
+    joints: dict[str, tuple[Joint, ET.Element]] = {}
+    for element in elements:
+        joint = _joint(element, problems)
+        if joint is not None:
+            joints.setdefault(joint.name, (joint, element))
+    _check_tree(joints, links, problems)
+    _check_mimics(joints, {e.get("name", "") for e in elements}, problems)
+    if problems.messages:
+        raise UrdfParseError(*problems.messages)
+    model_joints = [joint for joint, _ in joints.values()]
+    return UrdfModel(robot.get("name", ""), links, tuple(model_joints), tuple(meshes), _root(model_joints, links, origin))
+
+
+def read_urdf(path: Path) -> tuple[str, UrdfModel]:
+    text = path.read_text(encoding="utf-8")
+    return text, parse_urdf_text(text, str(path))
