@@ -1,4 +1,4 @@
-"""The URDF sweep of tests/test_urdf_sweep.py as a table: robot, source file, outcome, seconds.
+"""The URDF sweep of tests/urdf/test_urdf_sweep.py as a table: robot, source file, outcome, seconds.
 
 Every URDF of example-robot-data and rtb-data (and rtb-data's xacro robots) is validated, run through the real CLI
 in this one process and compared with pinocchio. Prints a Markdown table and the totals; exit 1 if any robot breaks
@@ -18,7 +18,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from tests.test_urdf_sweep import check_outcome, run_case, sweep_cases  # noqa: E402
+from tests.urdf.test_urdf_sweep import check_outcome, run_case, sweep_cases  # noqa: E402
 
 
 def main() -> int:

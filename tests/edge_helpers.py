@@ -10,9 +10,9 @@ import yaml
 
 from urdf_pipeline.examples import write_joint_parquet
 
+from .execute.test_fk_against_pinocchio import PANDA_ARM, panda_contract_raw, random_within_limits
 from .reference_fk import PinocchioRobot
 from .rrd_frames import quat_xyzw_to_matrix
-from .test_fk_against_pinocchio import PANDA_ARM, panda_contract_raw, random_within_limits
 
 # A robot without meshes whose fixed joints carry arbitrary rotations, with a branch and a moving joint in the middle:
 #   base -fixed-> mount -fixed-> bracket -shoulder (revolute)-> arm -fixed-> flange -fixed-> adapter -fixed-> cam

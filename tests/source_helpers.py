@@ -8,9 +8,9 @@ from typing import Any
 import numpy as np
 import yaml
 
+from .execute.test_fk_against_pinocchio import check_robot, panda_joint_values, random_within_limits
 from .reference_fk import PinocchioRobot
 from .rrd_frames import read_frames
-from .test_fk_against_pinocchio import check_robot, panda_joint_values, random_within_limits
 
 PANDA_JOINTS = [*(f"panda_joint{i}" for i in range(1, 8)), "panda_finger_joint1"]
 PANDA_MAP: dict[str, Any] = {

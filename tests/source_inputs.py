@@ -8,9 +8,9 @@ import numpy as np
 
 from urdf_pipeline.examples import PANDA_NAMES
 
-from .test_sources_hdf5 import write_aloha_episode
-from .test_sources_mcap import write_joint_states
-from .test_sources_rrd import write_state_rrd
+from .sources.test_sources_hdf5 import write_aloha_episode
+from .sources.test_sources_mcap import write_joint_states
+from .sources.test_sources_rrd import write_state_rrd
 
 
 def write_source_inputs(data: Path, raw: np.ndarray) -> None:
