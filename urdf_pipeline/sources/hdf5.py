@@ -13,6 +13,7 @@ from typing import Any
 from ..config.document import Document
 from ..errors import UserError, listing
 from ..plan import Hdf5SourcePlan, IndexPlan
+from .base import resolve_input
 from .integrity import read_hdf5_datasets
 from .ordering import in_time_order, with_duplicates
 from .parquet import compile_index
@@ -41,8 +42,6 @@ def _datasets_of_rank(file: Any, rank: int) -> list[str]:
 
 def compile_source(name: str, spec: dict[str, Any], document: Document, config_dir: Path) -> Hdf5SourcePlan:
     import h5py
-
-    from . import resolve_input
 
     here = ("sources", name)
     path = resolve_input(document, config_dir, spec["hdf5"], *here, "hdf5")

@@ -13,6 +13,7 @@ import pyarrow.compute  # noqa: F401  (pa.compute)
 from ..config.document import Document
 from ..errors import UserError, Where
 from ..plan import LeRobotSourcePlan
+from .base import resolve_input
 from .integrity import read_parquet_columns
 from .ordering import in_time_order, with_duplicates
 from .stream import SourceStream
@@ -37,8 +38,6 @@ def feature_names(feature: dict[str, Any]) -> list[str] | None:
 
 
 def compile_source(name: str, spec: dict[str, Any], document: Document, config_dir: Path) -> LeRobotSourcePlan:
-    from . import resolve_input
-
     here = ("sources", name)
     root = resolve_input(document, config_dir, spec["lerobot"], *here, "lerobot", directory=True)
     info_path = root / "meta" / "info.json"

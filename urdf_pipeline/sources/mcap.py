@@ -18,6 +18,7 @@ import pyarrow.compute as pc
 from ..config.document import Document
 from ..errors import UserError, Where
 from ..plan import McapSourcePlan
+from .base import resolve_input
 from .mcap_probe import MESSAGE_COMPONENT, probe, topic_entity, topic_messages
 from .named_rows import NAME_FIELD, NAMED_COMPONENT, VALUE_FIELD, named_rows_column
 from .ordering import in_time_order, with_duplicates
@@ -45,8 +46,6 @@ def _first_message_names(path: Path, topic: str, where: Where) -> tuple[str, ...
 
 def compile_source(name: str, spec: dict[str, Any], document: Document, config_dir: Path) -> McapSourcePlan:
     from rerun.chunk import McapReader
-
-    from . import resolve_input
 
     here = ("sources", name)
     path = resolve_input(document, config_dir, spec["mcap"], *here, "mcap")

@@ -11,6 +11,7 @@ import pyarrow.parquet as pq
 from ..config.document import Document
 from ..errors import UserError
 from ..plan import IndexPlan, ParquetSourcePlan
+from .base import resolve_input
 from .integrity import read_parquet_columns, refuse_empty_parquet
 from .ordering import in_time_order, with_duplicates
 from .stream import SourceStream
@@ -38,8 +39,6 @@ def _numeric_list_width(field_type: pa.DataType) -> int | None | bool:
 
 
 def compile_source(name: str, spec: dict[str, Any], document: Document, config_dir: Path) -> ParquetSourcePlan:
-    from . import resolve_input
-
     here = ("sources", name)
     path = resolve_input(document, config_dir, spec["parquet"], *here, "parquet")
     try:

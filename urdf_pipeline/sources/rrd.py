@@ -18,6 +18,7 @@ import pyarrow.compute as pc
 from ..config.document import Document
 from ..errors import UserError
 from ..plan import RrdSourcePlan
+from .base import resolve_input
 from .lerobot import VECTOR_COMPONENT
 from .named_rows import NAMED_COMPONENT, named_rows_column
 from .ordering import in_time_order, read_all, with_duplicates
@@ -86,8 +87,6 @@ def _first_row_names(store: LazyStore, entity: str) -> tuple[str, ...]:
 
 
 def compile_source(name: str, spec: dict[str, Any], document: Document, config_dir: Path) -> RrdSourcePlan:
-    from . import resolve_input
-
     here = ("sources", name)
     path = resolve_input(document, config_dir, spec["rrd"], *here, "rrd")
     store = _open_store(path, document, (*here, "rrd"))
