@@ -48,7 +48,10 @@ def allow_examples(examples_dir: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
 @pytest.fixture
 def run_cli(capsys: pytest.CaptureFixture[str]):
     def run(*args: str) -> CliResult:
-        code = cli.main(list(args))
+        try:
+            code = cli.main(list(args))
+        except SystemExit as usage:  # argparse's usage errors (parser.error) exit 2 as the real command does
+            code = usage.code if isinstance(usage.code, int) else 1
         captured = capsys.readouterr()
         return CliResult(code, captured.out, captured.err)
 

@@ -16,9 +16,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .errors import UserError
-
-EXIT_OK, EXIT_USER_ERROR, EXIT_BUG, EXIT_INTERRUPTED, EXIT_BROKEN_PIPE = 0, 1, 70, 130, 141
+from .errors import ExitCode, UserError
 
 if TYPE_CHECKING:
     from .execute.segment_run import SegmentResult
@@ -87,8 +85,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         say(f"sent {send_to_viewer(plan, run.results, args.connect, args.spawn)} segment(s) to the viewer")
     if bugs:
         print("urdf-pipeline: internal error (a bug, not your config); please report it with the traceback above", file=sys.stderr)
-        return EXIT_BUG
-    return EXIT_USER_ERROR if any(r.status == "failed" for r in run.results) else EXIT_OK
+        return ExitCode.BUG
+    return ExitCode.USER_ERROR if any(r.status == "failed" for r in run.results) else ExitCode.OK
 
 
 def _print_single(result: SegmentResult) -> None:
@@ -115,7 +113,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
         sys.stdout.write(render(findings.sorted(), args.format))
         for config in findings.valid:
             print(f"ok: {config}", file=sys.stderr)
-        return EXIT_USER_ERROR if findings.invalid else EXIT_OK
+        return ExitCode.USER_ERROR if findings.invalid else ExitCode.OK
     problems = Problems()
     for config in args.configs:
         try:
@@ -124,7 +122,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
         except UserError as exc:
             problems.extend(exc)
     problems.raise_if_any()
-    return EXIT_OK
+    return ExitCode.OK
 
 
 def cmd_check(args: argparse.Namespace) -> int:
@@ -146,18 +144,17 @@ def cmd_plan(args: argparse.Namespace) -> int:
     from .review.report import plan_command
 
     if args.rows is not None and not args.sample:
-        print("urdf-pipeline plan: error: --rows needs --sample", file=sys.stderr)
-        return 2  # bad command-line usage, as argparse's own errors
+        args.parser.error("--rows needs --sample")
     rows = (args.rows or 100_000) if args.sample else None
     sys.stdout.write(plan_command(Path(args.config), args.format, rows))
-    return EXIT_OK
+    return ExitCode.OK
 
 
 def cmd_schema(args: argparse.Namespace) -> int:
     from .config.schema import schema_text
 
     sys.stdout.write(schema_text())
-    return EXIT_OK
+    return ExitCode.OK
 
 
 def cmd_init(args: argparse.Namespace) -> int:
@@ -168,7 +165,7 @@ def cmd_init(args: argparse.Namespace) -> int:
         sys.stdout.write(result.text)
     for line in said:
         print(line, file=sys.stderr)
-    return EXIT_OK
+    return ExitCode.OK
 
 
 def cmd_diff(args: argparse.Namespace) -> int:
@@ -177,8 +174,7 @@ def cmd_diff(args: argparse.Namespace) -> int:
     from .review.diff import diff_files, diff_git, report_json, report_text
 
     if (args.git is None) == (args.new is None):
-        print("urdf-pipeline diff: error: give OLD NEW, or CONFIG --git REV", file=sys.stderr)
-        return 2  # bad command-line usage, as argparse's own errors
+        args.parser.error("give OLD NEW, or CONFIG --git REV")
     if args.git is not None:
         old, new = f"{args.old}@{args.git}", args.old
         changes = diff_git(Path(args.old), args.git)
@@ -189,7 +185,7 @@ def cmd_diff(args: argparse.Namespace) -> int:
         print(json.dumps(report_json(changes, old, new), indent=2))
     else:
         sys.stdout.write(report_text(changes))
-    return EXIT_USER_ERROR if args.exit_code and changes else EXIT_OK
+    return ExitCode.USER_ERROR if args.exit_code and changes else ExitCode.OK
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -211,7 +207,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument(
         "--report", metavar="FILE.json", help="write what the run did per segment (status, frames, seconds, worker, peak memory)"
     )
-    run.set_defaults(handler=cmd_run)
+    run.set_defaults(handler=cmd_run, parser=run)
     validate = commands.add_parser("validate", help="check configs against the schema, URDFs and source metadata (no joint values read)")
     validate.add_argument("configs", nargs="+", metavar="CONFIG")
     validate.add_argument(
@@ -220,14 +216,14 @@ def build_parser() -> argparse.ArgumentParser:
         default="text",
         help="text: error: FILE:LINE:COL lines (default); github: workflow annotations; json: a list of problems",
     )
-    validate.set_defaults(handler=cmd_validate)
+    validate.set_defaults(handler=cmd_validate, parser=validate)
     check = commands.add_parser(
         "check", help="read a sample of each source and say which corrections put every mapped joint inside its URDF limits"
     )
     check.add_argument("config")
     check.add_argument("--format", choices=("text", "json"), default="text")
     check.add_argument("--rows", type=int, default=100_000, help="rows to sample from the start of each source (default 100000)")
-    check.set_defaults(handler=cmd_check)
+    check.set_defaults(handler=cmd_check, parser=check)
     plan = commands.add_parser("plan", help="validate CONFIG and print what a run would do")
     plan.add_argument("config")
     plan.add_argument(
@@ -238,9 +234,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     plan.add_argument("--sample", action="store_true", help="read a sample of each source and add the observed range per value")
     plan.add_argument("--rows", type=_positive, help="with --sample: rows read from the start of each source (default 100000)")
-    plan.set_defaults(handler=cmd_plan)
+    plan.set_defaults(handler=cmd_plan, parser=plan)
     schema = commands.add_parser("schema", help="print the config's JSON Schema")
-    schema.set_defaults(handler=cmd_schema)
+    schema.set_defaults(handler=cmd_schema, parser=schema)
     init = commands.add_parser("init", help="scaffold a config from a URDF, pre-matched to a source's names when --source is given")
     init.add_argument("--urdf", required=True, metavar="PATH", help="a plain URDF file")
     init.add_argument(
@@ -250,7 +246,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     init.add_argument("-o", "--output", metavar="CONFIG", help="write the config here (default: stdout); paths in it are relative to it")
     init.add_argument("--force", action="store_true", help="overwrite an existing output file")
-    init.set_defaults(handler=cmd_init)
+    init.set_defaults(handler=cmd_init, parser=init)
     diff = commands.add_parser(
         "diff",
         help="print the semantic difference of two configs' compiled plans (OLD NEW, or CONFIG --git REV)",
@@ -263,7 +259,7 @@ def build_parser() -> argparse.ArgumentParser:
     diff.add_argument("--git", metavar="REV", help="compare CONFIG at git revision REV (git show REV:./CONFIG) with the working tree's")
     diff.add_argument("--format", choices=("text", "json"), default="text")
     diff.add_argument("--exit-code", action="store_true", help="exit 1 when there are differences (like git diff --exit-code)")
-    diff.set_defaults(handler=cmd_diff)
+    diff.set_defaults(handler=cmd_diff, parser=diff)
     return parser
 
 
@@ -289,17 +285,17 @@ def _main(argv: Sequence[str] | None) -> int:
     except UserError as exc:
         for line in exc.lines():
             print(line, file=sys.stderr)
-        return EXIT_USER_ERROR
+        return ExitCode.USER_ERROR
     except KeyboardInterrupt as stop:  # Ctrl-C, or SIGTERM (interrupts.Terminated): 128 + the signal's number
         print("interrupted", file=sys.stderr)
         return exit_status(signal_number(stop))
     except BrokenPipeError:  # `urdf-pipeline plan ... | head`: the reader left; not a bug
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # so the interpreter's final flush is quiet too
-        return EXIT_BROKEN_PIPE
+        return ExitCode.BROKEN_PIPE
     except Exception:
         traceback.print_exc()
         print("urdf-pipeline: internal error (a bug, not your config); please report it with the traceback above", file=sys.stderr)
-        return EXIT_BUG
+        return ExitCode.BUG
 
 
 if __name__ == "__main__":

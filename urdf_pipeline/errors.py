@@ -8,7 +8,21 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass
+from enum import IntEnum
 from pathlib import Path
+
+
+class ExitCode(IntEnum):
+    """Every exit status of the command line, in one place (README, "Exit status and faults")."""
+
+    OK = 0
+    USER_ERROR = 1  # one `error: FILE:LINE:COL: ...` line per problem, no traceback
+    USAGE = 2  # bad command-line usage (argparse's own code)
+    DOES_NOT_FIT = 3  # `check` only: sampled values do not fit the limits with the config's corrections
+    BUG = 70  # an internal bug, with a traceback (EX_SOFTWARE)
+    INTERRUPTED = 130  # Ctrl-C: 128 + SIGINT
+    BROKEN_PIPE = 141  # stdout closed early (`| head`): 128 + SIGPIPE
+    TERMINATED = 143  # SIGTERM, handled as Ctrl-C: 128 + SIGTERM
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from urdf_pipeline import cli
+from urdf_pipeline.errors import ExitCode
 
 
 def test_user_error_is_one_line_without_traceback(tmp_path: Path, run_cli) -> None:
@@ -32,7 +32,7 @@ def test_a_bug_exits_70_with_a_traceback(monkeypatch, run_cli, examples_dir: Pat
     monkeypatch.setattr(urdf_pipeline.execute.segment, "execute", broken)
     # --force: an earlier test may have left the demo's recording up to date, and an up-to-date run computes nothing
     result = run_cli("run", str(examples_dir / "demo.yaml"), "--force")
-    assert result.code == cli.EXIT_BUG == 70
+    assert result.code == ExitCode.BUG == 70
     assert "Traceback" in result.err and "ZeroDivisionError" in result.err
 
 
@@ -75,5 +75,5 @@ def test_a_closed_pipe_is_not_a_bug(examples_dir: Path) -> None:
     assert process.stdout is not None and process.stderr is not None
     process.stdout.close()  # the reader is gone before the first line is written
     err = process.stderr.read()
-    assert process.wait(timeout=60) == cli.EXIT_BROKEN_PIPE == 141
+    assert process.wait(timeout=60) == ExitCode.BROKEN_PIPE == 141
     assert "Traceback" not in err and "internal error" not in err

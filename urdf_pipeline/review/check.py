@@ -14,11 +14,11 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from ..errors import ExitCode
 from ..plan import JointChannel, Plan, RobotPlan, SourcePlan
 from ..sources.joint_values import wrapped
 
 SAMPLE_ROWS = 100_000
-EXIT_ALL_FIT, EXIT_SOME_DO_NOT_FIT = 0, 3
 
 
 @dataclass(frozen=True)
@@ -212,7 +212,7 @@ def read_sample(source: SourcePlan, rows: int = SAMPLE_ROWS) -> np.ndarray:
 
 
 def exit_code(reports: list[JointReport]) -> int:
-    return EXIT_ALL_FIT if all(r.current_fits for r in reports) else EXIT_SOME_DO_NOT_FIT
+    return ExitCode.OK if all(r.current_fits for r in reports) else ExitCode.DOES_NOT_FIT
 
 
 def as_json(reports: list[JointReport]) -> list[dict]:
