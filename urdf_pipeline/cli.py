@@ -44,7 +44,6 @@ def cmd_run(args: argparse.Namespace) -> int:
         from .dataset.base_check import check_base
 
         say(f"all {check_base(plan, args.base)} segment id(s) found among the base recordings in {args.base}")
-    assert plan.dataset is not None
     segments = len(plan.segments)
     many = segments > 1 or plan.dataset.layout == "split"
     if many:

@@ -284,8 +284,8 @@ class Plan:
     edges: tuple[EdgePlan, ...]
     root_frame: str
     output: OutputPlan  # the first segment's; see for_segment
-    temporal_edges: tuple[TemporalEdgePlan, ...] = ()
-    dataset: DatasetPlan | None = None  # None only for plans built by hand in tests
+    temporal_edges: tuple[TemporalEdgePlan, ...]
+    dataset: DatasetPlan
 
     def source(self, name: str) -> SourcePlan:
         return next(s for s in self.sources if s.name == name)
@@ -295,7 +295,6 @@ class Plan:
 
     @property
     def segments(self) -> tuple[Segment, ...]:
-        assert self.dataset is not None
         return self.dataset.segments
 
     def for_segment(self, segment: Segment) -> Plan:
@@ -305,7 +304,7 @@ class Plan:
 
     def for_model(self) -> Plan:
         """The plan of the split layout's model asset."""
-        assert self.dataset is not None and self.dataset.model is not None
+        assert self.dataset.model is not None, "for_model needs the split layout"
         return replace(self, output=replace(self.output, path=self.dataset.model, recording_id=MODEL_RECORDING_ID))
 
 

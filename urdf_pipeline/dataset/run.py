@@ -49,7 +49,6 @@ class DatasetRun:
 
 
 def build_jobs(plan: Plan) -> list[SegmentJob]:
-    assert plan.dataset is not None
     jobs = []
     if plan.dataset.layout == "split" and plan.dataset.model is not None:
         jobs.append(SegmentJob(None, "model", "model", plan.dataset.model, model_hash(plan), run_plan=plan))
@@ -61,7 +60,6 @@ def build_jobs(plan: Plan) -> list[SegmentJob]:
 
 
 def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | None = None) -> DatasetRun:
-    assert plan.dataset is not None
     started = time.perf_counter()
     jobs = build_jobs(plan)
     manifest = Manifest.load(plan.dataset.manifest, plan.output.application_id, plan.dataset.layout, plan.config_path, plan.output.where)
@@ -130,7 +128,6 @@ def _prepare_outputs(plan: Plan, jobs: list[SegmentJob], to_run: list[SegmentJob
     folder written to takes files, and the partial files of killed runs are gone. Every refusal at once, exit 1."""
     from ..execute.blueprint import blueprint_path
 
-    assert plan.dataset is not None
     where = plan.output.where
     problems = Problems()
     for job in to_run:

@@ -29,7 +29,6 @@ def recording_blueprint(plan: Plan) -> rrb.Blueprint:
 
 
 def blueprint_path(plan: Plan) -> Path:
-    assert plan.dataset is not None
     return plan.dataset.manifest.parent / f"{plan.config_path.stem}.rbl"
 
 

@@ -504,7 +504,7 @@ def _source_changes(report: _Report, old: Plan, new: Plan) -> None:
 def _source_files(path_value: Callable[[Path], PathValue], plan: Plan, name: str) -> list[PathValue]:
     """The files a source reads over all segments (one, or every file of a glob), in segment order."""
     files: list[PathValue] = []
-    segments = plan.dataset.segments if plan.dataset is not None else ()
+    segments = plan.dataset.segments
     plans = [s for segment in segments for s in segment.sources if s.name == name] or [plan.source(name)]
     for source in plans:
         value = path_value(source.root if isinstance(source, LeRobotSourcePlan) else source.path)
@@ -586,7 +586,6 @@ def _output_changes(report: _Report, old: Plan, new: Plan) -> None:
 
 def _manifest_key(path_value: Callable[[Path], PathValue], plan: Plan) -> tuple[PathValue, str | None]:
     """The manifest's folder and name; None for the default name (after the config's file), so configs of other names compare."""
-    assert plan.dataset is not None
     manifest = plan.dataset.manifest
     return path_value(manifest.parent), None if manifest.name == f"{plan.config_path.stem}.manifest.json" else manifest.name
 
@@ -642,7 +641,7 @@ def _renamed_errors(copy: Path, shown: Path) -> Plan:
 def _as_if_named(plan: Plan, copy: Path, config: Path) -> Plan:
     """The default manifest is named after the config's file: name it after the real config, not the copy."""
     plan = replace(plan, config_path=config)
-    if plan.dataset is not None and plan.dataset.manifest.name == f"{copy.stem}.manifest.json":
+    if plan.dataset.manifest.name == f"{copy.stem}.manifest.json":
         manifest = plan.dataset.manifest.with_name(f"{config.stem}.manifest.json")
         plan = replace(plan, dataset=replace(plan.dataset, manifest=manifest))
     return plan
