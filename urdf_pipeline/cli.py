@@ -170,7 +170,7 @@ def cmd_init(args: argparse.Namespace) -> int:
 def cmd_diff(args: argparse.Namespace) -> int:
     import json
 
-    from .review.diff import diff_files, diff_git, report_json, report_text
+    from .review.diff_inputs import diff_files, diff_git, report_json, report_text
 
     if (args.git is None) == (args.new is None):
         args.parser.error("give OLD NEW, or CONFIG --git REV")

@@ -101,3 +101,15 @@ def test_no_upward_import() -> None:
 def test_the_top_level_stays_small() -> None:
     top = sorted(path.name for path in PACKAGE.glob("*.py"))
     assert len(top) <= TOP_LEVEL_MODULES, f"{len(top)} modules at the top level: {', '.join(top)}"
+
+
+MAX_MODULE_LINES = 450
+
+
+def test_no_module_is_too_long() -> None:
+    long = [
+        f"{path.relative_to(PACKAGE.parent)}: {n}"
+        for path in sorted(PACKAGE.rglob("*.py"))
+        if (n := len(path.read_text().splitlines())) > MAX_MODULE_LINES
+    ]
+    assert not long, f"modules over {MAX_MODULE_LINES} lines (split them by what they own): " + "; ".join(long)

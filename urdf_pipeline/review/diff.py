@@ -17,17 +17,12 @@ Everything else the old config refers to (URDF, data, sidecar edge files) is rea
 
 from __future__ import annotations
 
-import math
-import os
-import subprocess
-import tempfile
-from collections.abc import Callable, Iterable, Iterator, Sequence
-from contextlib import contextmanager
-from dataclasses import dataclass, fields, replace
+from collections.abc import Callable, Sequence
+from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
-from ..errors import UserError, UserErrors, Where, collect_warnings, listing
+from ..errors import listing
 from ..plan import (
     EdgePlan,
     IndexPlan,
@@ -38,156 +33,14 @@ from ..plan import (
     SourcePlan,
     TemporalEdgePlan,
 )
-from ..urdf.geometry import Quaternion, Vector, normalized_quaternion, quaternion_from_rpy, quaternion_multiply
+from ..urdf.geometry import quaternion_from_rpy
 from ..urdf.model import Joint, UrdfModel, UrdfParseError, parse_urdf_text
-
-TOLERANCE = 1e-9
-
-
-@dataclass(frozen=True)
-class Change:
-    """One difference: `subject: detail` is its line (`robot arm: j2 -> panda_joint2: sign 1 -> -1`)."""
-
-    group: str  # "robot", "edges", "sources" or "output"
-    subject: str  # "robot arm", "edge world -> panda_link0", "source arm_state", "output"
-    detail: str
-    old: Any = None  # JSON-ready values, when the change is one field's
-    new: Any = None
-
-    @property
-    def line(self) -> str:
-        return f"{self.subject}: {self.detail}"
-
-    def as_json(self) -> dict[str, Any]:
-        return {"group": self.group, "subject": self.subject, "detail": self.detail, "old": self.old, "new": self.new, "line": self.line}
-
-
-@dataclass(frozen=True, eq=False)
-class PathValue:
-    """A plan path seen from its config's folder: equal to another when either the relative or the absolute path is
-    (not transitive, hence not hashable: PathValues are compared, never keyed)."""
-
-    relative: str
-    absolute: str
-
-    def __eq__(self, other: object) -> bool:
-        return isinstance(other, PathValue) and (self.relative == other.relative or self.absolute == other.absolute)
-
-    def __str__(self) -> str:
-        return self.relative
-
+from .diff_base import Change, PathValue, _moved, _path_value, _Report, _rounded, _same, _text
 
 # ---------------------------------------------------------------------------------------------------------- values
 
 
-def _same(a: Any, b: Any) -> bool:
-    """Equal, floats within TOLERANCE (nested in tuples and lists too)."""
-    if isinstance(a, bool) or isinstance(b, bool):
-        return a is b
-    if isinstance(a, int | float) and isinstance(b, int | float):
-        return math.isclose(a, b, rel_tol=TOLERANCE, abs_tol=TOLERANCE)
-    if isinstance(a, tuple | list) and isinstance(b, tuple | list):
-        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
-    return bool(a == b)
-
-
-def _number(value: float) -> str:
-    return f"{value + 0.0:.12g}"  # + 0.0: no "-0"
-
-
-def _text(value: Any) -> str:
-    """A value as the report shows it: `1`, `-0.5`, `[0, 0, 0.5]`, `none`, `""`."""
-    if value is None:
-        return "none"
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int | float):
-        return _number(float(value))
-    if isinstance(value, tuple | list):
-        return "[" + ", ".join(_text(v) for v in value) + "]"
-    if isinstance(value, str):
-        return value if value else '""'
-    return str(value)
-
-
-def _json(value: Any) -> Any:
-    if value is None or isinstance(value, bool | int | float | str):
-        return value
-    if isinstance(value, tuple | list):
-        return [_json(v) for v in value]
-    return str(value)
-
-
-def _length(mm: float) -> str:
-    return f"{mm:.1f}" if mm == 0 or mm >= 0.05 else f"{mm:.2g}"
-
-
-def _degrees(deg: float) -> str:
-    return f"{deg:.2f}" if deg == 0 or deg >= 0.005 else f"{deg:.2g}"
-
-
-def _unit_quaternion(q: Sequence[float]) -> Quaternion:
-    return normalized_quaternion(tuple(q)) or (0.0, 0.0, 0.0, 1.0)
-
-
-def rotation_angle_deg(a: Sequence[float], b: Sequence[float]) -> float:
-    """The angle of the rotation taking a to b (both quaternions x, y, z, w), in degrees, in [0, 180]."""
-    ax, ay, az, aw = _unit_quaternion(a)
-    x, y, z, w = quaternion_multiply((-ax, -ay, -az, aw), _unit_quaternion(b))
-    return math.degrees(2 * math.atan2(math.sqrt(x * x + y * y + z * z), abs(w)))
-
-
-def _same_rotation(a: Sequence[float], b: Sequence[float]) -> bool:
-    qa, qb = _unit_quaternion(a), _unit_quaternion(b)
-    return _same(qa, qb) or _same(qa, tuple(-v for v in qb))  # q and -q are the same rotation
-
-
-def _moved(t_old: Vector, q_old: Sequence[float], t_new: Vector, q_new: Sequence[float]) -> str | None:
-    """`moved 5.0 mm, 0.00 deg (translation [..] -> [..])`, or None for the same pose."""
-    translated, rotated = not _same(t_old, t_new), not _same_rotation(q_old, q_new)
-    if not translated and not rotated:
-        return None
-    mm = math.dist(t_old, t_new) * 1000 if translated else 0.0
-    deg = rotation_angle_deg(q_old, q_new) if rotated else 0.0
-    what = []
-    if translated:
-        what.append(f"translation {_text(_rounded(t_old))} -> {_text(_rounded(t_new))}")
-    if rotated:
-        what.append(f"quaternion_xyzw {_text(_rounded(q_old))} -> {_text(_rounded(q_new))}")
-    return f"moved {_length(mm)} mm, {_degrees(deg)} deg ({'; '.join(what)})"
-
-
-def _rounded(values: Sequence[float]) -> tuple[float, ...]:
-    return tuple(round(v, 9) + 0.0 for v in values)
-
-
 # ---------------------------------------------------------------------------------------------------------- the diff
-
-
-class _Report:
-    """The changes found so far, and the two configs' folders their paths are relative to."""
-
-    def __init__(self, old_base: Path, new_base: Path) -> None:
-        self.old_base, self.new_base = old_base, new_base
-        self.changes: list[Change] = []
-
-    def add(self, group: str, subject: str, detail: str, old: Any = None, new: Any = None) -> None:
-        self.changes.append(Change(group, subject, detail, _json(old), _json(new)))
-
-    def field(self, group: str, subject: str, label: str, old: Any, new: Any) -> None:
-        if not _same(old, new):
-            self.add(group, subject, f"{label} {_text(old)} -> {_text(new)}", old, new)
-
-    def old_path(self, path: Path) -> PathValue:
-        return _path_value(path, self.old_base)
-
-    def new_path(self, path: Path) -> PathValue:
-        return _path_value(path, self.new_base)
-
-
-def _path_value(path: Path, base: Path) -> PathValue:
-    absolute = os.path.abspath(path)
-    return PathValue(Path(os.path.relpath(absolute, os.path.abspath(base))).as_posix(), absolute)
 
 
 def diff_plans(old: Plan, new: Plan) -> list[Change]:
@@ -593,86 +446,4 @@ def _manifest_key(path_value: Callable[[Path], PathValue], plan: Plan) -> tuple[
 # ---------------------------------------------------------------------------------------------------------- reports
 
 
-def report_text(changes: Iterable[Change]) -> str:
-    """One line per change; the empty string when there is none."""
-    return "".join(change.line + "\n" for change in changes)
-
-
-def report_json(changes: Sequence[Change], old: str, new: str) -> dict[str, Any]:
-    return {"old": old, "new": new, "equivalent": not changes, "changes": [c.as_json() for c in changes]}
-
-
 # ---------------------------------------------------------------------------------------------------------- compiling
-
-
-def compile_quietly(config: Path) -> Plan:
-    """compile_config without printing warnings: the diff is about what differs, not what each config does."""
-    from ..compile.compiler import compile_config
-
-    with collect_warnings():
-        return compile_config(config)
-
-
-def diff_files(old: Path, new: Path) -> list[Change]:
-    return diff_plans(compile_quietly(old), compile_quietly(new))
-
-
-def diff_git(config: Path, revision: str) -> list[Change]:
-    """The config at `revision` vs the working tree's. Files the old config refers to are read from the working tree."""
-    new_plan = compile_quietly(config)
-    with git_revision_copy(config, revision) as old_copy:
-        old_plan = _renamed_errors(old_copy, Path(f"{config}@{revision}"))
-        old_plan = _as_if_named(old_plan, old_copy, config)
-    return diff_plans(old_plan, new_plan)
-
-
-def _renamed_errors(copy: Path, shown: Path) -> Plan:
-    """Compile the temporary copy; its errors name `CONFIG@REV`, not the hidden file that is about to be removed."""
-    try:
-        return compile_quietly(copy)
-    except UserError as exc:
-        errors = exc.errors if isinstance(exc, UserErrors) else [exc]
-        renamed = [
-            UserError(e.message, replace(e.where, file=shown) if e.where is not None and e.where.file == copy else e.where) for e in errors
-        ]
-        raise (renamed[0] if len(renamed) == 1 else UserErrors(renamed)) from None
-
-
-def _as_if_named(plan: Plan, copy: Path, config: Path) -> Plan:
-    """The default manifest is named after the config's file: name it after the real config, not the copy."""
-    plan = replace(plan, config_path=config)
-    if plan.dataset.manifest.name == f"{copy.stem}.manifest.json":
-        manifest = plan.dataset.manifest.with_name(f"{config.stem}.manifest.json")
-        plan = replace(plan, dataset=replace(plan.dataset, manifest=manifest))
-    return plan
-
-
-def git_show(config: Path, revision: str) -> str:
-    """The text of `config` at `revision` (`git show REV:./NAME` in the config's folder)."""
-    folder = config.absolute().parent  # as compile_config sees it: relative paths start from here
-    spec = f"{revision}:./{config.name}"
-    try:
-        result = subprocess.run(["git", "show", spec], cwd=folder, capture_output=True, text=True, check=False)
-    except FileNotFoundError:
-        raise UserError("git is not installed (needed by --git)", Where(config, 0)) from None
-    except OSError as exc:
-        raise UserError(f"cannot run git in {folder}: {exc}", Where(config, 0)) from None
-    if result.returncode != 0:
-        reason = (result.stderr.strip().splitlines() or ["git failed"])[-1].removeprefix("fatal: ")
-        raise UserError(f"cannot read {config.name} at git revision '{revision}': {reason}", Where(config, 0))
-    return result.stdout
-
-
-@contextmanager
-def git_revision_copy(config: Path, revision: str) -> Iterator[Path]:
-    """The config's text at `revision` in a hidden file beside the config (so relative paths resolve alike), removed afterwards."""
-    text = git_show(config, revision)
-    folder = config.absolute().parent  # as compile_config sees it: relative paths start from here
-    handle, name = tempfile.mkstemp(prefix=f".{config.stem}.git-", suffix=config.suffix or ".yaml", dir=folder)
-    copy = Path(name)
-    try:
-        with os.fdopen(handle, "w", encoding="utf-8") as stream:
-            stream.write(text)
-        yield copy
-    finally:
-        copy.unlink(missing_ok=True)

@@ -1,0 +1,154 @@
+"""What a plan difference is made of: a Change, values with their YAML paths, and the tolerances that make two numbers, rotations or translations the same."""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ..urdf.geometry import Quaternion, Vector, normalized_quaternion, quaternion_multiply
+
+TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True)
+class Change:
+    """One difference: `subject: detail` is its line (`robot arm: j2 -> panda_joint2: sign 1 -> -1`)."""
+
+    group: str  # "robot", "edges", "sources" or "output"
+    subject: str  # "robot arm", "edge world -> panda_link0", "source arm_state", "output"
+    detail: str
+    old: Any = None  # JSON-ready values, when the change is one field's
+    new: Any = None
+
+    @property
+    def line(self) -> str:
+        return f"{self.subject}: {self.detail}"
+
+    def as_json(self) -> dict[str, Any]:
+        return {"group": self.group, "subject": self.subject, "detail": self.detail, "old": self.old, "new": self.new, "line": self.line}
+
+
+@dataclass(frozen=True, eq=False)
+class PathValue:
+    """A plan path seen from its config's folder: equal to another when either the relative or the absolute path is
+    (not transitive, hence not hashable: PathValues are compared, never keyed)."""
+
+    relative: str
+    absolute: str
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, PathValue) and (self.relative == other.relative or self.absolute == other.absolute)
+
+    def __str__(self) -> str:
+        return self.relative
+
+
+def _same(a: Any, b: Any) -> bool:
+    """Equal, floats within TOLERANCE (nested in tuples and lists too)."""
+    if isinstance(a, bool) or isinstance(b, bool):
+        return a is b
+    if isinstance(a, int | float) and isinstance(b, int | float):
+        return math.isclose(a, b, rel_tol=TOLERANCE, abs_tol=TOLERANCE)
+    if isinstance(a, tuple | list) and isinstance(b, tuple | list):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+    return bool(a == b)
+
+
+def _number(value: float) -> str:
+    return f"{value + 0.0:.12g}"  # + 0.0: no "-0"
+
+
+def _text(value: Any) -> str:
+    """A value as the report shows it: `1`, `-0.5`, `[0, 0, 0.5]`, `none`, `""`."""
+    if value is None:
+        return "none"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int | float):
+        return _number(float(value))
+    if isinstance(value, tuple | list):
+        return "[" + ", ".join(_text(v) for v in value) + "]"
+    if isinstance(value, str):
+        return value if value else '""'
+    return str(value)
+
+
+def _json(value: Any) -> Any:
+    if value is None or isinstance(value, bool | int | float | str):
+        return value
+    if isinstance(value, tuple | list):
+        return [_json(v) for v in value]
+    return str(value)
+
+
+def _length(mm: float) -> str:
+    return f"{mm:.1f}" if mm == 0 or mm >= 0.05 else f"{mm:.2g}"
+
+
+def _degrees(deg: float) -> str:
+    return f"{deg:.2f}" if deg == 0 or deg >= 0.005 else f"{deg:.2g}"
+
+
+def _unit_quaternion(q: Sequence[float]) -> Quaternion:
+    return normalized_quaternion(tuple(q)) or (0.0, 0.0, 0.0, 1.0)
+
+
+def rotation_angle_deg(a: Sequence[float], b: Sequence[float]) -> float:
+    """The angle of the rotation taking a to b (both quaternions x, y, z, w), in degrees, in [0, 180]."""
+    ax, ay, az, aw = _unit_quaternion(a)
+    x, y, z, w = quaternion_multiply((-ax, -ay, -az, aw), _unit_quaternion(b))
+    return math.degrees(2 * math.atan2(math.sqrt(x * x + y * y + z * z), abs(w)))
+
+
+def _same_rotation(a: Sequence[float], b: Sequence[float]) -> bool:
+    qa, qb = _unit_quaternion(a), _unit_quaternion(b)
+    return _same(qa, qb) or _same(qa, tuple(-v for v in qb))  # q and -q are the same rotation
+
+
+def _moved(t_old: Vector, q_old: Sequence[float], t_new: Vector, q_new: Sequence[float]) -> str | None:
+    """`moved 5.0 mm, 0.00 deg (translation [..] -> [..])`, or None for the same pose."""
+    translated, rotated = not _same(t_old, t_new), not _same_rotation(q_old, q_new)
+    if not translated and not rotated:
+        return None
+    mm = math.dist(t_old, t_new) * 1000 if translated else 0.0
+    deg = rotation_angle_deg(q_old, q_new) if rotated else 0.0
+    what = []
+    if translated:
+        what.append(f"translation {_text(_rounded(t_old))} -> {_text(_rounded(t_new))}")
+    if rotated:
+        what.append(f"quaternion_xyzw {_text(_rounded(q_old))} -> {_text(_rounded(q_new))}")
+    return f"moved {_length(mm)} mm, {_degrees(deg)} deg ({'; '.join(what)})"
+
+
+def _rounded(values: Sequence[float]) -> tuple[float, ...]:
+    return tuple(round(v, 9) + 0.0 for v in values)
+
+
+class _Report:
+    """The changes found so far, and the two configs' folders their paths are relative to."""
+
+    def __init__(self, old_base: Path, new_base: Path) -> None:
+        self.old_base, self.new_base = old_base, new_base
+        self.changes: list[Change] = []
+
+    def add(self, group: str, subject: str, detail: str, old: Any = None, new: Any = None) -> None:
+        self.changes.append(Change(group, subject, detail, _json(old), _json(new)))
+
+    def field(self, group: str, subject: str, label: str, old: Any, new: Any) -> None:
+        if not _same(old, new):
+            self.add(group, subject, f"{label} {_text(old)} -> {_text(new)}", old, new)
+
+    def old_path(self, path: Path) -> PathValue:
+        return _path_value(path, self.old_base)
+
+    def new_path(self, path: Path) -> PathValue:
+        return _path_value(path, self.new_base)
+
+
+def _path_value(path: Path, base: Path) -> PathValue:
+    absolute = os.path.abspath(path)
+    return PathValue(Path(os.path.relpath(absolute, os.path.abspath(base))).as_posix(), absolute)

@@ -1,0 +1,101 @@
+"""What `diff` compares: two config files, or a config and its text at a git revision, compiled quietly; and the report's text and JSON forms."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import tempfile
+from collections.abc import Iterable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+from ..errors import UserError, UserErrors, Where, collect_warnings
+from ..plan import (
+    Plan,
+)
+from .diff import diff_plans
+from .diff_base import Change
+
+
+def report_text(changes: Iterable[Change]) -> str:
+    """One line per change; the empty string when there is none."""
+    return "".join(change.line + "\n" for change in changes)
+
+
+def report_json(changes: Sequence[Change], old: str, new: str) -> dict[str, Any]:
+    return {"old": old, "new": new, "equivalent": not changes, "changes": [c.as_json() for c in changes]}
+
+
+def compile_quietly(config: Path) -> Plan:
+    """compile_config without printing warnings: the diff is about what differs, not what each config does."""
+    from ..compile.compiler import compile_config
+
+    with collect_warnings():
+        return compile_config(config)
+
+
+def diff_files(old: Path, new: Path) -> list[Change]:
+    return diff_plans(compile_quietly(old), compile_quietly(new))
+
+
+def diff_git(config: Path, revision: str) -> list[Change]:
+    """The config at `revision` vs the working tree's. Files the old config refers to are read from the working tree."""
+    new_plan = compile_quietly(config)
+    with git_revision_copy(config, revision) as old_copy:
+        old_plan = _renamed_errors(old_copy, Path(f"{config}@{revision}"))
+        old_plan = _as_if_named(old_plan, old_copy, config)
+    return diff_plans(old_plan, new_plan)
+
+
+def _renamed_errors(copy: Path, shown: Path) -> Plan:
+    """Compile the temporary copy; its errors name `CONFIG@REV`, not the hidden file that is about to be removed."""
+    try:
+        return compile_quietly(copy)
+    except UserError as exc:
+        errors = exc.errors if isinstance(exc, UserErrors) else [exc]
+        renamed = [
+            UserError(e.message, replace(e.where, file=shown) if e.where is not None and e.where.file == copy else e.where) for e in errors
+        ]
+        raise (renamed[0] if len(renamed) == 1 else UserErrors(renamed)) from None
+
+
+def _as_if_named(plan: Plan, copy: Path, config: Path) -> Plan:
+    """The default manifest is named after the config's file: name it after the real config, not the copy."""
+    plan = replace(plan, config_path=config)
+    if plan.dataset.manifest.name == f"{copy.stem}.manifest.json":
+        manifest = plan.dataset.manifest.with_name(f"{config.stem}.manifest.json")
+        plan = replace(plan, dataset=replace(plan.dataset, manifest=manifest))
+    return plan
+
+
+def git_show(config: Path, revision: str) -> str:
+    """The text of `config` at `revision` (`git show REV:./NAME` in the config's folder)."""
+    folder = config.absolute().parent  # as compile_config sees it: relative paths start from here
+    spec = f"{revision}:./{config.name}"
+    try:
+        result = subprocess.run(["git", "show", spec], cwd=folder, capture_output=True, text=True, check=False)
+    except FileNotFoundError:
+        raise UserError("git is not installed (needed by --git)", Where(config, 0)) from None
+    except OSError as exc:
+        raise UserError(f"cannot run git in {folder}: {exc}", Where(config, 0)) from None
+    if result.returncode != 0:
+        reason = (result.stderr.strip().splitlines() or ["git failed"])[-1].removeprefix("fatal: ")
+        raise UserError(f"cannot read {config.name} at git revision '{revision}': {reason}", Where(config, 0))
+    return result.stdout
+
+
+@contextmanager
+def git_revision_copy(config: Path, revision: str) -> Iterator[Path]:
+    """The config's text at `revision` in a hidden file beside the config (so relative paths resolve alike), removed afterwards."""
+    text = git_show(config, revision)
+    folder = config.absolute().parent  # as compile_config sees it: relative paths start from here
+    handle, name = tempfile.mkstemp(prefix=f".{config.stem}.git-", suffix=config.suffix or ".yaml", dir=folder)
+    copy = Path(name)
+    try:
+        with os.fdopen(handle, "w", encoding="utf-8") as stream:
+            stream.write(text)
+        yield copy
+    finally:
+        copy.unlink(missing_ok=True)
