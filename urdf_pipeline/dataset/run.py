@@ -12,14 +12,15 @@ import traceback
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING
 
 from ..errors import Problems, UserError
 from ..execute.segment import Parts
-from ..execute.segment_run import SegmentJob, SegmentResult, install_run_plan, run_segment
+from ..execute.segment_run import SegmentJob, SegmentResult, run_segment
 from ..execute.writer import remove_stale_partials, require_ours, require_writable
 from ..plan import Plan
 from ..progress import SegmentProgress
+from .executors import ExecutorName, executor_for
 from .fingerprint import model_hash, segment_hashes
 from .interrupts import describe, signal_number
 from .manifest import Manifest
@@ -27,13 +28,11 @@ from .manifest import Manifest
 if TYPE_CHECKING:
     from .catalog import CatalogReport
 
-Executor = Literal["local", "ray"]
-
 
 @dataclass(frozen=True)
 class RunOptions:
     jobs: int = 1
-    executor: Executor = "local"
+    executor: ExecutorName = "local"
     ray_address: str | None = None
     force: bool = False
     verbose: bool = False  # one segment in this process: its own progress lines and notes, as a plain run prints them
@@ -95,15 +94,7 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
         to_run = [replace(to_run[0], verbose=True)]
     interrupted = 0
     try:
-        if options.executor == "ray":
-            from .ray_executor import run_on_ray
-
-            run_on_ray(work, to_run, options.ray_address, on_done, on_crash, num_cpus=options.jobs)
-        else:
-            from .local_executor import run_locally
-
-            slim = [replace(job, run_plan=None) for job in to_run]  # workers get the plan once, from install_run_plan
-            run_locally(work, slim, options.jobs, on_done, on_crash, install_run_plan, (plan,))
+        executor_for(options.executor, options.jobs, options.ray_address, plan).run(work, to_run, on_done, on_crash)
     except KeyboardInterrupt as stop:  # Ctrl-C, or SIGTERM (interrupts.Terminated)
         interrupted = signal_number(stop)
         _remove_partial_files([job.output for job in to_run])
