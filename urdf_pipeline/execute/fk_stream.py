@@ -11,9 +11,10 @@ import pyarrow as pa
 from ..progress import RowProgress
 from ..sources.callbacks import CallbackErrors
 from ..sources.joint_values import JointValueMapper, raw_matrix
+from .transform_lenses import transform_lenses, transform_stream
 
 if TYPE_CHECKING:
-    from rerun.chunk import DeriveLens, LazyChunkStream
+    from rerun.chunk import LazyChunkStream
     from rerun.urdf import UrdfTree
 
     from ..sources.stream import SourceStream
@@ -55,29 +56,10 @@ class JointTransformBatches:
         return batches
 
 
-def fk_lenses(
-    robot_key: str, fk_entity: str, batch_entity: str, source: SourceStream, batches: JointTransformBatches, errors: CallbackErrors
-) -> tuple[DeriveLens, DeriveLens]:
-    import rerun as rr
-    from rerun.chunk import DeriveLens, Selector
-
-    component = _batch_component(robot_key)
-    compute = DeriveLens(source.component, output_entity=batch_entity).to_component(component, Selector(".").pipe(errors.wrap(batches)))
-    scatter = (
-        DeriveLens(component, output_entity=fk_entity, scatter=True)
-        .to_component(rr.Transform3D.descriptor_translation(), Selector(".[].translation"))
-        .to_component(rr.Transform3D.descriptor_quaternion(), Selector(".[].quaternion"))
-        .to_component(rr.Transform3D.descriptor_parent_frame(), Selector(".[].parent_frame"))
-        .to_component(rr.Transform3D.descriptor_child_frame(), Selector(".[].child_frame"))
-    )
-    return compute, scatter
-
-
 def fk_stream(source: SourceStream, robots: list[tuple[str, str, JointTransformBatches]], errors: CallbackErrors) -> LazyChunkStream:
     """All robots driven by one source, from one read of it: (robot key, FK entity, batch function) each."""
-    computes, scatters = [], []
-    for key, fk_entity, batches in robots:
-        compute, scatter = fk_lenses(key, fk_entity, f"/__urdf_pipeline/{key}/joint_transform_batches", source, batches, errors)
-        computes.append(compute)
-        scatters.append(scatter)
-    return source.stream.lenses(computes, content=source.entity).lenses(scatters)
+    pairs = [
+        transform_lenses(source, f"/__urdf_pipeline/{key}/joint_transform_batches", _batch_component(key), fk_entity, batches, errors)
+        for key, fk_entity, batches in robots
+    ]
+    return transform_stream(source, pairs)

@@ -9,7 +9,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
-from ..compile.temporal_edges import check_temporal_edges, temporal_edge_streams
 from ..errors import Problems
 from ..plan import Plan
 from ..progress import RowProgress, say
@@ -21,6 +20,7 @@ from .fk_stream import JointTransformBatches, fk_stream
 from .limits_report import check_joint_statistics
 from .model_stream import cached_tree, model_stream
 from .provenance import provenance_stream
+from .temporal_stream import check_temporal_edges, temporal_edge_streams
 from .writer import write_atomically
 
 Parts = Literal["all", "layer", "model"]  # single layout | split layout's per-segment layer | split layout's model asset

@@ -1,0 +1,141 @@
+"""Temporal edges as a lazy stream: the source's vectors -> one Transform3D per row on `/calibration/temporal/CHILD`, with the statistics the checks after the data pass need."""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pyarrow as pa
+
+from ..compile.temporal_edges import describe
+from ..errors import Problems
+from ..plan import Plan, SourcePlan, TemporalEdgePlan
+from ..sources.callbacks import CallbackErrors
+from ..sources.joint_values import raw_matrix
+from .transform_lenses import transform_lenses, transform_stream
+
+if TYPE_CHECKING:
+    from rerun.chunk import LazyChunkStream
+
+    from ..sources.stream import SourceStream
+
+
+_FLOAT3 = pa.list_(pa.field("item", pa.float32(), nullable=False), 3)
+_FLOAT4 = pa.list_(pa.field("item", pa.float32(), nullable=False), 4)
+_EDGE_STRUCT = pa.struct(
+    [
+        pa.field("translation", _FLOAT3, nullable=False),
+        pa.field("quaternion", _FLOAT4, nullable=False),
+        pa.field("parent_frame", pa.string(), nullable=False),
+        pa.field("child_frame", pa.string(), nullable=False),
+    ]
+)
+
+
+@dataclass
+class TemporalEdgeStats:
+    rows: int = 0
+    nonfinite_rows: int = 0
+    nonfinite_by_value: dict[str, int] = field(default_factory=dict)
+    zero_quaternion_rows: int = 0
+
+
+class TemporalEdgeValues:
+    """The first lens's function: source vectors -> one list<struct> Transform3D batch per row, with statistics."""
+
+    def __init__(self, edge: TemporalEdgePlan, source: SourcePlan) -> None:
+        self.edge = edge
+        self.source = source
+        self.width = len(source.names)
+        self.columns = np.array([*edge.translation_indices, *edge.quaternion_indices], dtype=np.intp)
+        self.value_names = (*edge.translation_names, *edge.quaternion_names)
+        self.stats = TemporalEdgeStats()
+        self._lock = threading.Lock()
+
+    def __call__(self, vectors: pa.Array) -> pa.Array:
+        picked = raw_matrix(self.source, vectors, self.columns, f"temporal edge {self.edge.parent} -> {self.edge.child}")[:, self.columns]
+        rows = len(picked)
+        finite = np.isfinite(picked)
+        bad_rows = ~finite.all(axis=1)
+        norms = np.linalg.norm(np.where(finite[:, 3:], picked[:, 3:], 0.0), axis=1)
+        zero = ~bad_rows & (norms < 1e-9)
+        self._record(rows, finite, bad_rows, zero)
+        # Bad rows stop the run after the data pass; give them a harmless identity so the batch stays valid.
+        unusable = bad_rows | zero
+        translation = np.where(unusable[:, None], 0.0, picked[:, :3])
+        quaternion = np.where(unusable[:, None], [0.0, 0.0, 0.0, 1.0], picked[:, 3:] / np.where(unusable, 1.0, norms)[:, None])
+        structs = pa.StructArray.from_arrays(
+            [
+                pa.FixedSizeListArray.from_arrays(pa.array(translation.astype(np.float32).reshape(-1)), 3).cast(_FLOAT3),
+                pa.FixedSizeListArray.from_arrays(pa.array(quaternion.astype(np.float32).reshape(-1)), 4).cast(_FLOAT4),
+                pa.array([self.edge.parent] * rows, pa.string()),
+                pa.array([self.edge.child] * rows, pa.string()),
+            ],
+            fields=list(_EDGE_STRUCT),
+        )
+        offsets = pa.array(np.arange(rows + 1, dtype=np.int32))
+        return pa.ListArray.from_arrays(offsets, structs, type=pa.list_(pa.field("item", _EDGE_STRUCT, nullable=False)))
+
+    def _record(self, rows: int, finite: np.ndarray, bad_rows: np.ndarray, zero: np.ndarray) -> None:
+        per_value = (~finite).sum(axis=0)
+        with self._lock:
+            self.stats.rows += rows
+            self.stats.nonfinite_rows += int(bad_rows.sum())
+            self.stats.zero_quaternion_rows += int(zero.sum())
+            for name, count in zip(self.value_names, per_value, strict=True):
+                if count:
+                    self.stats.nonfinite_by_value[name] = self.stats.nonfinite_by_value.get(name, 0) + int(count)
+
+
+def _component(edge: TemporalEdgePlan) -> str:
+    return f"urdf_pipeline:TemporalEdgeBatch:{edge.entity}"
+
+
+def temporal_edge_stream(source: SourceStream, values: list[TemporalEdgeValues], errors: CallbackErrors) -> LazyChunkStream:
+    """Every temporal edge of one source, from one read of it: compute lens -> scatter lens onto Transform3D."""
+    pairs = [
+        transform_lenses(source, f"/__urdf_pipeline/temporal_edge_batches{v.edge.entity}", _component(v.edge), v.edge.entity, v, errors)
+        for v in values
+    ]
+    return transform_stream(source, pairs)
+
+
+def temporal_edge_streams(plan: Plan, errors: CallbackErrors) -> tuple[list[LazyChunkStream], list[TemporalEdgeValues]]:
+    """One stream per source that temporal edges read. The source is opened here on its own: a source that also
+    drives a robot is read twice (once for the FK, once here), which keeps the FK stream untouched."""
+    from ..sources import module_for
+
+    streams: list[LazyChunkStream] = []
+    all_values: list[TemporalEdgeValues] = []
+    for source in plan.sources:
+        edges = [edge for edge in plan.temporal_edges if edge.source == source.name]
+        if not edges:
+            continue
+        values = [TemporalEdgeValues(edge, source) for edge in edges]
+        streams.append(temporal_edge_stream(module_for(source).open_stream(source), values, errors))
+        all_values += values
+    return streams, all_values
+
+
+def check_temporal_edges(values: list[TemporalEdgeValues], problems: Problems) -> None:
+    """After the data pass: every temporal edge had rows, all finite, with non-zero quaternions."""
+    for edge_values in values:
+        edge, stats = edge_values.edge, edge_values.stats
+        if stats.rows == 0:
+            problems.add(
+                f"{describe(edge)}: source '{edge.source}' yielded zero rows; frame '{edge.child}' would never be placed", edge.where
+            )
+            continue
+        if stats.nonfinite_rows:
+            counts = ", ".join(f"{name} {count}" for name, count in stats.nonfinite_by_value.items())
+            problems.add(
+                f"{describe(edge)}: {stats.nonfinite_rows} of {stats.rows} rows are NaN or infinite (per value: {counts})", edge.where
+            )
+        if stats.zero_quaternion_rows:
+            problems.add(
+                f"{describe(edge)}: {stats.zero_quaternion_rows} of {stats.rows} rows have an all-zero quaternion "
+                f"({', '.join(edge.quaternion_names)}), which is no rotation at all",
+                edge.where,
+            )
