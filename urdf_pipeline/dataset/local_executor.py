@@ -23,6 +23,8 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from typing import TypeVar
 
+from ..execute.writer import process_alive
+
 PRELOAD = ["urdf_pipeline.execute.segment_run", "urdf_pipeline.execute.segment", "rerun.chunk", "rerun.urdf", "rerun.experimental"]
 J = TypeVar("J")
 R = TypeVar("R")
@@ -143,21 +145,11 @@ def _exit_with(main: int) -> None:
     except ProcessLookupError:
         os._exit(1)
     except (AttributeError, OSError):  # another system: look once a second
-        while _alive(main):
+        while process_alive(main):
             time.sleep(1.0)
         os._exit(1)
     select.select([handle], [], [])
     os._exit(1)
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 def _run_here(work: Callable[[J], R], job: J, on_done: Callable[[J, R], None], on_crash: Callable[[J, BaseException], None]) -> None:

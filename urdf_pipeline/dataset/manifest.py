@@ -15,8 +15,8 @@ from pathlib import Path
 from typing import Any
 
 from .. import __version__
-from ..errors import UserError, Where
-from ..execute.writer import partial_path, require_ours
+from ..errors import Where
+from ..execute.writer import require_ours, write_file_atomically
 
 FORMAT = 1
 
@@ -96,14 +96,5 @@ class Manifest:
             "model": self.model,
             "segments": segments,
         }
-        partial = partial_path(self.path)
-        try:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            partial.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n", encoding="utf-8")
-            os.replace(partial, self.path)
-        except OSError as exc:
-            partial.unlink(missing_ok=True)
-            raise UserError(f"cannot write the manifest {self.path}: {exc}") from None
-        except BaseException:  # a signal mid-write: no partial file stays behind
-            partial.unlink(missing_ok=True)
-            raise
+        text = json.dumps(data, indent=1, sort_keys=True) + "\n"
+        write_file_atomically(self.path, lambda partial: partial.write_text(text, encoding="utf-8"), None)  # ours: see load

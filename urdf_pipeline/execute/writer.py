@@ -33,36 +33,32 @@ def partial_path(target: Path) -> Path:
 
 
 def write_atomically(store: ChunkStore, output: OutputPlan) -> Path:
-    target = output.path
+    """The segment's recording, written as `write_file_atomically` writes every output."""
+    return write_file_atomically(
+        output.path,
+        lambda partial: store.write_rrd(partial, application_id=output.application_id, recording_id=output.recording_id),
+        "recording",
+        output.where,
+    )
+
+
+def write_file_atomically(target: Path, write: Callable[[Path], object], kind: Kind | None = "blueprint", where: Where | None = None) -> Path:
+    """`write(partial)` beside the target, then renamed into place. The target must be a file of ours of `kind`
+    (checked again here: it may have appeared since the run started; None: the caller checked it, as the manifest,
+    rewritten every second, is checked once when loaded); a failure leaves no partial file and is a user error."""
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise UserError(f"cannot create output directory {target.parent}: {exc}", output.where) from None
-    require_ours(target, "recording", output.where)  # again here: the file may have appeared since the run started
+        raise UserError(f"cannot create output directory {target.parent}: {exc}", where) from None
+    if kind is not None:
+        require_ours(target, kind, where)
     partial = partial_path(target)
     try:
-        store.write_rrd(partial, application_id=output.application_id, recording_id=output.recording_id)
+        write(partial)
         os.replace(partial, target)
     except (OSError, RuntimeError) as exc:  # disk full, a directory in the way, permissions: the machine, not a bug
         partial.unlink(missing_ok=True)
-        raise UserError(f"cannot write {target}: {exc}", output.where) from None
-    except BaseException:
-        partial.unlink(missing_ok=True)
-        raise
-    return target
-
-
-def write_file_atomically(target: Path, write: Callable[[Path], None], kind: Kind = "blueprint") -> Path:
-    """`write(partial)` beside the target, then renamed into place (for files other than recordings: the blueprint)."""
-    require_ours(target, kind, None)
-    partial = partial_path(target)
-    try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-        write(partial)
-        os.replace(partial, target)
-    except (OSError, RuntimeError) as exc:
-        partial.unlink(missing_ok=True)
-        raise UserError(f"cannot write {target}: {exc}") from None
+        raise UserError(f"cannot write {target}: {exc}", where) from None
     except BaseException:
         partial.unlink(missing_ok=True)
         raise
@@ -140,19 +136,18 @@ def remove_stale_partials(directories: Iterable[Path]) -> list[Path]:
             continue  # not there yet: nothing to clean
         for entry in entries:
             match = PARTIAL.match(entry)
-            if match and match["name"].endswith(WRITTEN_SUFFIXES) and not _alive(int(match["pid"])):
+            if match and match["name"].endswith(WRITTEN_SUFFIXES) and not process_alive(int(match["pid"])):
                 (directory / entry).unlink(missing_ok=True)
                 removed.append(directory / entry)
     return removed
 
 
-def _alive(pid: int) -> bool:
-    if pid == os.getpid():
-        return True
+def process_alive(pid: int) -> bool:
+    """Whether process `pid` exists (another user's process counts: it cannot be signalled, but it is there)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
     except PermissionError:
-        return True  # another user's process
+        return True
     return True
