@@ -14,7 +14,7 @@ from ..config.document import Document
 from ..errors import UserError, listing
 from ..plan import Hdf5SourcePlan, IndexPlan
 from .base import resolve_input
-from .integrity import read_hdf5_datasets
+from .integrity import check_hdf5_datasets
 from .ordering import in_time_order, with_duplicates
 from .parquet import compile_index
 from .stream import SourceStream, index_column
@@ -81,7 +81,7 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
         if index is not None:
             _check_index(file, index, rows, path, document, here)
     # Every chunk decodes (a corrupt one is a user error here, not a RuntimeError inside Rerun's reader).
-    read_hdf5_datasets(path, [dataset, *([index.column] if index is not None else [])], document.where(*here, "hdf5"))
+    check_hdf5_datasets(path, [dataset, *([index.column] if index is not None else [])], document.where(*here, "hdf5"))
     return with_duplicates(Hdf5SourcePlan(name, path, dataset, index, rows, names, document.where(*here)), spec)
 
 

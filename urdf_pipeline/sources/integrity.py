@@ -13,7 +13,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 from ..errors import UserError, Where
 
@@ -39,11 +38,12 @@ def refuse_empty_parquet(path: Path, where: Where | None) -> None:
         raise UserError(f"parquet file {path} has zero rows (its footer says so); a source with zero rows moves nothing", where)
 
 
-def read_parquet_columns(path: Path, columns: Sequence[str], where: Where | None) -> Any:
-    """The columns as a pyarrow Table, decoded row group by row group; a corrupt page names its row group.
+HDF5_BLOCK_ROWS = 65_536  # rows decoded at a time when checking an HDF5 dataset: memory stays bounded
 
-    Page checksums, when the writer stored them, are verified.
-    """
+
+def check_parquet_pages(path: Path, columns: Sequence[str], where: Where | None) -> None:
+    """Every data page of `columns` decodes (page checksums verified when the writer stored them), one row group at a
+    time and then dropped, so memory is one row group's; a corrupt page names its row group."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -52,37 +52,36 @@ def read_parquet_columns(path: Path, columns: Sequence[str], where: Where | None
     except (pa.ArrowException, OSError, ValueError) as exc:
         raise UserError(f"cannot read parquet file {path}: {_reason(exc)}", where) from None
     groups = file.metadata.num_row_groups
-    tables = []
     for group in range(groups):  # one iteration per row group, not per row
         try:
-            tables.append(file.read_row_group(group, columns=list(columns)))
+            file.read_row_group(group, columns=list(columns))
         except (pa.ArrowException, OSError, ValueError) as exc:
             raise UserError(
                 f"parquet file {path} is corrupt: row group {group} of {groups} ({', '.join(columns)}) cannot be decoded: "
                 f"{_reason(exc)}; re-export or replace the file",
                 where,
             ) from None
-    if not tables:
-        return file.schema_arrow.empty_table().select(list(columns))
-    return pa.concat_tables(tables)
 
 
-def read_hdf5_datasets(path: Path, datasets: Sequence[str], where: Where | None) -> list[Any]:
-    """Each dataset read in full with h5py (joint data is small); a corrupt chunk or a truncated file names both."""
+def check_hdf5_datasets(path: Path, datasets: Sequence[str], where: Where | None) -> None:
+    """Every chunk of each dataset decodes, HDF5_BLOCK_ROWS rows at a time; a corrupt chunk or a truncated file names
+    both the file and the dataset."""
     import h5py
 
     try:
         file = h5py.File(path, "r")
     except OSError as exc:
         raise UserError(f"cannot open HDF5 file {path}: {_reason(exc)}", where) from None
-    values = []
     with file:
         for dataset in datasets:
             try:
-                values.append(file[dataset][()])
+                values = file[dataset]
+                if not values.shape:
+                    _ = values[()]  # decoded and dropped
+                for start in range(0, values.shape[0] if values.shape else 0, HDF5_BLOCK_ROWS):  # one per block of rows
+                    _ = values[start : start + HDF5_BLOCK_ROWS]  # decoded and dropped
             except (OSError, KeyError, ValueError, RuntimeError) as exc:
                 raise UserError(
                     f"HDF5 file {path} is corrupt: dataset '{dataset}' cannot be read: {_reason(exc)}; re-export or replace the file",
                     where,
                 ) from None
-    return values

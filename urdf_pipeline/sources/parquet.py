@@ -12,7 +12,7 @@ from ..config.document import Document
 from ..errors import UserError
 from ..plan import IndexPlan, ParquetSourcePlan
 from .base import resolve_input
-from .integrity import read_parquet_columns, refuse_empty_parquet
+from .integrity import check_parquet_pages, refuse_empty_parquet
 from .ordering import in_time_order, with_duplicates
 from .stream import SourceStream
 
@@ -73,7 +73,7 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
     ):
         raise UserError(f"index column '{index.column}' is {index_type}, not a time", document.where(*here, "index"))
     refuse_empty_parquet(path, document.where(*here, "parquet"))  # from the footer, before any data page
-    read_parquet_columns(path, [column, index.column], document.where(*here, "parquet"))  # corrupt pages: a user error here
+    check_parquet_pages(path, [column, index.column], document.where(*here, "parquet"))  # corrupt pages: a user error here
     return with_duplicates(ParquetSourcePlan(name, path, column, index, names, document.where(*here)), spec)
 
 
