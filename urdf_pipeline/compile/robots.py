@@ -23,9 +23,10 @@ def load_urdf(key: str, spec: dict[str, Any], package_paths: dict[str, Path], do
     where = document.where("robots", key, "urdf")
     try:
         is_file = isinstance(spec["urdf"], str) or "xacro" not in spec["urdf"]  # an expanded xacro has no lines to point at
-        parse_urdf_text(loaded.text, str(loaded.path), source_lines=is_file)
+        model = parse_urdf_text(loaded.text, str(loaded.path), source_lines=is_file)
         text, notes = text_for_rerun(loaded.text, str(loaded.path))
-        model = parse_urdf_text(text, str(loaded.path))
+        if text is not loaded.text:  # repaired: the model is read from what Rerun will draw
+            model = parse_urdf_text(text, str(loaded.path))
     except UrdfParseError as exc:
         raise UserErrors([UserError(message, where) for message in exc.messages]) from None
     loader_error = rerun_loader_error(text)
