@@ -42,7 +42,9 @@ def write_atomically(store: ChunkStore, output: OutputPlan) -> Path:
     )
 
 
-def write_file_atomically(target: Path, write: Callable[[Path], object], kind: Kind | None = "blueprint", where: Where | None = None) -> Path:
+def write_file_atomically(
+    target: Path, write: Callable[[Path], object], kind: Kind | None = "blueprint", where: Where | None = None
+) -> Path:
     """`write(partial)` beside the target, then renamed into place. The target must be a file of ours of `kind`
     (checked again here: it may have appeared since the run started; None: the caller checked it, as the manifest,
     rewritten every second, is checked once when loaded); a failure leaves no partial file and is a user error."""
