@@ -24,8 +24,10 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from typing import TypeVar
 
 from ..execute.writer import process_alive
+from .interrupts import deferred_signals
 
 PRELOAD = ["urdf_pipeline.execute.segment_run", "urdf_pipeline.execute.segment", "rerun.chunk", "rerun.urdf", "rerun.experimental"]
+POLL_SECONDS = 0.2  # how soon a Ctrl-C or SIGTERM is acted on while waiting for the workers
 J = TypeVar("J")
 R = TypeVar("R")
 
@@ -106,30 +108,38 @@ def _run_in_pool(
     pending: dict[Future[R], J] = {}
     queue = list(reversed(jobs))
 
-    def finish(done: set[Future[R]] | list[Future[R]]) -> None:
+    def outcomes(done: Sequence[Future[R]]) -> list[tuple[J, R | None, BaseException | None]]:
+        """(job, result, error) of finished futures, taken out of `pending` (reading a future takes its lock)."""
+        taken = []
         for future in done:
-            job = pending.pop(future)
-            error = future.exception()
-            if error is None:
-                on_done(job, future.result())
-            else:
-                on_crash(job, error)
+            job, error = pending.pop(future), future.exception()
+            taken.append((job, None if error is not None else future.result(), error))
+        return taken
 
     try:
         while queue or pending:
-            while ready.is_set() and queue and len(pending) < 2 * helpers:
-                job = queue.pop()
-                pending[pool.submit(work, job)] = job
-            finish([future for future in pending if future.done()])
-            if queue and not ready.is_set():
+            with deferred_signals() as stop:  # no signal raised inside the pool's locks: see interrupts.deferred_signals
+                while ready.is_set() and queue and len(pending) < 2 * helpers:
+                    job = queue.pop()
+                    pending[pool.submit(work, job)] = job
+                done = [future for future in pending if future.done()]
+                run_here = bool(queue) and not ready.is_set()
+                while not done and not run_here and pending and not stop:  # a signal ends the wait within POLL_SECONDS
+                    done = list(wait(pending, timeout=POLL_SECONDS, return_when=FIRST_COMPLETED)[0])
+                finished = outcomes(done)
+            for job, result, error in finished:  # our callbacks: interruptible as any of our code
+                if error is None:
+                    on_done(job, result)  # type: ignore[arg-type]
+                else:
+                    on_crash(job, error)
+            if run_here:
                 _run_here(work, queue.pop(), on_done, on_crash)
-            elif pending:
-                finish(wait(pending, return_when=FIRST_COMPLETED)[0])
     except BaseException:  # futures are not cancelled one by one: Python 3.11's pool then fails on them (InvalidStateError)
         _terminate(pool)
         raise
     if ready.is_set():
-        pool.shutdown(wait=True)
+        with deferred_signals():
+            pool.shutdown(wait=True)
     else:  # every job was done here before the workers came up: they are not needed
         _terminate(pool)
 
