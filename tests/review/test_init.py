@@ -242,6 +242,15 @@ def test_source_spec_syntax(tmp_path: Path) -> None:
     assert parse_source_spec("hdf5:a.hdf5#/observations/qpos") == ("hdf5", "a.hdf5", "/observations/qpos")
     assert parse_source_spec("bag.mcap") == ("mcap", "bag.mcap", None)
     assert parse_source_spec("x.parquet#observation.state") == ("parquet", "x.parquet", "observation.state")
+    assert parse_source_spec("EP.H5#/qpos") == ("hdf5", "EP.H5", "/qpos")  # the suffixes come from the kinds
+    (tmp_path / "ds" / "meta").mkdir(parents=True)
+    (tmp_path / "ds" / "meta" / "info.json").write_text("{}")
+    assert parse_source_spec(str(tmp_path / "ds")) == ("lerobot", str(tmp_path / "ds"), None)
+    with pytest.raises(UserError) as caught:
+        parse_source_spec(str(tmp_path / "x.csv"))
+    assert caught.value.message.endswith(
+        "lerobot:DIR[#FEATURE], parquet:FILE[#COLUMN], mcap:FILE[#TOPIC], hdf5:FILE#/DATASET or rrd:FILE#ENTITY"
+    )
 
 
 def test_name_matching_rules() -> None:

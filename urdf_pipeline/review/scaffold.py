@@ -6,18 +6,11 @@ the calibration edge), `# review: ...` a guess to check (a name match and its sc
 the result only on stubs that cannot work as they are, all marked TODO: the stub source file (which does not exist),
 a package folder init could not find. The text is deterministic for a given URDF, source and output location.
 
-SOURCE_SPEC is `KIND:PATH[#PART]` (PATH relative to the current directory, PART chosen per kind):
-
-- `lerobot:DIR[#FEATURE]`   a LeRobot dataset; FEATURE default `observation.state`; names from meta/info.json
-- `parquet:FILE[#COLUMN]`   COLUMN default `observation.state` (or the file's only list column); parquet has no names
-- `mcap:FILE[#TOPIC]`       TOPIC default: the file's only sensor_msgs/msg/JointState topic; names from its first message
-- `hdf5:FILE#/DATASET`      a 2-D dataset, e.g. `/observations/qpos`; HDF5 has no names
-- `rrd:FILE#ENTITY`         e.g. `/observation.state`; names from the entity's SeriesLines:names
-
-`KIND:` may be left out when the path says it (`.parquet`, `.mcap`, `.h5`/`.hdf5`, `.rrd`, a directory holding
-meta/info.json). A glob in a file path (`data/*.parquet`) becomes a globbed source, one segment per file.
-Only metadata is read, as `validate` reads it (a parquet schema, meta/info.json, the MCAP summary and the names of the
-topic's first message, HDF5 shapes, the RRD manifest and names), never joint values.
+SOURCE_SPEC is `KIND:PATH[#PART]` (PATH relative to the current directory): each kind in `sources.KINDS` says its
+form (`SPEC_FORM`, e.g. `parquet:FILE[#COLUMN]`), what PART defaults to, and describes the source (`describe`) from
+its metadata only, as `validate` reads it, never joint values. `KIND:` may be left out when the path says it (the
+kinds' `SUFFIXES`, a directory holding meta/info.json). A glob in a file path (`data/*.parquet`) becomes a globbed
+source, one segment per file. `source_probe.py` turns the description into the config entry.
 
 Sources with names are matched to the URDF's joints by name similarity (see `match_names`); sources without names
 (parquet, HDF5, a LeRobot feature without names) are matched by position and get the URDF joint names as `names`.
@@ -42,6 +35,7 @@ import yaml
 from ..config.document import Document, parse_document
 from ..config.schema import SCHEMA_RESOURCE
 from ..errors import UserError
+from ..sources import SourceDescription
 from ..urdf.meshes import package_roots
 from ..urdf.model import Joint, UrdfModel, UrdfParseError, read_urdf
 from .name_match import Match, match_names
@@ -50,10 +44,6 @@ from .yaml_writer import Block, Item, Seq, number, render_block, to_data
 
 IDENTIFIER = re.compile(r"^[A-Za-z_][A-Za-z0-9_-]*$")
 SCHEMA_IN_REPO = Path("schemas") / SCHEMA_RESOURCE
-
-
-# ---------------------------------------------------------------------------------------------------------------
-# Sources: SOURCE_SPEC -> the config entry and the names, from metadata only
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -146,10 +136,13 @@ def schema_reference(out_dir: Path) -> str:
     return Path(str(installed)).resolve().as_posix()
 
 
-@dataclass
+@dataclass(frozen=True)
 class Scaffold:
+    """The config text and what it holds, counted for the summary init prints."""
+
     text: str
-    data: dict[str, Any]
+    data: dict[str, Any]  # what the text reads back as
+    stub: bool  # no --source: the stub source
     mapped: int
     by_name: int
     held: int
@@ -176,16 +169,16 @@ def _load(urdf: Path) -> UrdfModel:
     return model
 
 
-def _pair(info: SourceInfo, joint_names: list[str]) -> tuple[list[str], list[Match]]:
+def _pair(source: SourceDescription, joint_names: list[str]) -> tuple[list[str], list[Match]]:
     """The source's names and their pre-matched joints. Positional sources (no names) are named after the joints, in
     URDF order (extra values `value_K`); named ones are matched by name, or by position (score 0) if nothing resembles."""
-    if info.names is None:
-        width = info.width if info.width is not None else len(joint_names)
+    if source.names is None:
+        width = source.width if source.width is not None else len(joint_names)
         names = [joint_names[i] if i < len(joint_names) else f"value_{i}" for i in range(width)]
         return names, [Match(joint_names[i], joint_names[i], 1.0) for i in range(min(width, len(joint_names)))]
-    names = list(info.names)
+    names = list(source.names)
     matches = match_names(names, joint_names)
-    if info.kind == "mcap":  # names in any order per message: the map follows the URDF's order
+    if source.urdf_order:  # names in any order per row: the map follows the URDF's order
         matches.sort(key=lambda m: joint_names.index(m.joint))
     if not matches:  # the map may not be empty; every entry says it is a guess by position
         matches = [Match(names[i], joint_names[i], 0.0) for i in range(min(len(names), len(joint_names)))]
@@ -193,21 +186,22 @@ def _pair(info: SourceInfo, joint_names: list[str]) -> tuple[list[str], list[Mat
 
 
 def _source_entry(info: SourceInfo, names: list[str], stub: bool) -> Block:
-    entry = info.entry
-    if info.names is None:
-        why = {
-            "parquet": "parquet carries no names",
-            "hdf5": "HDF5 carries no names",
-            "lerobot": "the feature has no names in meta/info.json",
-        }[info.kind]
+    """The config entry: the kind's key and path, the keys its description proposes, the names when it has none."""
+    source = info.description
+    entry = Block()
+    entry.add(source.kind, info.path, info.path_comment)
+    for field in source.fields:
+        entry.add(field.key, field.value, field.comment)
+    if source.names is None:
+        why = source.unnamed
         if stub:
             comment = "the URDF's joints; TODO: the names of your values, in their order (then map each below)"
-        elif info.width is None:
+        elif source.width is None:
             comment = f"review: {why} and the column's width is not fixed: assumed one value per URDF joint, in URDF order"
         else:
             comment = f"review: {why}: assumed the values come in the URDF's joint order"
         entry.add("names", names, comment)
-    for note in info.notes:
+    for note in source.notes:
         entry.note(note)
     return entry
 
@@ -228,7 +222,7 @@ def _package_paths(model: UrdfModel, urdf: Path, out_dir: Path) -> Block | None:
     return paths
 
 
-def _joints(model: UrdfModel, source_key: str, info: SourceInfo, names: list[str], matches: list[Match], stub: bool) -> Block:
+def _joints(model: UrdfModel, source_key: str, source: SourceDescription, names: list[str], matches: list[Match], stub: bool) -> Block:
     drivable = [j for j in model.joints if j.moving and j.mimic is None]
     by_name = {j.name: j for j in model.joints}
     joints = Block()
@@ -242,7 +236,7 @@ def _joints(model: UrdfModel, source_key: str, info: SourceInfo, names: list[str
         value: Any = match.joint if joint.angular == (unit == "rad") else {"joint": match.joint, "unit": "rad" if joint.angular else "m"}
         if stub:
             comment = joint_summary(joint)
-        elif info.names is None:
+        elif source.names is None:
             comment = f"review: matched by position; {joint_summary(joint)}"
         elif match.score == 0.0:
             comment = f"TODO: no source name resembles a joint name: matched by position, surely wrong; {joint_summary(joint)}"
@@ -253,7 +247,7 @@ def _joints(model: UrdfModel, source_key: str, info: SourceInfo, names: list[str
     matched_sources = {m.source_name for m in matches}
     unmatched = [n for n in names if n not in matched_sources]
     if unmatched:
-        why = "a value beyond the URDF's joints" if info.names is None else "no URDF joint resembles it"
+        why = "a value beyond the URDF's joints" if source.names is None else "no URDF joint resembles it"
         joints.add("ignore", Seq([(n, f"TODO: {why}: map it, or keep it ignored") for n in unmatched]), "source names deliberately unused")
     matched_joints = {m.joint for m in matches}
     held = [j for j in drivable if j.name not in matched_joints]
@@ -287,7 +281,7 @@ def scaffold(urdf: Path, source: str | None, out_file: Path) -> Scaffold:
     joint_names = [j.name for j in model.joints if j.moving and j.mimic is None]
     stub = source is None
     info = stub_source(key, joint_names) if source is None else read_source(source, source_key, out_file)
-    names, matches = _pair(info, joint_names)
+    names, matches = _pair(info.description, joint_names)
     if not matches:
         raise UserError(f"--source {source}: it holds no values")
 
@@ -301,7 +295,7 @@ def scaffold(urdf: Path, source: str | None, out_file: Path) -> Scaffold:
     if paths is not None:
         stubbed = any("TODO" in i.comment for i in paths.items if isinstance(i, Item))
         robot.add("package_paths", paths, "TODO: meshes that do not resolve until the stubs below are filled in" if stubbed else "")
-    joints = _joints(model, source_key, info, names, matches, stub)
+    joints = _joints(model, source_key, info.description, names, matches, stub)
     robot.add("joints", joints)
     robots = Block()
     robots.add(key, robot)
@@ -326,7 +320,7 @@ def scaffold(urdf: Path, source: str | None, out_file: Path) -> Scaffold:
     output = Block()
     output.add("path", "out/{segment}.rrd")
     output.add("application_id", key)
-    output.add("segment", info.segment, "the recording id (layers attach only when it equals the base recording's)")
+    output.add("segment", info.description.segment, "the recording id (layers attach only when it equals the base recording's)")
     config.add("output", output)
 
     header = [
@@ -340,8 +334,9 @@ def scaffold(urdf: Path, source: str | None, out_file: Path) -> Scaffold:
     return Scaffold(
         text="\n".join(header + body) + "\n",
         data=data,
+        stub=stub,
         mapped=len(matches),
-        by_name=0 if stub or info.names is None else sum(m.score > 0 for m in matches),
+        by_name=0 if stub or info.description.names is None else sum(m.score > 0 for m in matches),
         held=len(data["robots"][key]["joints"].get("hold", {})),
         ignored=len(data["robots"][key]["joints"].get("ignore", [])),
         todos=sum("# TODO" in line for line in body),
@@ -376,6 +371,21 @@ def remaining_problems(document: Document) -> list[str]:
     return []
 
 
+def summary_lines(result: Scaffold, problems: list[str], output: Path | None) -> list[str]:
+    """What init says on stderr, from its result and what validate would still refuse: worded here only."""
+    how = f"{result.by_name} by name, for review" if result.by_name else "the stub's names" if result.stub else "by position"
+    said = [
+        f"init: {result.mapped} joint(s) mapped ({how}), {result.held} held, {result.ignored} source name(s) ignored; "
+        f"{result.todos} TODO(s) to settle" + (f" in {output}" if output is not None else "")
+    ]
+    if problems:
+        said.append(f"init: validate would still refuse {len(problems)} thing(s), the stubs marked TODO:")
+        said += [f"  {problem}" for problem in problems]
+    else:
+        said.append("init: the config validates; review the guesses marked `review:` and `TODO:`")
+    return said
+
+
 def init_config(urdf: Path, source: str | None, output: Path | None, force: bool) -> tuple[Scaffold, list[str]]:
     """Scaffold, check and write (to `output`, or return it for stdout); the lines to say on stderr."""
     out_file = (output if output is not None else Path.cwd() / "urdf-pipeline.yaml").absolute()
@@ -388,14 +398,4 @@ def init_config(urdf: Path, source: str | None, output: Path | None, force: bool
         partial = out_file.with_name(out_file.name + ".partial")
         partial.write_text(result.text, encoding="utf-8")
         partial.replace(out_file)
-    how = f"{result.by_name} by name, for review" if result.by_name else "by position" if source else "the stub's names"
-    said = [
-        f"init: {result.mapped} joint(s) mapped ({how}), {result.held} held, {result.ignored} source name(s) ignored; "
-        f"{result.todos} TODO(s) to settle" + (f" in {output}" if output is not None else "")
-    ]
-    if problems:
-        said.append(f"init: validate would still refuse {len(problems)} thing(s), the stubs marked TODO:")
-        said += [f"  {problem}" for problem in problems]
-    else:
-        said.append("init: the config validates; review the guesses marked `review:` and `TODO:`")
-    return result, said
+    return result, summary_lines(result, problems, output)

@@ -1,21 +1,35 @@
-"""Joint-value sources. Each kind compiles its config (metadata only) and opens a lazy Rerun stream.
+"""Joint-value sources. Each kind compiles its config (metadata only), opens a lazy Rerun stream and describes a
+source for `init`.
 
-A kind is one module that follows `base.SourceKind` (`PLAN_TYPE`, `compile_source`, `open_stream`), registered in
-KINDS under the config key that selects it. Kinds import `base` and their siblings, never this package's __init__.
+A kind is one module that follows `base.SourceKind`, registered in KINDS under the config key that selects it (the
+one list of kinds: `init`'s `KIND:PATH` forms and file suffixes come from it too). Kinds import `base` and their
+siblings, never this package's __init__.
 """
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from ..config.document import Document
 from ..plan import SourcePlan
 from . import hdf5, lerobot, mcap, parquet, rrd
-from .base import SourceKind, resolve_input
+from .base import GLOB, EntryField, SourceDescription, SourceKind, resolve_input
 
-__all__ = ["KINDS", "SourceKind", "compile_source", "kind_of", "module_for", "resolve_input"]
+__all__ = [
+    "GLOB",
+    "KINDS",
+    "EntryField",
+    "SourceDescription",
+    "SourceKind",
+    "compile_source",
+    "kind_for_path",
+    "kind_of",
+    "module_for",
+    "resolve_input",
+]
 
-KINDS: dict[str, SourceKind] = {"parquet": parquet, "lerobot": lerobot, "mcap": mcap, "hdf5": hdf5, "rrd": rrd}
+KINDS: dict[str, SourceKind] = {"lerobot": lerobot, "parquet": parquet, "mcap": mcap, "hdf5": hdf5, "rrd": rrd}
 
 
 def kind_of(spec: dict[str, Any]) -> str:
@@ -30,3 +44,12 @@ def compile_source(name: str, spec: dict[str, Any], document: Document) -> Sourc
 
 def module_for(plan: SourcePlan) -> SourceKind:
     return next(module for module in KINDS.values() if isinstance(plan, module.PLAN_TYPE))
+
+
+def kind_for_path(path: str) -> str | None:
+    """The kind a path says, for `init` when `KIND:` is left out: its file suffix, else a LeRobot dataset's folder."""
+    suffix = Path(path).suffix.lower()
+    by_suffix = {ending: kind for kind, module in KINDS.items() for ending in module.SUFFIXES}
+    if suffix in by_suffix:
+        return by_suffix[suffix]
+    return "lerobot" if lerobot.is_dataset(Path(path)) else None

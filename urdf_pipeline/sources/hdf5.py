@@ -13,13 +13,15 @@ from typing import Any
 from ..config.document import Document
 from ..errors import UserError, listing
 from ..plan import Hdf5SourcePlan, IndexPlan
-from .base import resolve_input
+from .base import EntryField, SourceDescription, file_input, resolve_input
 from .integrity import check_hdf5_datasets
 from .ordering import in_time_order, with_duplicates
 from .parquet import compile_index
 from .stream import SourceStream, index_column
 
 PLAN_TYPE = Hdf5SourcePlan
+SPEC_FORM = "hdf5:FILE#/DATASET"
+SUFFIXES = (".h5", ".hdf5")
 
 
 def dataset_path(path: str) -> str:
@@ -106,6 +108,22 @@ def _check_index(file: Any, index: IndexPlan, rows: int, path: Path, document: D
         )
     if node.dtype.kind not in "fiu":
         raise UserError(f"index dataset '{index.column}' holds {node.dtype}, not a time", where)
+
+
+def describe(name: str, path: str, part: str | None, document: Document) -> SourceDescription:
+    """For `init`: the width of the 2-D dataset PART names, as `validate` reads its shape. HDF5 has no names: the
+    values are matched by position."""
+    given = file_input(path)
+    dataset = dataset_path(part or "/")
+    try:
+        plan = compile_source(name, {"hdf5": str(given.file), "dataset": dataset}, document, given.file.parent)
+    except UserError as exc:
+        raise UserError(exc.message + ("; name it with hdf5:FILE#/DATASET" if part is None else "")) from None
+    note = "index: /DATASET  (optional: a 1-D dataset of times or frame numbers; default a row_index sequence)"
+    fields = (EntryField("dataset", dataset),)
+    return SourceDescription(
+        "hdf5", fields, None, len(plan.names), given.segment, pattern=given.pattern, unnamed="HDF5 carries no names", notes=(note,)
+    )
 
 
 def open_stream(plan: Hdf5SourcePlan) -> SourceStream:

@@ -13,7 +13,7 @@ import pyarrow.compute  # noqa: F401  (pa.compute)
 from ..config.document import Document
 from ..errors import UserError, Where
 from ..plan import LeRobotSourcePlan
-from .base import resolve_input
+from .base import EntryField, SourceDescription, resolve_input
 from .integrity import check_parquet_pages
 from .ordering import in_time_order, with_duplicates
 from .stream import SourceStream
@@ -22,6 +22,8 @@ if TYPE_CHECKING:
     from rerun.chunk import Chunk
 
 PLAN_TYPE = LeRobotSourcePlan
+SPEC_FORM = "lerobot:DIR[#FEATURE]"
+SUFFIXES: tuple[str, ...] = ()  # a folder: `is_dataset` says it
 VECTOR_COMPONENT = "urdf_pipeline:joint_values"
 
 
@@ -84,6 +86,43 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
 def _info(root: Path) -> dict[str, Any]:
     info: dict[str, Any] = json.loads((root / "meta" / "info.json").read_text(encoding="utf-8"))
     return info
+
+
+def is_dataset(path: Path) -> bool:
+    """A folder holding meta/info.json: what `init` takes for a LeRobot dataset when `lerobot:` is left out."""
+    return (path / "meta" / "info.json").is_file()
+
+
+def describe(name: str, path: str, part: str | None, document: Document) -> SourceDescription:
+    """For `init`: the feature's (PART, default `observation.state`) names from meta/info.json, as `validate` reads
+    them; a feature without names is described by its width (its values are then matched by position)."""
+    feature = part or "observation.state"
+    root = Path(path).resolve()
+    fields = (EntryField("feature", feature),)
+    segment = "episode_{episode:06d}"
+    notes = ("no episode: one segment per episode of the dataset (episode: N pins one)",)
+    try:
+        plan = compile_source(name, {"lerobot": str(root), "feature": feature}, document, root)
+    except UserError:
+        width = _unnamed_width(root, feature)
+        if width is None:
+            raise
+        unnamed = "the feature has no names in meta/info.json"
+        return SourceDescription("lerobot", fields, None, width, segment, unnamed=unnamed, notes=notes)
+    return SourceDescription("lerobot", fields, plan.names, None, segment, notes=notes)
+
+
+def _unnamed_width(root: Path, feature: str) -> int | None:
+    """The width of a 1-D feature without names; None when the feature is missing, named or not 1-D."""
+    try:
+        features = _info(root).get("features", {})
+    except (OSError, json.JSONDecodeError):
+        return None
+    spec = features.get(feature)
+    if not isinstance(spec, dict) or feature_names(spec) is not None:
+        return None
+    shape = spec.get("shape") or []
+    return int(shape[0]) if len(shape) == 1 and isinstance(shape[0], int) else None
 
 
 def _episode_table(root: Path) -> pa.Table | None:

@@ -16,18 +16,20 @@ import pyarrow as pa
 import pyarrow.compute as pc
 
 from ..config.document import Document
-from ..errors import UserError, Where
+from ..errors import UserError, Where, listing
 from ..plan import McapSourcePlan
-from .base import resolve_input
+from .base import EntryField, SourceDescription, file_input, resolve_input
 from .mcap_probe import MESSAGE_COMPONENT, probe, topic_entity, topic_messages
 from .named_rows import NAME_FIELD, NAMED_COMPONENT, VALUE_FIELD, named_rows_column
 from .ordering import in_time_order, with_duplicates
 from .stream import SourceStream
 
 if TYPE_CHECKING:
-    from rerun.chunk import Chunk
+    from rerun.chunk import Chunk, McapChannelInfo
 
 PLAN_TYPE = McapSourcePlan
+SPEC_FORM = "mcap:FILE[#TOPIC]"
+SUFFIXES = (".mcap",)
 JOINT_STATE = "sensor_msgs/msg/JointState"
 TIMELINES = {"header": "ros2_timestamp", "log_time": "message_log_time", "publish_time": "message_publish_time"}
 ALL_TIMELINES = tuple(TIMELINES.values())
@@ -44,21 +46,30 @@ def _first_message_names(path: Path, topic: str, where: Where) -> tuple[str, ...
     return names
 
 
-def compile_source(name: str, spec: dict[str, Any], document: Document, config_dir: Path) -> McapSourcePlan:
+def _channels(path: Path, where: Where | None) -> list[McapChannelInfo]:
+    """The file's channels, from its summary."""
     from rerun.chunk import McapReader
 
+    try:
+        return list(McapReader(path).info().channels)
+    except (ValueError, OSError, RuntimeError) as exc:
+        raise UserError(f"cannot read MCAP file {path}: {exc}", where) from None
+
+
+def _joint_state_topics(channels: list[McapChannelInfo]) -> list[str]:
+    return sorted({c.topic for c in channels if c.schema is not None and c.schema.name == JOINT_STATE})
+
+
+def compile_source(name: str, spec: dict[str, Any], document: Document, config_dir: Path) -> McapSourcePlan:
     here = ("sources", name)
     path = resolve_input(document, config_dir, spec["mcap"], *here, "mcap")
-    try:
-        info = McapReader(path).info()
-    except (ValueError, OSError, RuntimeError) as exc:
-        raise UserError(f"cannot read MCAP file {path}: {exc}", document.where(*here, "mcap")) from None
+    all_channels = _channels(path, document.where(*here, "mcap"))
     topic = topic_entity(spec["topic"])
-    channels = [c for c in info.channels if topic_entity(c.topic) == topic]
+    channels = [c for c in all_channels if topic_entity(c.topic) == topic]
     if not channels:
-        joint_topics = sorted({c.topic for c in info.channels if c.schema is not None and c.schema.name == JOINT_STATE})
+        joint_topics = _joint_state_topics(all_channels)
         listed = (
-            ", ".join(joint_topics) if joint_topics else f"none (topics: {', '.join(sorted({c.topic for c in info.channels})) or 'none'})"
+            ", ".join(joint_topics) if joint_topics else f"none (topics: {', '.join(sorted({c.topic for c in all_channels})) or 'none'})"
         )
         raise UserError(f"topic '{spec['topic']}' not in {path.name}; its {JOINT_STATE} topics: {listed}", document.where(*here, "topic"))
     for channel in channels:
@@ -74,6 +85,23 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
     timeline = TIMELINES[spec.get("timeline", "header")]
     names = tuple(spec["names"]) if "names" in spec else _first_message_names(path, topic, document.where(*here, "topic"))
     return with_duplicates(McapSourcePlan(name, path, topic, timeline, names, document.where(*here)), spec)
+
+
+def describe(name: str, path: str, part: str | None, document: Document) -> SourceDescription:
+    """For `init`: the topic (PART, else the file's only JointState topic) and the names of its first message, as
+    `validate` reads them. Names come in any order per message: the map follows the URDF's joint order."""
+    given = file_input(path)
+    file = given.file
+    topic = part
+    if topic is None:
+        topics = _joint_state_topics(_channels(file, None))
+        if len(topics) != 1:
+            raise UserError(f"name the topic with mcap:FILE#TOPIC; its {JOINT_STATE} topics: {listing(topics, empty='none')}")
+        topic = topics[0]
+    plan = compile_source(name, {"mcap": str(file), "topic": topic}, document, file.parent)
+    note = "names: read from the topic's first message by validate (every name must be mapped or ignored)"
+    fields = (EntryField("topic", topic),)
+    return SourceDescription("mcap", fields, plan.names, None, given.segment, pattern=given.pattern, urdf_order=True, notes=(note,))
 
 
 def _named_rows(plan: McapSourcePlan, chunk: Chunk) -> list[Chunk]:

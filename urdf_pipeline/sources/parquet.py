@@ -9,14 +9,18 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from ..config.document import Document
-from ..errors import UserError
+from ..errors import UserError, listing
 from ..plan import IndexPlan, ParquetSourcePlan
-from .base import resolve_input
+from .base import EntryField, SourceDescription, file_input, resolve_input
 from .integrity import check_parquet_pages, refuse_empty_parquet
 from .ordering import in_time_order, with_duplicates
 from .stream import SourceStream
 
 PLAN_TYPE = ParquetSourcePlan
+SPEC_FORM = "parquet:FILE[#COLUMN]"
+SUFFIXES = (".parquet",)
+_SEQUENCE_COLUMNS = ("frame_index", "index", "frame", "step", "seq", "sequence")  # what `init` takes for a timeline
+_TIME_COLUMNS = ("timestamp", "time", "t", "stamp")
 
 
 def compile_index(spec: Any) -> IndexPlan:
@@ -92,3 +96,56 @@ def open_stream(plan: ParquetSourcePlan) -> SourceStream:
     stream = ParquetReader(plan.path).stream(index_columns=[index_column], column_grouping="individual").filter(content=entity)
     stream = in_time_order(stream, index.column, plan, plan.path)
     return SourceStream(stream, entity, plan.column, len(plan.names))
+
+
+def describe(name: str, path: str, part: str | None, document: Document) -> SourceDescription:
+    """For `init`: the column (PART, else `observation.state`, else the only list column) and a guessed timeline,
+    from the schema only. Parquet has no names: the values are matched by position."""
+    given = file_input(path)
+    file = given.file
+    try:
+        schema = pq.read_schema(file)
+    except (pa.ArrowInvalid, OSError) as exc:
+        raise UserError(f"cannot read the parquet schema of {file}: {exc}") from None
+    lists = [column for column in schema.names if _numeric_list_width(schema.field(column).type) is not False]
+    if part is not None:
+        column = part
+    elif "observation.state" in lists:
+        column = "observation.state"
+    elif len(lists) == 1:
+        column = lists[0]
+    else:
+        raise UserError(f"name the column with parquet:FILE#COLUMN; list columns of {file.name}: {listing(lists, empty='none')}")
+    if column not in schema.names:
+        raise UserError(f"column '{column}' not in {file.name}; it has: {', '.join(schema.names)}")
+    width = _numeric_list_width(schema.field(column).type)
+    if width is False:
+        raise UserError(f"column '{column}' is {schema.field(column).type}, not a list of numbers")
+    fields = (EntryField("column", column), _guess_index(schema, file.name))
+    return SourceDescription(
+        "parquet",
+        fields,
+        None,
+        width if isinstance(width, int) else None,
+        given.segment,
+        pattern=given.pattern,
+        unnamed="parquet carries no names",
+    )
+
+
+def _guess_index(schema: pa.Schema, file_name: str) -> EntryField:
+    """The timeline column: a sequence column by its name, else a time column, else a stub to fill in."""
+    integers = [n for n in schema.names if pa.types.is_integer(schema.field(n).type)]
+    times = [
+        n
+        for n in schema.names
+        if pa.types.is_timestamp(schema.field(n).type) or (pa.types.is_floating(schema.field(n).type) and n.lower() in _TIME_COLUMNS)
+    ]
+    sequence = next((n for n in _SEQUENCE_COLUMNS if n in integers), None)
+    if sequence is not None:
+        return EntryField("index", sequence, "review: the timeline column (a sequence); or {timestamp: COL, unit: s}")
+    if times:
+        return EntryField(
+            "index", {"timestamp": times[0], "unit": "s"}, "review: time since the epoch; {duration: COL, unit: s} if it counts from 0"
+        )
+    return EntryField("index", "frame_index", f"TODO: {file_name} has no frame or time column this could guess; name its timeline column")

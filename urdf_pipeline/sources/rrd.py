@@ -18,7 +18,7 @@ import pyarrow.compute as pc
 from ..config.document import Document
 from ..errors import UserError
 from ..plan import RrdSourcePlan
-from .base import resolve_input
+from .base import EntryField, SourceDescription, file_input, resolve_input
 from .lerobot import VECTOR_COMPONENT
 from .named_rows import NAMED_COMPONENT, named_rows_column
 from .ordering import in_time_order, read_all, with_duplicates
@@ -28,6 +28,8 @@ if TYPE_CHECKING:
     from rerun.chunk import Chunk, LazyStore
 
 PLAN_TYPE = RrdSourcePlan
+SPEC_FORM = "rrd:FILE#ENTITY"
+SUFFIXES = (".rrd",)
 NAMES_COMPONENT = "SeriesLines:names"
 DEFAULT_COMPONENT = "Scalars:scalars"
 
@@ -135,6 +137,16 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
         raise UserError(f"the names recorded on '{entity}' name a value twice: {', '.join(names)}", document.where(*here))
     read_all(store.stream().filter(content=entity, is_static=False, components=component), path, document.where(*here, "rrd"))
     return with_duplicates(RrdSourcePlan(name, path, entity, component, named_rows, names, document.where(*here)), spec)
+
+
+def describe(name: str, path: str, part: str | None, document: Document) -> SourceDescription:
+    """For `init`: the entity's names (its SeriesLines:names), as `validate` reads them; PART names the entity."""
+    given = file_input(path)
+    if part is None:
+        raise UserError(f"name the entity holding the values with rrd:FILE#ENTITY, e.g. rrd:{given.file.name}#/observation.state")
+    plan = compile_source(name, {"rrd": str(given.file), "entity": part}, document, given.file.parent)
+    fields = (EntryField("entity", entity_path(part)),)
+    return SourceDescription("rrd", fields, plan.names, None, given.segment, pattern=given.pattern)
 
 
 def _component_field(name: str, column: pa.Array) -> pa.Field:
