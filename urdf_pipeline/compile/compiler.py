@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 from ..config.document import Document, load_document
 from ..config.schema import require_schema_valid
 from ..config.sidecar import expand_edge_specs
-from ..errors import Problems
 from ..plan import OutputPlan, Plan, RobotPlan, SourcePlan
 from ..urdf.model import UrdfModel
+from .context import CompileContext
 from .edges import assumed_identity_edges, compile_edges, frame_edges, urdf_frames
 from .frame_graph import check_frame_graph
 from .robots import compile_robot
@@ -25,19 +24,20 @@ def compile_config(config_path: Path, episodes: str | None = None) -> Plan:
 
 
 def compile_document(document: Document, episodes: str | None = None) -> Plan:
-    data: dict[str, Any] = document.data
-    problems = Problems()
+    ctx = CompileContext.for_document(document)
+    data = ctx.data
+    problems = ctx.problems
 
-    compiled_sources = compile_sources(data, document, problems)
+    compiled_sources = compile_sources(ctx)
     sources: dict[str, SourcePlan] = compiled_sources.plans
 
     robots: list[RobotPlan] = []
     models: dict[str, UrdfModel] = {}  # parsed once, for the edges that walk a URDF (fixed_chain)
     for key, spec in data["robots"].items():
-        compiled = compile_robot(key, spec, sources, set(data["sources"]), document, problems)
+        compiled = compile_robot(ctx, key, spec, sources)
         if compiled is not None:
-            robots.append(compiled[0])
-            models[key] = compiled[1]
+            robots.append(compiled.plan)
+            models[key] = compiled.model
 
     edge_specs = expand_edge_specs(data.get("edges", []), document, problems)  # inline edges and sidecar files, in order
     used = {spec["joints"]["source"] for spec in data["robots"].values() if "joints" in spec}
@@ -47,58 +47,60 @@ def compile_document(document: Document, episodes: str | None = None) -> Plan:
             problems.add(
                 f"source '{name}' is used by no robot and no temporal edge; remove it, or name it in a robot's joints.source "
                 "or a temporal edge's source",
-                document.where("sources", name),
+                ctx.where("sources", name),
             )
 
-    prefixes_unique = _check_unique_prefixes(data, document, problems)
+    prefixes_unique = _check_unique_prefixes(ctx)
     # Frame names can be traced to robots only when every robot compiled and their frame prefixes differ.
     frames_known = prefixes_unique and len(robots) == len(data["robots"])
-    edges, temporal, broken = compile_edges(edge_specs, robots if frames_known else None, models, sources, set(data["sources"]), problems)
-    root = _root_frame(data, robots, document, problems)
+    compiled_edges = compile_edges(ctx, edge_specs, robots if frames_known else None, models, sources)
+    edges, temporal = list(compiled_edges.static), list(compiled_edges.temporal)
+    root = _root_frame(ctx, robots)
     if root is not None and frames_known:
-        graph = frame_edges(robots, edges, temporal, models, broken)
-        identity = assumed_identity_edges(data, document, robots, graph, root, problems)
+        graph = frame_edges(robots, edges, temporal, models, compiled_edges.broken)
+        identity = assumed_identity_edges(ctx, robots, graph, root)
         edges += identity
         graph += frame_edges([], identity, [], models)
-        check_frame_graph(graph, urdf_frames(robots), root, document.where("frames", "root"), problems)
-    dataset = expand_segments(data, document, compiled_sources, episodes, problems) if len(sources) == len(data["sources"]) else None
+        check_frame_graph(ctx, graph, urdf_frames(robots), root, ctx.where("frames", "root"))
+    dataset = expand_segments(ctx, compiled_sources, episodes) if len(sources) == len(data["sources"]) else None
     problems.raise_if_any()
     assert root is not None and dataset is not None
     first = dataset.segments[0]
-    output = OutputPlan(first.output, data["output"]["application_id"], first.id, document.where("output"))
+    output = OutputPlan(first.output, data["output"]["application_id"], first.id, ctx.where("output"))
     return Plan(document.file, first.sources, tuple(robots), tuple(edges), root, output, tuple(temporal), dataset)
 
 
-def _check_unique_prefixes(data: dict[str, Any], document: Document, problems: Problems) -> bool:
-    before = len(problems.errors)
+def _check_unique_prefixes(ctx: CompileContext) -> bool:
+    before = len(ctx.problems.errors)
     frame_prefixes: dict[str, str] = {}
     entity_prefixes: dict[str, str] = {}
-    for key, spec in data["robots"].items():
+    for key, spec in ctx.data["robots"].items():
         frame_prefix = spec.get("frame_prefix", "")
         if frame_prefix in frame_prefixes:
-            problems.add(
+            ctx.problems.add(
                 f"robots '{frame_prefixes[frame_prefix]}' and '{key}' share frame_prefix '{frame_prefix}'; their frames would cross-wire. Give each robot its own frame_prefix",
-                document.where("robots", key, "frame_prefix") if "frame_prefix" in spec else document.where("robots", key),
+                ctx.where("robots", key, "frame_prefix") if "frame_prefix" in spec else ctx.where("robots", key),
             )
         frame_prefixes.setdefault(frame_prefix, key)
         entity_prefix = spec.get("entity_path_prefix", key).strip("/")
         if entity_prefix in entity_prefixes:
-            problems.add(
+            ctx.problems.add(
                 f"robots '{entity_prefixes[entity_prefix]}' and '{key}' share entity_path_prefix '{entity_prefix}'",
-                document.where("robots", key, "entity_path_prefix"),
+                ctx.where("robots", key, "entity_path_prefix"),
             )
         entity_prefixes.setdefault(entity_prefix, key)
-    return len(problems.errors) == before
+    return len(ctx.problems.errors) == before
 
 
-def _root_frame(data: dict[str, Any], robots: list[RobotPlan], document: Document, problems: Problems) -> str | None:
+def _root_frame(ctx: CompileContext, robots: list[RobotPlan]) -> str | None:
+    data = ctx.data
     root = data.get("frames", {}).get("root")
     if root is not None:
         return str(root)
     if len(data["robots"]) > 1:
-        problems.add(
+        ctx.problems.add(
             "frames.root is required with more than one robot: name the frame every robot's calibration edge hangs from",
-            document.where("frames"),
+            ctx.where("frames"),
         )
         return None
     return robots[0].frame_prefix + robots[0].root_link if robots else None

@@ -4,31 +4,41 @@ from __future__ import annotations
 
 import difflib
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
-from ..config.document import Document
 from ..config.sidecar import EdgeSpec
-from ..errors import Problems, warn
+from ..errors import warn
 from ..plan import EdgePlan, FixedChain, RobotPlan, SourcePlan, TemporalEdgePlan
 from ..urdf.fixed_chain import NoFixedChain, compose_chain, find_fixed_chain
 from ..urdf.geometry import normalized_quaternion, quaternion_from_rpy
 from ..urdf.model import UrdfModel
+from .context import CompileContext
 from .frame_graph import FrameEdge, check_assume_identity
 from .temporal_edges import compile_temporal_edge
 
 
+@dataclass(frozen=True)
+class CompiledEdges:
+    """The config's edges by kind, in config order; `broken` are those that failed (reported; they still count in
+    the frame graph so one mistake is one error)."""
+
+    static: tuple[EdgePlan, ...]  # static and fixed_chain edges, logged on /calibration
+    temporal: tuple[TemporalEdgePlan, ...]
+    broken: tuple[EdgeSpec, ...]
+
+
 def compile_edges(
+    ctx: CompileContext,
     specs: list[EdgeSpec],
     robots: list[RobotPlan] | None,
     models: Mapping[str, UrdfModel],
     sources: dict[str, SourcePlan],
-    defined_sources: set[str],
-    problems: Problems,
-) -> tuple[list[EdgePlan], list[TemporalEdgePlan], list[EdgeSpec]]:
-    """Static and fixed_chain edges (logged on /calibration), temporal edges, and the edges that failed (reported; they
-    still count in the frame graph so one mistake is one error). `robots` is None when frame names cannot be traced to
-    robots (a robot failed, or prefixes collide): fixed chains are then skipped, already in error."""
+) -> CompiledEdges:
+    """Static and fixed_chain edges, temporal edges, and the edges that failed. `robots` is None when frame names
+    cannot be traced to robots (a robot failed, or prefixes collide): fixed chains are then skipped, already in error."""
+    problems = ctx.problems
     edges: list[EdgePlan] = []
     temporal: list[TemporalEdgePlan] = []
     broken: list[EdgeSpec] = []
@@ -36,14 +46,14 @@ def compile_edges(
     for edge in specs:
         spec = edge.spec
         if "source" in spec:
-            compiled = compile_temporal_edge(edge, sources, defined_sources, taken_entities, problems)
+            compiled = compile_temporal_edge(ctx, edge, sources, taken_entities)
             if compiled is not None:
                 temporal.append(compiled)
             else:
                 broken.append(edge)
             continue
         if "fixed_chain" in spec:
-            chained = _fixed_chain_edge(edge, robots, models, problems) if robots is not None else None
+            chained = _fixed_chain_edge(ctx, edge, robots, models) if robots is not None else None
             if chained is not None:
                 edges.append(chained)
             else:
@@ -66,7 +76,7 @@ def compile_edges(
             quaternion = quaternion_from_rpy(*rpy)
         translation = tuple(float(v) for v in spec["translation"])
         edges.append(EdgePlan(spec["parent"], spec["child"], translation, quaternion, edge.where(), label=edge.label))  # type: ignore[arg-type]
-    return edges, temporal, broken
+    return CompiledEdges(tuple(edges), tuple(temporal), tuple(broken))
 
 
 def _owner(frame: str, robots: list[RobotPlan]) -> RobotPlan | None:
@@ -77,7 +87,8 @@ def _owner(frame: str, robots: list[RobotPlan]) -> RobotPlan | None:
     return None
 
 
-def _fixed_chain_edge(edge: EdgeSpec, robots: list[RobotPlan], models: Mapping[str, UrdfModel], problems: Problems) -> EdgePlan | None:
+def _fixed_chain_edge(ctx: CompileContext, edge: EdgeSpec, robots: list[RobotPlan], models: Mapping[str, UrdfModel]) -> EdgePlan | None:
+    problems = ctx.problems
     spec = edge.spec
     start, end = spec["fixed_chain"]["from"], spec["fixed_chain"]["to"]
     all_links = sorted(robot.frame_prefix + link for robot in robots for link in robot.links)
@@ -122,15 +133,13 @@ def _fixed_chain_edge(edge: EdgeSpec, robots: list[RobotPlan], models: Mapping[s
     return EdgePlan(spec["parent"], spec["child"], translation, quaternion, edge.where(), "fixed_chain", edge.label, chain)
 
 
-def assumed_identity_edges(
-    data: dict[str, Any], document: Document, robots: list[RobotPlan], graph: list[FrameEdge], root: str, problems: Problems
-) -> list[EdgePlan]:
+def assumed_identity_edges(ctx: CompileContext, robots: list[RobotPlan], graph: list[FrameEdge], root: str) -> list[EdgePlan]:
     """frames.assume_identity: an identity edge root -> frame for each listed frame, with a warning naming it."""
-    listed = data.get("frames", {}).get("assume_identity", [])
+    listed = ctx.data.get("frames", {}).get("assume_identity", [])
     if not listed:
         return []
-    wheres = {frame: document.where("frames", "assume_identity", index) for index, frame in enumerate(listed)}
-    accepted = check_assume_identity(list(wheres.items()), graph, urdf_frames(robots), root, problems)
+    wheres = {frame: ctx.where("frames", "assume_identity", index) for index, frame in enumerate(listed)}
+    accepted = check_assume_identity(ctx, list(wheres.items()), graph, urdf_frames(robots), root)
     result = []
     for frame in accepted:
         where = wheres[frame]
@@ -145,11 +154,11 @@ def assumed_identity_edges(
 
 
 def frame_edges(
-    robots: list[RobotPlan],
-    edges: list[EdgePlan],
-    temporal: list[TemporalEdgePlan],
+    robots: Sequence[RobotPlan],
+    edges: Sequence[EdgePlan],
+    temporal: Sequence[TemporalEdgePlan],
     models: Mapping[str, UrdfModel],
-    broken: list[EdgeSpec] | None = None,
+    broken: Sequence[EdgeSpec] = (),
 ) -> list[FrameEdge]:
     # A temporal edge may drive the child of a URDF floating/planar joint (a floating pelvis) when it has the joint's
     # parent: like the FK over a moving joint's rest pose, the temporal value overrides the joint's static identity.
@@ -177,7 +186,7 @@ def frame_edges(
     ]
     result += [
         FrameEdge(edge.spec["parent"], edge.spec["child"], f"{edge.label} at line {edge.where().line}", edge.where(), True)
-        for edge in broken or []
+        for edge in broken
     ]
     return result
 

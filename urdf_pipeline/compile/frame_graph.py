@@ -7,7 +7,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..errors import Problems, Where, closest, did_you_mean
+from ..errors import Where, closest, did_you_mean
+from .context import CompileContext
 
 
 @dataclass(frozen=True)
@@ -19,7 +20,8 @@ class FrameEdge:
     configured: bool = False  # written in the config (or a sidecar, or frames.assume_identity), not taken from a URDF
 
 
-def check_frame_graph(edges: list[FrameEdge], urdf_frames: dict[str, Where], root: str, root_where: Where, problems: Problems) -> None:
+def check_frame_graph(ctx: CompileContext, edges: list[FrameEdge], urdf_frames: dict[str, Where], root: str, root_where: Where) -> None:
+    problems = ctx.problems
     parent_of: dict[str, FrameEdge] = {}
     for edge in edges:
         if edge.child == edge.parent:
@@ -85,13 +87,14 @@ def _where_for(frame: str, edges: list[FrameEdge], fallback: Where) -> Where:
 
 
 def check_assume_identity(
-    frames: list[tuple[str, Where]], edges: list[FrameEdge], urdf_frames: dict[str, Where], root: str, problems: Problems
+    ctx: CompileContext, frames: list[tuple[str, Where]], edges: list[FrameEdge], urdf_frames: dict[str, Where], root: str
 ) -> list[str]:
     """The frames of `frames.assume_identity` that may get an identity edge from the root; problems for the others.
 
     A listed frame must be named by a URDF or an edge, must not be the root and must have no parent yet: a frame
     that already reaches the root needs no assumption, and one hanging from a disconnected tree needs its tree's top listed.
     """
+    problems = ctx.problems
     parent_of: dict[str, FrameEdge] = {}
     for edge in edges:
         parent_of.setdefault(edge.child, edge)

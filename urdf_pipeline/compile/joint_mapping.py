@@ -7,30 +7,55 @@ value is its entry's `unit`, else the robot's `joints.unit` for the joint's kind
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
-from ..config.document import Document
-from ..errors import Problems, Where
+from ..errors import Where
 from ..errors import did_you_mean as _hint
 from ..plan import HeldJoint, JointChannel, MimicJoint, OnViolation
 from ..urdf.model import UrdfModel
+from .context import CompileContext
 from .units import ANGULAR_UNITS, FACTORS, RobotUnits, fits, robot_units, urdf_unit
 
 
+@dataclass(frozen=True)
+class JointMapping:
+    """How a robot's joints move: channels from source values, held joints, mimics in order, and the limit policy.
+    The default is a scene's: nothing moves."""
+
+    channels: tuple[JointChannel, ...] = ()
+    holds: tuple[HeldJoint, ...] = ()
+    mimics: tuple[MimicJoint, ...] = ()
+    on_violation: OnViolation = "error"
+
+
+@dataclass(frozen=True)
+class _RobotJoints:
+    """What every map entry of one robot shares: its URDF, the units of `joints.unit` and the limit slack (source units)."""
+
+    model: UrdfModel
+    units: RobotUnits
+    slack: float
+
+
+@dataclass(frozen=True)
+class _MapEntry:
+    """One `joints.map` entry whose source name exists: the value it reads and what it says about the joint(s)."""
+
+    source_name: str
+    source_index: int
+    spec: dict[str, Any]  # the entry's mapping form: a bare joint name is {"joint": name}
+    where: Where
+
+
 def compile_joints(
-    robot_key: str,
-    joints_spec: dict[str, Any],
-    names: tuple[str, ...],
-    model: UrdfModel,
-    document: Document,
-    problems: Problems,
-) -> tuple[tuple[JointChannel, ...], tuple[HeldJoint, ...], tuple[MimicJoint, ...], OnViolation]:
+    ctx: CompileContext, robot_key: str, joints_spec: dict[str, Any], names: tuple[str, ...], model: UrdfModel
+) -> JointMapping:
+    problems = ctx.problems
     here = ("robots", robot_key, "joints")
     source = joints_spec["source"]
-    units = robot_units(joints_spec.get("unit"))
     limit_spec = joints_spec.get("limits", {})
-    slack_source = float(limit_spec.get("slack", 0.0))
+    robot = _RobotJoints(model, robot_units(joints_spec.get("unit")), float(limit_spec.get("slack", 0.0)))
     on_violation: OnViolation = limit_spec.get("on_violation", "error")
     moving = [j.name for j in model.joints if j.moving]
     all_joints = [j.name for j in model.joints]
@@ -39,9 +64,9 @@ def compile_joints(
     channels: list[JointChannel] = []
     covered: dict[str, str] = {}  # joint -> how ("map entry 'j1'", "hold")
     attempted: set[str] = set()  # joints named by a rejected entry: already reported, not "not driven" too
-    for source_name, entry in joints_spec["map"].items():
-        where = document.where(*here, "map", source_name)
-        spec = {"joint": entry} if isinstance(entry, str) else entry
+    for source_name, written in joints_spec["map"].items():
+        where = ctx.where(*here, "map", source_name)
+        spec = {"joint": written} if isinstance(written, str) else written
         joint_names = spec["joint"] if isinstance(spec["joint"], list) else [spec["joint"]]
         attempted.update(joint_names)
         if source_name not in names:
@@ -50,19 +75,21 @@ def compile_joints(
                 where,
             )
             continue
-        if not _corrections_consistent(spec, where, problems):
+        entry = _MapEntry(source_name, names.index(source_name), spec, where)
+        if not _corrections_consistent(ctx, entry):
             continue
         for joint_name in joint_names:
-            channel = _channel(
-                source_name, names.index(source_name), joint_name, spec, units, slack_source, model, where, problems, covered
-            )
+            if joint_name in covered:  # accepted for an earlier entry, so it exists and moves: the one thing wrong is this
+                problems.add(f"joint '{joint_name}' is driven twice: by {covered[joint_name]} and by map entry '{source_name}'", where)
+                continue
+            channel = _channel(ctx, robot, entry, joint_name)
             if channel is not None:
                 covered[joint_name] = f"map entry '{source_name}'"
                 channels.append(channel)
 
     holds: list[HeldJoint] = []
     for joint_name, value in joints_spec.get("hold", {}).items():
-        where = document.where(*here, "hold", joint_name)
+        where = ctx.where(*here, "hold", joint_name)
         joint = model.joint(joint_name)
         attempted.add(joint_name)
         if joint is None:
@@ -84,32 +111,33 @@ def compile_joints(
 
     ignored = [str(name) for name in joints_spec.get("ignore", [])]  # 7 and "7": a value named by its index
     for index, name in enumerate(ignored):
-        where = document.where(*here, "ignore", index)
+        where = ctx.where(*here, "ignore", index)
         if name not in names:
             problems.add(f"ignored name '{name}' is not a name of source '{source}'{_hint(name, list(names))}", where)
         elif name in joints_spec["map"]:
             problems.add(f"'{name}' is both mapped and ignored; keep one", where)
 
-    if units.given is not None:
-        _check_unit_applies(units.given, joints_spec, model, document.where(*here, "unit"), problems)
+    if robot.units.given is not None:
+        _check_unit_applies(ctx, robot, joints_spec, ctx.where(*here, "unit"))
     unused = [n for n in names if n not in joints_spec["map"] and n not in ignored]
     if unused:
         problems.add(
             f"source names neither mapped nor ignored: {', '.join(unused)}; map each to a URDF joint or list it under ignore",
-            document.where(*here, "map"),
+            ctx.where(*here, "map"),
         )
     mimics = _order_mimics(model, mimic_joints)
     uncovered = [j for j in moving if j not in covered and j not in mimic_joints and j not in attempted]
     if uncovered:
         problems.add(
             f"URDF joints not driven by any source value: {', '.join(uncovered)}; add each to map, or to hold with a fixed value",
-            document.where(*here, "map"),
+            ctx.where(*here, "map"),
         )
-    return tuple(channels), tuple(holds), mimics, on_violation
+    return JointMapping(tuple(channels), tuple(holds), mimics, on_violation)
 
 
-def _corrections_consistent(spec: dict[str, Any], where: Where, problems: Problems) -> bool:
+def _corrections_consistent(ctx: CompileContext, entry: _MapEntry) -> bool:
     """source_range maps straight into URDF units, so it cannot be combined with the unit path's corrections."""
+    spec, where, problems = entry.spec, entry.where, ctx.problems
     if "joint_range" in spec and "source_range" not in spec:
         problems.add("joint_range needs source_range (the source values mapped onto it)", where)
         return False
@@ -128,19 +156,9 @@ def _corrections_consistent(spec: dict[str, Any], where: Where, problems: Proble
     return True
 
 
-def _channel(
-    source_name: str,
-    source_index: int,
-    joint_name: str,
-    spec: dict[str, Any],
-    units: RobotUnits,
-    slack_source: float,
-    model: UrdfModel,
-    where: Where,
-    problems: Problems,
-    covered: dict[str, str],
-) -> JointChannel | None:
+def _channel(ctx: CompileContext, robot: _RobotJoints, entry: _MapEntry, joint_name: str) -> JointChannel | None:
     """One (source value, URDF joint) pair, or None after reporting why it cannot be."""
+    model, spec, where, problems = robot.model, entry.spec, entry.where, ctx.problems
     joint = model.joint(joint_name)
     all_joints = [j.name for j in model.joints]
     if joint is None:
@@ -152,9 +170,6 @@ def _channel(
     if joint.mimic is not None:
         problems.add(f"joint '{joint_name}' is a <mimic> of '{joint.mimic.joint}' and is computed from it; remove it from map", where)
         return None
-    if joint_name in covered:
-        problems.add(f"joint '{joint_name}' is driven twice: by {covered[joint_name]} and by map entry '{source_name}'", where)
-        return None
     limits = (float(joint.lower), float(joint.upper)) if joint.has_limits and joint.lower is not None and joint.upper is not None else None
     source_range = tuple(float(v) for v in spec["source_range"]) if "source_range" in spec else None
     target_range = tuple(float(v) for v in spec.get("joint_range", limits or ())) or None
@@ -163,7 +178,7 @@ def _channel(
             f"joint '{joint_name}' has no URDF limits to map source_range onto; give joint_range: [low, high] in URDF units", where
         )
         return None
-    unit = "source_range" if source_range is not None else spec.get("unit", units.for_joint(joint.angular))
+    unit = "source_range" if source_range is not None else spec.get("unit", robot.units.for_joint(joint.angular))
     if source_range is None and not fits(unit, joint.angular):  # only an entry's own unit can be of the other kind
         problems.add(
             f"joint '{joint_name}' is {joint.type} (URDF unit {urdf_unit(joint.angular)}) but its source unit is {unit} (from its map entry); "
@@ -173,8 +188,8 @@ def _channel(
         return None
     channel = JointChannel(
         joint=joint_name,
-        source_name=source_name,
-        source_index=source_index,
+        source_name=entry.source_name,
+        source_index=entry.source_index,
         source_unit=unit if source_range is None else "source units",
         factor=FACTORS.get(unit, 1.0),
         sign=float(spec.get("sign", 1)),
@@ -189,11 +204,13 @@ def _channel(
     )
     wrap = spec.get("wrap")
     center = channel.to_source_unit((limits[0] + limits[1]) / 2) if limits else channel.to_source_unit(0.0)
-    return replace(channel, slack=slack_source * abs(channel.gain), wrap=float(wrap) if wrap else None, wrap_center=center)
+    return replace(channel, slack=robot.slack * abs(channel.gain), wrap=float(wrap) if wrap else None, wrap_center=center)
 
 
-def _check_unit_applies(given: str, joints_spec: dict[str, Any], model: UrdfModel, where: Where, problems: Problems) -> None:
+def _check_unit_applies(ctx: CompileContext, robot: _RobotJoints, joints_spec: dict[str, Any], where: Where) -> None:
     """A single joints.unit applies to one joint kind only; naming a kind no mapped joint has is a mistake, not a no-op."""
+    given, model = robot.units.given, robot.model
+    assert given is not None  # called only when joints.unit is one unit
     angular = given in ANGULAR_UNITS
     for entry in joints_spec["map"].values():
         spec = {"joint": entry} if isinstance(entry, str) else entry
@@ -204,7 +221,7 @@ def _check_unit_applies(given: str, joints_spec: dict[str, Any], model: UrdfMode
             if joint is not None and joint.moving and joint.angular == angular:
                 return
     kind, other = ("revolute or continuous", "prismatic") if angular else ("prismatic", "revolute and continuous")
-    problems.add(
+    ctx.problems.add(
         f"joints.unit {given} applies to {kind} joints only, and no map entry without its own unit drives one; "
         f"the {other} joints use {urdf_unit(not angular)}. Write unit: {'m, cm or mm' if angular else 'rad or deg'} "
         f"(or {{angle: ..., length: ...}}), or omit it for the URDF's units",

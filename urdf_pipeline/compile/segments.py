@@ -15,11 +15,10 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from ..config.document import Document
-from ..confine import confinement_for
-from ..errors import Problems, UserError, Where, listing
+from ..errors import UserError, Where, listing
 from ..plan import DatasetPlan, LeRobotSourcePlan, Segment, SourcePlan
-from ..sources import KINDS, compile_source, kind_of
+from ..sources import KINDS, kind_of
+from .context import CompileContext
 
 GLOB_CHARACTERS = re.compile(r"[*?\[]")
 EPISODES_RANGE = re.compile(r"^(\d*):(\d*)$")
@@ -33,45 +32,45 @@ class CompiledSources:
     files: dict[str, dict[str, SourcePlan]]  # globbed source name -> stem -> plan of that file
 
 
-def compile_sources(data: dict[str, Any], document: Document, problems: Problems) -> CompiledSources:
+def compile_sources(ctx: CompileContext) -> CompiledSources:
     plans: dict[str, SourcePlan] = {}
     files: dict[str, dict[str, SourcePlan]] = {}
-    for name, spec in data["sources"].items():
+    for name, spec in ctx.data["sources"].items():
         kind = kind_of(spec)
         try:
             if kind != "lerobot" and GLOB_CHARACTERS.search(spec[kind]):
-                files[name] = _compile_glob(name, kind, spec, document, problems)
+                files[name] = _compile_glob(ctx, name, kind, spec)
                 if files[name]:
                     plans[name] = next(iter(files[name].values()))
             else:
-                plans[name] = compile_source(name, spec, document)
+                plans[name] = KINDS[kind].compile_source(name, spec, ctx.document, ctx.config_dir)
         except UserError as exc:
-            problems.extend(exc)
+            ctx.problems.extend(exc)
     return CompiledSources(plans, files)
 
 
-def _compile_glob(name: str, kind: str, spec: dict[str, Any], document: Document, problems: Problems) -> dict[str, SourcePlan]:
+def _compile_glob(ctx: CompileContext, name: str, kind: str, spec: dict[str, Any]) -> dict[str, SourcePlan]:
     """Every file a source's glob matches, each checked like a single file (metadata only), keyed by stem."""
-    pattern = spec[kind] if Path(spec[kind]).is_absolute() else str(document.file.parent / spec[kind])
-    where = document.where("sources", name, kind)
+    pattern = spec[kind] if Path(spec[kind]).is_absolute() else str(ctx.config_dir / spec[kind])
+    where = ctx.where("sources", name, kind)
     # The folder the glob walks from must be readable; each match is checked again, as a file, by compile_source.
     fixed = itertools.takewhile(lambda part: not GLOB_CHARACTERS.search(part), Path(pattern).parts)
-    confinement_for(document.file).check_read(Path(*fixed), f"{kind} glob folder", where)
+    ctx.confinement.check_read(Path(*fixed), f"{kind} glob folder", where)
     paths = sorted(Path(os.path.abspath(p)) for p in glob.glob(pattern, recursive=True) if Path(p).is_file())
     if not paths:
-        raise UserError(f"'{spec[kind]}' matches no file (paths are relative to the config file: {document.file.parent})", where)
+        raise UserError(f"'{spec[kind]}' matches no file (paths are relative to the config file: {ctx.config_dir})", where)
     by_stem: dict[str, SourcePlan] = {}
     seen: dict[str, Path] = {}
     for path in paths:
         stem = path.name.split(".", 1)[0]  # the name as matched: a symlink is named by its own name, not its target's
         if stem in seen:
-            problems.add(f"two files matched by '{spec[kind]}' share the stem '{stem}' ({seen[stem]} and {path}); rename one", where)
+            ctx.problems.add(f"two files matched by '{spec[kind]}' share the stem '{stem}' ({seen[stem]} and {path}); rename one", where)
             continue
         seen[stem] = path
         try:
-            by_stem[stem] = KINDS[kind].compile_source(name, {**spec, kind: str(path)}, document, document.file.parent)
+            by_stem[stem] = KINDS[kind].compile_source(name, {**spec, kind: str(path)}, ctx.document, ctx.config_dir)
         except UserError as exc:
-            problems.extend(exc)
+            ctx.problems.extend(exc)
     return by_stem
 
 
@@ -114,26 +113,25 @@ def _span(indices: list[int]) -> str:
     return f"{indices[0]}..{indices[-1]}" if indices == list(range(indices[0], indices[-1] + 1)) else listing([str(i) for i in indices])
 
 
-def expand_segments(
-    data: dict[str, Any], document: Document, sources: CompiledSources, episodes_override: str | None, problems: Problems
-) -> DatasetPlan | None:
+def expand_segments(ctx: CompileContext, sources: CompiledSources, episodes_override: str | None) -> DatasetPlan | None:
     """The run's segments, each with its sources, id and output path; None (with problems added) when they cannot be named."""
     from ..sources import lerobot
 
-    output = data["output"]
-    where_segment = document.where("output", "segment")
+    problems = ctx.problems
+    output = ctx.data["output"]
+    where_segment = ctx.where("output", "segment")
     episodic = {n: p for n, p in sources.plans.items() if isinstance(p, LeRobotSourcePlan) and p.per_segment}
     if episodes_override is not None:
         where_selection = Where(Path("--episodes"), 0)
         selection = parse_episodes(episodes_override, where_selection)
     else:
-        selection = parse_episodes(output.get("episodes", "all"), document.where("output", "episodes"))
-        where_selection = document.where("output", "episodes") if "episodes" in output else where_segment
+        selection = parse_episodes(output.get("episodes", "all"), ctx.where("output", "episodes"))
+        where_selection = ctx.where("output", "episodes") if "episodes" in output else where_segment
     if episodic and sources.files:
         problems.add(
             f"segments come either from LeRobot episodes ({listing(sorted(episodic))}) or from globbed files "
             f"({listing(sorted(sources.files))}), not both; pin the LeRobot episode with `episode:` or list one file",
-            document.where("sources"),
+            ctx.where("sources"),
         )
         return None
 
@@ -148,7 +146,7 @@ def expand_segments(
         chosen = _select(sorted(available or ()), selection, "the dataset's episodes", where_selection)
         keys = [(e, None) for e in chosen]
     elif sources.files:
-        stems = _common_stems(sources.files, document, problems)
+        stems = _common_stems(ctx, sources.files)
         if stems is None:
             return None
         positions = _select(list(range(len(stems))), selection, f"{len(stems)} files", where_selection)
@@ -163,10 +161,10 @@ def expand_segments(
         pinned = [p.episode for p in sources.plans.values() if isinstance(p, LeRobotSourcePlan)]
         keys = [(pinned[0] if len(pinned) == 1 else None, None)]
 
-    ids = _segment_ids(output["segment"], keys, where_segment, problems)
+    ids = _segment_ids(ctx, output["segment"], keys, where_segment)
     if ids is None:
         return None
-    paths = _output_paths(output["path"], ids, document, problems)
+    paths = _output_paths(ctx, output["path"], ids)
     if paths is None:
         return None
     segments = []
@@ -175,10 +173,10 @@ def expand_segments(
         inputs = tuple(dict.fromkeys(p for plan in own for p in _inputs_of(plan)))
         rows = frames.get(episode) if episodic and episode is not None else None
         segments.append(Segment(segment_id, episode, stem, own, path, rows, inputs))
-    return _dataset_plan(output, document, tuple(segments), problems)
+    return _dataset_plan(ctx, tuple(segments))
 
 
-def _common_stems(files: dict[str, dict[str, SourcePlan]], document: Document, problems: Problems) -> list[str] | None:
+def _common_stems(ctx: CompileContext, files: dict[str, dict[str, SourcePlan]]) -> list[str] | None:
     """Globbed sources pair up by file stem: every one must match the same stems."""
     names = sorted(files)
     reference = set(files[names[0]])
@@ -186,16 +184,17 @@ def _common_stems(files: dict[str, dict[str, SourcePlan]], document: Document, p
         if set(files[name]) != reference:
             only_first = sorted(reference - set(files[name]))
             only_this = sorted(set(files[name]) - reference)
-            problems.add(
+            ctx.problems.add(
                 f"globbed sources '{names[0]}' and '{name}' must match files with the same stems (one segment per stem); "
                 f"only in '{names[0]}': {listing(only_first, empty='none')}; only in '{name}': {listing(only_this, empty='none')}",
-                document.where("sources", name),
+                ctx.where("sources", name),
             )
             return None
     return sorted(reference)
 
 
-def _segment_ids(template: str, keys: list[tuple[int | None, str | None]], where: Where, problems: Problems) -> list[str] | None:
+def _segment_ids(ctx: CompileContext, template: str, keys: list[tuple[int | None, str | None]], where: Where) -> list[str] | None:
+    problems = ctx.problems
     fields = {name for _, name, _, _ in string.Formatter().parse(template) if name is not None}
     known = {"episode": any(e is not None for e, _ in keys), "stem": any(s is not None for _, s in keys)}
     unknown = sorted(fields - set(known))
@@ -232,8 +231,9 @@ def _segment_ids(template: str, keys: list[tuple[int | None, str | None]], where
     return ids
 
 
-def _output_paths(template: str, ids: list[str], document: Document, problems: Problems) -> list[Path] | None:
-    where = document.where("output", "path")
+def _output_paths(ctx: CompileContext, template: str, ids: list[str]) -> list[Path] | None:
+    problems = ctx.problems
+    where = ctx.where("output", "path")
     fields = [name for _, name, _, _ in string.Formatter().parse(template) if name is not None]
     unknown = [name for name in fields if name != "segment"]
     if unknown:
@@ -244,7 +244,7 @@ def _output_paths(template: str, ids: list[str], document: Document, problems: P
     if len(ids) > 1 and "segment" not in fields:
         problems.add(f"{len(ids)} segments would all be written to '{template}'; put {{segment}} in output.path", where)
         return None
-    return [(document.file.parent / template.format(segment=i)).resolve() for i in ids]
+    return [(ctx.config_dir / template.format(segment=i)).resolve() for i in ids]
 
 
 def _source_for(plan: SourcePlan, sources: CompiledSources, episode: int | None, stem: str | None) -> SourcePlan:
@@ -264,52 +264,53 @@ def _inputs_of(plan: SourcePlan) -> tuple[Path, ...]:
     return (plan.path,)
 
 
-def _dataset_plan(output: dict[str, Any], document: Document, segments: tuple[Segment, ...], problems: Problems) -> DatasetPlan | None:
+def _dataset_plan(ctx: CompileContext, segments: tuple[Segment, ...]) -> DatasetPlan | None:
+    problems, output, config_dir = ctx.problems, ctx.data["output"], ctx.config_dir
     layout = output.get("layout", "single")
     model: Path | None = None
     if layout == "split":
         if "model" not in output:
             problems.add(
                 "layout: split writes the robot model once: give its path in output.model (e.g. out/model.rrd)",
-                document.where("output", "layout"),
+                ctx.where("output", "layout"),
             )
             return None
         if "{" in output["model"]:
-            problems.add("output.model is written once for all segments: it takes no placeholder", document.where("output", "model"))
+            problems.add("output.model is written once for all segments: it takes no placeholder", ctx.where("output", "model"))
             return None
-        model = (document.file.parent / output["model"]).resolve()
+        model = (config_dir / output["model"]).resolve()
         if any(s.output == model for s in segments):
-            problems.add(f"output.model {model} is also a segment's output path", document.where("output", "model"))
+            problems.add(f"output.model {model} is also a segment's output path", ctx.where("output", "model"))
             return None
     elif "model" in output:
-        problems.add("output.model is only used with layout: split; remove it or set layout: split", document.where("output", "model"))
+        problems.add("output.model is only used with layout: split; remove it or set layout: split", ctx.where("output", "model"))
         return None
     if "manifest" in output:
-        manifest = (document.file.parent / output["manifest"]).resolve()
+        manifest = (config_dir / output["manifest"]).resolve()
     else:
-        directory = _fixed_directory(output["path"], document.file.parent)
-        manifest = directory / f"{document.file.stem}.manifest.json"
-    if not _outputs_confined(segments, model, manifest, document, problems):
+        directory = _fixed_directory(output["path"], config_dir)
+        manifest = directory / f"{ctx.document.file.stem}.manifest.json"
+    if not _outputs_confined(ctx, segments, model, manifest):
         return None
-    return DatasetPlan(layout, segments, model, manifest, document.where("output", "segment"))
+    return DatasetPlan(layout, segments, model, manifest, ctx.where("output", "segment"))
 
 
-def _outputs_confined(segments: tuple[Segment, ...], model: Path | None, manifest: Path, document: Document, problems: Problems) -> bool:
+def _outputs_confined(ctx: CompileContext, segments: tuple[Segment, ...], model: Path | None, manifest: Path) -> bool:
     """Every file a run writes (recordings, model, manifest, the blueprint beside it) obeys confine.py's write rule."""
-    confinement = confinement_for(document.file)
-    blueprint = manifest.parent / f"{document.file.stem}.rbl"
+    confinement = ctx.confinement
+    blueprint = manifest.parent / f"{ctx.document.file.stem}.rbl"
     writes = [(s.output, "the recording", ("output", "path")) for s in segments]
     writes += [(model, "the model", ("output", "model"))] if model is not None else []
-    manifest_key = ("output", "manifest") if "manifest" in document.data["output"] else ("output", "path")
+    manifest_key = ("output", "manifest") if "manifest" in ctx.data["output"] else ("output", "path")
     writes += [(manifest, "the manifest", manifest_key), (blueprint, "the blueprint", manifest_key)]
     refused: set[tuple[str, ...]] = set()
     for path, what, key in writes:
         if key not in refused and not confinement.may_write(path):
             refused.add(key)  # one error per key: every segment of a template outside the folder is outside
             try:
-                confinement.check_write(path, what, document.where(*key))
+                confinement.check_write(path, what, ctx.where(*key))
             except UserError as error:
-                problems.extend(error)
+                ctx.problems.extend(error)
     return not refused
 
 

@@ -8,14 +8,11 @@ that places it, row by row, is `execute/temporal_stream.py`.
 from __future__ import annotations
 
 import re
-from typing import TYPE_CHECKING
 
 from ..config.sidecar import EdgeSpec
-from ..errors import Problems, closest, listing
+from ..errors import closest, listing
 from ..plan import SourcePlan, TemporalEdgePlan
-
-if TYPE_CHECKING:
-    pass
+from .context import CompileContext
 
 TEMPORAL_ENTITY = "/calibration/temporal"
 
@@ -28,9 +25,11 @@ def describe(edge: TemporalEdgePlan) -> str:
 
 
 def compile_temporal_edge(
-    edge: EdgeSpec, sources: dict[str, SourcePlan], defined: set[str], taken_entities: set[str], problems: Problems
+    ctx: CompileContext, edge: EdgeSpec, sources: dict[str, SourcePlan], taken_entities: set[str]
 ) -> TemporalEdgePlan | None:
-    """Check the source and every value name now (metadata only); values are checked in the data pass."""
+    """Check the source and every value name now (metadata only); values are checked in the data pass. `taken_entities`
+    holds the entity paths earlier temporal edges took; this edge's is added."""
+    problems, defined = ctx.problems, ctx.source_names
     spec = edge.spec
     name = spec["source"]
     source = sources.get(name)

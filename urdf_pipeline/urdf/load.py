@@ -17,8 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..config.document import Document
-from ..confine import confinement_for
+from ..confine import Confinement
 from ..errors import UserError, Where
 from .xacro_guard import XacroRequest, expand_xacro
 
@@ -35,12 +34,13 @@ class LoadedUrdf:
         return hashlib.sha256(self.text.encode("utf-8")).hexdigest()
 
 
-def load_urdf_source(key: str, spec: Any, package_paths: Mapping[str, Path], document: Document) -> LoadedUrdf:
-    where = document.where("robots", key, "urdf")
+def load_urdf_source(spec: Any, package_paths: Mapping[str, Path], config_dir: Path, confinement: Confinement, where: Where) -> LoadedUrdf:
+    """`spec` is a robot's `urdf` entry; its paths are relative to `config_dir` (the config file's folder, as named) and
+    read only where `confinement` allows. Errors point at `where`: this module knows files, not configs."""
     if isinstance(spec, str):
-        return _plain(spec, document, where)
+        return _plain(spec, config_dir, confinement, where)
     if "xacro" in spec:
-        return _xacro(spec, package_paths, document, where)
+        return _xacro(spec, package_paths, config_dir, confinement, where)
     return _robot_descriptions(spec["robot_descriptions"], where)
 
 
@@ -51,20 +51,19 @@ def _read(path: Path, where: Where) -> str:
         raise UserError(f"cannot read {path}: {exc}", where) from None
 
 
-def _plain(urdf: str, document: Document, where: Where) -> LoadedUrdf:
-    path = (document.file.parent / urdf).resolve()
+def _plain(urdf: str, config_dir: Path, confinement: Confinement, where: Where) -> LoadedUrdf:
+    path = (config_dir / urdf).resolve()
     if path.name.endswith(".xacro"):
         raise UserError(f"'{urdf}' is a xacro file, not a URDF; use the xacro form: urdf: {{xacro: {urdf}, args: {{...}}}}", where)
-    confinement_for(document.file).check_read(path, "URDF file", where)  # before its existence is checked: no probing
+    confinement.check_read(path, "URDF file", where)  # before its existence is checked: no probing
     if not path.is_file():
         raise UserError(f"URDF file not found: {path} (paths are relative to the config file)", where)
     return LoadedUrdf(_read(path, where), path, f"file {urdf}")
 
 
-def _xacro(spec: dict[str, Any], package_paths: Mapping[str, Path], document: Document, where: Where) -> LoadedUrdf:
+def _xacro(spec: dict[str, Any], package_paths: Mapping[str, Path], config_dir: Path, confinement: Confinement, where: Where) -> LoadedUrdf:
     """Expanded in a bounded child process that refuses code, the environment and files outside the config's roots."""
-    path = (document.file.parent / spec["xacro"]).resolve()
-    confinement = confinement_for(document.file)
+    path = (config_dir / spec["xacro"]).resolve()
     confinement.check_read(path, "xacro file", where)
     if not path.is_file():
         raise UserError(f"xacro file not found: {path} (paths are relative to the config file)", where)

@@ -1,0 +1,40 @@
+"""What every compile step shares, made once per config so no step threads the document and the problems on its own."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ..config.document import Document
+from ..confine import Confinement, confinement_for
+from ..errors import Problems, Where
+
+
+@dataclass(frozen=True)
+class CompileContext:
+    """The located config being compiled, where its problems collect (one mutable `Problems`, shared on purpose so one
+    run reports every error), the folder its relative paths start from and what it may read and write."""
+
+    document: Document
+    problems: Problems
+    config_dir: Path  # the config file's folder as named (not resolved): relative paths in the config start here
+    confinement: Confinement
+
+    @classmethod
+    def for_document(cls, document: Document) -> CompileContext:
+        return cls(document, Problems(), document.file.parent, confinement_for(document.file))
+
+    @property
+    def data(self) -> dict[str, Any]:
+        """The config as plain data (schema-valid)."""
+        data: dict[str, Any] = self.document.data
+        return data
+
+    @property
+    def source_names(self) -> frozenset[str]:
+        """Every source the config defines, compiled or not: a broken source is reported once, not again by its users."""
+        return frozenset(self.data["sources"])
+
+    def where(self, *path: str | int) -> Where:
+        return self.document.where(*path)
