@@ -102,26 +102,23 @@ def cmd_validate(args: argparse.Namespace) -> int:
     """text: `ok: CONFIG` on stdout, `error:` / `warning: FILE:LINE:COL: ...` lines on stderr. github / json: stdout
     holds only the annotations (workflow commands, or one JSON list), `ok: CONFIG` goes to stderr. Exit 1 if any
     config has an error (warnings alone: 0)."""
-    from .compile.compiler import compile_config
-    from .errors import Problems
+    from .review.annotations import render_annotations, render_text_errors, render_text_progress, validate_config
 
-    if args.format != "text":
-        from .review.annotations import render, validate_configs
-
-        findings = validate_configs(args.configs)
-        sys.stdout.write(render(findings.sorted(), args.format))
-        for config in findings.valid:
-            print(f"ok: {config}", file=sys.stderr)
-        return ExitCode.USER_ERROR if findings.invalid else ExitCode.OK
-    problems = Problems()
+    results = []
     for config in args.configs:
-        try:
-            compile_config(Path(config))
-            print(f"ok: {config}")
-        except UserError as exc:
-            problems.extend(exc)
-    problems.raise_if_any()
-    return ExitCode.OK
+        result = validate_config(config)
+        results.append(result)
+        if args.format == "text":  # each config as it is done; its errors with every other's at the end
+            progress = render_text_progress(result)
+            sys.stderr.write(progress.stderr)
+            sys.stdout.write(progress.stdout)
+    if args.format == "text":
+        sys.stderr.write(render_text_errors(results))
+    else:
+        shown = render_annotations(results, args.format)
+        sys.stdout.write(shown.stdout)
+        sys.stderr.write(shown.stderr)
+    return ExitCode.OK if all(result.ok for result in results) else ExitCode.USER_ERROR
 
 
 def cmd_check(args: argparse.Namespace) -> int:
@@ -168,23 +165,14 @@ def cmd_init(args: argparse.Namespace) -> int:
 
 
 def cmd_diff(args: argparse.Namespace) -> int:
-    import json
-
-    from .review.diff_inputs import diff_files, diff_git, report_json, report_text
+    from .review.diff_inputs import diff_files, diff_git
+    from .review.diff_render import render
 
     if (args.git is None) == (args.new is None):
         args.parser.error("give OLD NEW, or CONFIG --git REV")
-    if args.git is not None:
-        old, new = f"{args.old}@{args.git}", args.old
-        changes = diff_git(Path(args.old), args.git)
-    else:
-        old, new = args.old, args.new
-        changes = diff_files(Path(args.old), Path(args.new))
-    if args.format == "json":
-        print(json.dumps(report_json(changes, old, new), indent=2))
-    else:
-        sys.stdout.write(report_text(changes))
-    return ExitCode.USER_ERROR if args.exit_code and changes else ExitCode.OK
+    report = diff_git(args.old, args.git) if args.git is not None else diff_files(args.old, args.new)
+    sys.stdout.write(render(report, args.format))
+    return ExitCode.USER_ERROR if args.exit_code and not report.equivalent else ExitCode.OK
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -108,6 +108,40 @@ def test_held_joints_and_source_range(examples_dir: Path, run_cli) -> None:
     assert "- ignored source values: `7`, `8`, `9`, `10`, `11`, `12`, `13`" in markdown
 
 
+@pytest.mark.parametrize("name", ["demo", "aloha_bimanual"])
+def test_text_and_markdown_show_the_same_limits_in_source_units(name: str, examples_dir: Path, run_cli) -> None:
+    """Issue 11: text showed each limit in URDF units too (`(URDF [-2.8973, 2.8973])`); now, as markdown, only in the
+    source's units (degrees, mm, or the source_range's), the same numbers."""
+    if name == "aloha_bimanual" and importlib.util.find_spec("rtbdata") is None:
+        pytest.skip("the ALOHA xacro comes from rtb-data (the test extra)")
+    config = str(examples_dir / f"{name}.yaml")
+    text, markdown = run_cli("plan", config).out, run_cli("plan", config, "--format", "markdown").out
+    number = r"-?[0-9.]+(?:e[-+]?[0-9]+)?"
+    in_text = {
+        (m["name"], m["joint"]): (m["low"], m["high"], m["slack"])
+        for m in re.finditer(
+            rf"^    (?P<name>\S+)\[\d+\] -> (?P<joint>\S+): .*; limits (?P<low>{number}) \.\. (?P<high>{number}) "
+            rf"(?P<unit>deg|rad|mm|cm|m|source units), slack (?P<slack>{number}) (?P=unit)$",
+            text,
+            re.MULTILINE,
+        )
+    }
+    in_markdown = {
+        (m["name"], m["joint"]): (m["low"], m["high"], m["slack"] or "0")
+        for m in re.finditer(
+            rf"^\| `(?P<name>[^`]+)` \| `(?P<joint>[^`]+)` \|.* \| (?P<low>{number}) \.\. (?P<high>{number})(?: ± (?P<slack>{number}))? \|",
+            markdown,
+            re.MULTILINE,
+        )
+    }
+    assert in_text and in_text == in_markdown
+    assert "URDF [" not in text
+    if name == "demo":  # degrees (and mm) in the data, radians (and m) in the URDF
+        assert in_text[("j1", "panda_joint1")] == ("-166.003", "166.003", "2")
+        assert "j1[0] -> panda_joint1: x 0.0174533 (deg) x 1 + 0; limits -166.003 .. 166.003 deg, slack 2 deg" in text
+        assert in_text[("finger", "panda_finger_joint1")] == ("0", "40", "2")
+
+
 @pytest.fixture(scope="module")
 def rich_config(examples_dir: Path) -> Path:
     """Every kind of edge: a calibration in a sidecar file, an inline one, a fixed chain, an assumed identity, a

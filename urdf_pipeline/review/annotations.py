@@ -1,27 +1,60 @@
-"""`validate --format github|json`: every problem of every config as one record, for CI and review tools.
+"""`validate`: what validating each config found (ConfigResult), and its text, github and json renderings.
 
-`github` renders each record as a GitHub Actions workflow command (`::error file=F,line=L,col=C::PATH: message`), so
-the problems show as annotations on the pull request's files; `json` as a list of objects. Records are sorted by file,
-line, column, YAML path, severity (errors first) and message, and identical ones (a sidecar shared by two configs)
-appear once. Line and column are 1-based, 0 when unknown (a problem with the file as a whole).
+`text` prints each config's warnings (stderr) and `ok: CONFIG` (stdout) as it is validated, then every error of every
+config (stderr). `github` renders each problem as a GitHub Actions workflow command (`::error file=F,line=L,col=C::PATH:
+message`), so the problems show as annotations on the pull request's files; `json` as a list of objects. Both sort
+records by file, line, column, YAML path, severity (errors first) and message, and print identical ones (a sidecar
+shared by two configs) once. Line and column are 1-based, 0 when unknown (a problem with the file as a whole).
 """
 
 from __future__ import annotations
 
 import json
 import os
-from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from collections.abc import Iterable, Sequence
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Literal
 
-from ..errors import ConfigWarning, UserError, UserErrors, Where, collect_warnings
+from ..errors import ConfigWarning, UserError, UserErrors, Where, collect_warnings, located
 
 Severity = Literal["error", "warning"]
+AnnotationFormat = Literal["github", "json"]
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One error or warning of a config, at its place (None: the config as a whole)."""
+
+    severity: Severity
+    message: str
+    where: Where | None
+
+    def line(self) -> str:
+        """The text form: `error: FILE:LINE:COL: YAML.PATH: message`, the file as the config names it."""
+        return located(self.severity, self.message, self.where)
+
+
+@dataclass(frozen=True)
+class ConfigResult:
+    """What validating one config found: the model every format of `validate` renders."""
+
+    config: str  # as the user gave it
+    warnings: tuple[Problem, ...]  # in the order compiling raised them
+    errors: tuple[Problem, ...]
+
+    @property
+    def ok(self) -> bool:
+        return not self.errors
+
+    def annotations(self) -> list[Annotation]:
+        return [Annotation.at(p.severity, p.message, p.where, self.config) for p in (*self.warnings, *self.errors)]
 
 
 @dataclass(frozen=True)
 class Annotation:
+    """A problem as CI sees it (github, json): the file normalised, line and column 0 when unknown."""
+
     file: str  # as the user gave it (relative stays relative), normalized: `./a/../b.yaml` -> `b.yaml`
     line: int
     column: int
@@ -50,42 +83,51 @@ class Annotation:
         return f"::{self.severity} {','.join(properties)}::{_escape_data(text)}"
 
 
-@dataclass
-class Findings:
-    """What validating several configs found: every annotation, and which configs compiled."""
-
-    annotations: list[Annotation] = field(default_factory=list)
-    valid: list[str] = field(default_factory=list)
-    invalid: list[str] = field(default_factory=list)
-
-    def sorted(self) -> list[Annotation]:
-        return sorted(dict.fromkeys(self.annotations), key=Annotation.sort_key)
-
-
-def validate_configs(configs: Sequence[str]) -> Findings:
-    """Compile every config as `validate` does, collecting its errors and warnings instead of printing them."""
+def validate_config(config: str) -> ConfigResult:
+    """Compile the config as `validate` does, collecting its errors and warnings instead of printing them."""
     from ..compile.compiler import compile_config
 
-    findings = Findings()
-    for config in configs:
-        errors: list[UserError] = []
-        warnings: list[ConfigWarning]
-        with collect_warnings() as warnings:
-            try:
-                compile_config(Path(config))
-            except UserError as exc:
-                errors = exc.errors if isinstance(exc, UserErrors) else [exc]
-        findings.annotations += [Annotation.at("warning", w.message, w.where, config) for w in warnings]
-        findings.annotations += [Annotation.at("error", e.message, e.where, config) for e in errors]
-        (findings.invalid if errors else findings.valid).append(config)
-    return findings
+    errors: list[UserError] = []
+    warnings: list[ConfigWarning]
+    with collect_warnings() as warnings:
+        try:
+            compile_config(Path(config))
+        except UserError as exc:
+            errors = exc.errors if isinstance(exc, UserErrors) else [exc]
+    return ConfigResult(
+        config,
+        tuple(Problem("warning", w.message, w.where) for w in warnings),
+        tuple(Problem("error", e.message, e.where) for e in errors),
+    )
 
 
-def render(annotations: Sequence[Annotation], format: Literal["github", "json"]) -> str:
-    """The text for stdout: one workflow command a line, or a JSON list (`[]` when there is nothing to say)."""
+@dataclass(frozen=True)
+class Shown:
+    """What one rendering prints: on stdout, and on stderr."""
+
+    stdout: str
+    stderr: str
+
+
+def render_text_progress(result: ConfigResult) -> Shown:
+    """text, as each config is done: its warnings, and `ok: CONFIG` when it has no error."""
+    return Shown(f"ok: {result.config}\n" if result.ok else "", "".join(p.line() + "\n" for p in result.warnings))
+
+
+def render_text_errors(results: Iterable[ConfigResult]) -> str:
+    """text, once every config is done: every error of every config, in order (for stderr)."""
+    return "".join(p.line() + "\n" for result in results for p in result.errors)
+
+
+def render_annotations(results: Sequence[ConfigResult], format: AnnotationFormat) -> Shown:
+    """github / json: the annotations on stdout (one workflow command a line, or a JSON list, `[]` when there is
+    nothing to say), `ok: CONFIG` on stderr."""
+    annotations = sorted(dict.fromkeys(a for result in results for a in result.annotations()), key=Annotation.sort_key)
     if format == "github":
-        return "".join(annotation.github() + "\n" for annotation in annotations)
-    return json.dumps([asdict(annotation) for annotation in annotations], indent=2) + "\n"
+        stdout = "".join(annotation.github() + "\n" for annotation in annotations)
+    else:
+        stdout = json.dumps([asdict(annotation) for annotation in annotations], indent=2) + "\n"
+    return Shown(stdout, "".join(f"ok: {result.config}\n" for result in results if result.ok))
 
 
 def _escape_data(text: str) -> str:

@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import asdict, dataclass, field
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -60,8 +61,10 @@ class Candidate:
         return f"{channel.source_name}: {{{', '.join(entry)}}}"
 
 
-@dataclass
+@dataclass(frozen=True)
 class JointReport:
+    """check's verdict on one mapped value: the model `check`'s text and json (and `plan --sample`) render."""
+
     robot: str
     source_name: str
     joint: str
@@ -72,7 +75,7 @@ class JointReport:
     limits_in_source_unit: tuple[float, float] | None  # JointChannel.limits_in_source_unit: the config's corrections
     verdict: str  # "fits" | "ambiguous" | "none" | "no limits" | "no values"
     current_fits: bool
-    fitting: list[str] = field(default_factory=list)
+    fitting: tuple[str, ...] = ()
     paste: str | None = None
     slack_rows: int = 0
     slack_worst: float | None = None
@@ -136,29 +139,22 @@ def check_channel(robot: RobotPlan, channel: JointChannel, raw: np.ndarray) -> J
         None, "no values", False,
     )  # fmt: skip
     if not finite.size:
-        report.message = "no finite values in the sample"
-        return report
+        return replace(report, message="no finite values in the sample")
     if channel.lower is None or channel.upper is None:
-        report.verdict, report.current_fits = "no limits", True
-        report.message = "the joint has no limits: nothing to check against"
-        return report
+        return replace(report, verdict="no limits", current_fits=True, message="the joint has no limits: nothing to check against")
     lower, upper, slack = channel.lower, channel.upper, channel.slack
-    report.limits_in_source_unit = channel.limits_in_source_unit
     current = _current_values(channel, finite)
-    report.current_fits = bool(np.all((current >= lower - slack) & (current <= upper + slack)))
+    fits = bool(np.all((current >= lower - slack) & (current <= upper + slack)))
+    report = replace(report, limits_in_source_unit=channel.limits_in_source_unit, current_fits=fits)
     outside = (current < lower) | (current > upper)
-    if report.current_fits and outside.any():
+    if fits and outside.any():
         excess = np.maximum(lower - current, current - upper)
-        report.slack_rows = int(outside.sum())
-        report.slack_worst = float(finite[np.argmax(excess)])
+        report = replace(report, slack_rows=int(outside.sum()), slack_worst=float(finite[np.argmax(excess)]))
     if channel.source_range is not None:  # the config maps the range itself: only the fit is to check
-        report.verdict = "fits" if report.current_fits else "none"
-        report.message = (
-            "source_range maps the values onto the joint's range"
-            if report.current_fits
-            else f"values leave source_range {list(channel.source_range)}: the range (or the column) is wrong"
-        )
-        return report
+        if fits:
+            return replace(report, verdict="fits", message="source_range maps the values onto the joint's range")
+        message = f"values leave source_range {list(channel.source_range)}: the range (or the column) is wrong"
+        return replace(report, verdict="none", message=message)
     kept: list[tuple[Candidate, np.ndarray]] = []
     for candidate in _candidates(channel):
         values = _values(channel, finite, candidate)
@@ -167,17 +163,13 @@ def check_channel(robot: RobotPlan, channel: JointChannel, raw: np.ndarray) -> J
         if any(np.allclose(values, other, atol=1e-9) for _, other in kept):
             continue
         kept.append((candidate, values))
-    report.fitting = [c.describe(channel) + (" (the config's)" if _is_current(c, channel) else "") for c, _ in kept]
+    report = replace(report, fitting=tuple(c.describe(channel) + (" (the config's)" if _is_current(c, channel) else "") for c, _ in kept))
     if len(kept) == 1:
-        report.verdict, report.paste = "fits", kept[0][0].yaml(channel)
-        report.message = "one correction fits"
-    elif kept:
-        report.verdict = "ambiguous"
-        report.message = "several corrections fit: settle against a known pose"
-    else:
-        report.verdict = "none"
-        report.message = "no correction fits: the column is probably another joint, or the name order is off"
-    return report
+        return replace(report, verdict="fits", paste=kept[0][0].yaml(channel), message="one correction fits")
+    if kept:
+        return replace(report, verdict="ambiguous", message="several corrections fit: settle against a known pose")
+    message = "no correction fits: the column is probably another joint, or the name order is off"
+    return replace(report, verdict="none", message=message)
 
 
 def check_plan(plan: Plan, sample: dict[str, np.ndarray]) -> list[JointReport]:
@@ -211,15 +203,15 @@ def read_sample(source: SourcePlan, rows: int = SAMPLE_ROWS) -> np.ndarray:
     return np.concatenate(matrices)[:rows] if matrices else np.empty((0, width))
 
 
-def exit_code(reports: list[JointReport]) -> int:
+def exit_code(reports: Sequence[JointReport]) -> int:
     return ExitCode.OK if all(r.current_fits for r in reports) else ExitCode.DOES_NOT_FIT
 
 
-def as_json(reports: list[JointReport]) -> list[dict]:
+def as_json(reports: Sequence[JointReport]) -> list[dict]:
     return [asdict(r) for r in reports]
 
 
-def as_text(reports: list[JointReport]) -> str:
+def as_text(reports: Sequence[JointReport]) -> str:
     lines: list[str] = []
     robot = None
     for r in reports:

@@ -6,250 +6,32 @@ Floats are compared with a tolerance of 1e-9, `where` fields (line numbers) and 
 compared relative to each config's folder (a path equal either relatively or absolutely is the same path), so a
 config moved together with its inputs shows no change.
 
-The report is one line per change, grouped: robots (by key), then edges (the root frame, static edges by
-(parent, child), temporal edges), then sources (by name), then the output; within a group in a fixed order, so
-the same two plans always give the same text.
-
-`diff CONFIG --git REV` compiles the config's text at REV (`git show REV:./NAME`, run in the config's folder)
-from a hidden temporary file beside the config, so relative paths resolve as for the working tree's config.
-Everything else the old config refers to (URDF, data, sidecar edge files) is read from the working tree.
+The changes come in a fixed order, grouped: robots (by key: diff_robots.py), then edges (the root frame, static edges
+by (parent, child), temporal edges), then sources (by name), then the output; within a group in a fixed order, so
+the same two plans always give the same report (diff_base.DiffReport; diff_render.py prints it).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
 from ..errors import listing
-from ..plan import (
-    EdgePlan,
-    IndexPlan,
-    JointChannel,
-    LeRobotSourcePlan,
-    Plan,
-    RobotPlan,
-    SourcePlan,
-    TemporalEdgePlan,
-)
-from ..urdf.geometry import quaternion_from_rpy
-from ..urdf.model import Joint, UrdfModel, UrdfParseError, parse_urdf_text
-from .diff_base import Change, PathValue, _moved, _path_value, _Report, _rounded, _same, _text
-
-# ---------------------------------------------------------------------------------------------------------- values
+from ..plan import EdgePlan, IndexPlan, LeRobotSourcePlan, Plan, SourcePlan, TemporalEdgePlan
+from .diff_base import Change, PathValue, _moved, _Report, _rounded, _same, _text
+from .diff_robots import robot_changes
 
 
-# ---------------------------------------------------------------------------------------------------------- the diff
-
-
-def diff_plans(old: Plan, new: Plan) -> list[Change]:
+def diff_plans(old: Plan, new: Plan) -> tuple[Change, ...]:
     """Every semantic difference from old to new, in report order (empty when the plans are equivalent)."""
     report = _Report(old.config_path.parent, new.config_path.parent)
-    old_robots, new_robots = {r.key: r for r in old.robots}, {r.key: r for r in new.robots}
-    for key in sorted(old_robots.keys() | new_robots.keys()):
-        subject = f"robot {key}"
-        if key not in new_robots:
-            report.add("robot", subject, "removed")
-        elif key not in old_robots:
-            robot = new_robots[key]
-            what = (
-                f"{len(robot.channels)} mapped value(s) from source '{robot.source}'" if robot.source else "a scene without moving joints"
-            )
-            report.add(
-                "robot", subject, f"added (URDF {report.new_path(robot.urdf_path)}, frame_prefix {_text(robot.frame_prefix)}, {what})"
-            )
-        else:
-            _robot_changes(report, subject, old, old_robots[key], new, new_robots[key])
+    robot_changes(report, old, new)
     _edge_changes(report, old, new)
     _source_changes(report, old, new)
     _output_changes(report, old, new)
-    return report.changes
-
-
-# ---------------------------------------------------------------------------------------------------------- robots
-
-
-def _robot_changes(report: _Report, subject: str, old_plan: Plan, old: RobotPlan, new_plan: Plan, new: RobotPlan) -> None:
-    group = "robot"
-    report.field(group, subject, "URDF file", report.old_path(old.urdf_path), report.new_path(new.urdf_path))
-    if not (old.urdf_origin.startswith("file ") and new.urdf_origin.startswith("file ")):  # a file's origin is its path
-        report.field(group, subject, "URDF origin", old.urdf_origin, new.urdf_origin)
-    old_model, new_model = _model(old), _model(new)
-    if old.urdf_sha256 != new.urdf_sha256:
-        report.add(group, subject, f"URDF sha256 {old.urdf_sha256[:12]} -> {new.urdf_sha256[:12]}", old.urdf_sha256, new.urdf_sha256)
-        if old_model is not None and new_model is not None:
-            _urdf_changes(report, subject, old_model, new_model)
-    if old_model is not None and new_model is not None:
-        _mesh_changes(report, subject, old_model, new_model)
-    report.field(group, subject, "entity_path_prefix", old.entity_path_prefix, new.entity_path_prefix)
-    report.field(group, subject, "frame_prefix", old.frame_prefix, new.frame_prefix)
-    report.field(group, subject, "collision_geometries", _collisions(old), _collisions(new))
-    report.field(group, subject, "joints source", old.source, new.source)
-    if old.source is None or new.source is None:
-        return
-    report.field(group, subject, "NaN policy", old.nan_policy, new.nan_policy)
-    report.field(group, subject, "limits slack (source units)", _slack(old), _slack(new))
-    report.field(group, subject, "limits on_violation", old.on_violation, new.on_violation)
-
-    old_names, new_names = old_plan.source(old.source).names, new_plan.source(new.source).names
-    old_map, new_map = _channels_by_name(old), _channels_by_name(new)
-    old_ignored = [n for n in old_names if n not in old_map]
-    new_ignored = [n for n in new_names if n not in new_map]
-    order = {name: i for i, name in enumerate(new_names)} | {n: len(new_names) + i for i, n in enumerate(old_names) if n not in new_names}
-    for name in sorted(old_map.keys() | new_map.keys(), key=lambda n: (order.get(n, len(order)), n)):
-        if name not in new_map:
-            note = " (now ignored)" if name in new_ignored else ""
-            report.add(group, subject, f"{name} -> {_joints(old_map[name])}: removed{note}", _joints(old_map[name]), None)
-        elif name not in old_map:
-            note = " (was ignored)" if name in old_ignored else ""
-            report.add(
-                group,
-                subject,
-                f"{name} -> {_joints(new_map[name])}: added ({_channel_summary(new_map[name][0])}){note}",
-                None,
-                _joints(new_map[name]),
-            )
-        else:
-            _channel_changes(report, subject, name, old_map[name], new_map[name])
-    added = [n for n in new_ignored if n not in old_ignored and n not in old_map]
-    removed = [n for n in old_ignored if n not in new_ignored and n not in new_map]
-    if added:
-        report.add(group, subject, f"ignore added: {', '.join(added)}", None, added)
-    if removed:
-        report.add(group, subject, f"ignore removed: {', '.join(removed)}", removed, None)
-
-    old_holds, new_holds = {h.joint: h.value for h in old.holds}, {h.joint: h.value for h in new.holds}
-    for joint in sorted(old_holds.keys() | new_holds.keys()):
-        if joint not in new_holds:
-            report.add(group, subject, f"hold {joint} = {_text(old_holds[joint])}: removed", old_holds[joint], None)
-        elif joint not in old_holds:
-            report.add(group, subject, f"hold {joint} = {_text(new_holds[joint])}: added", None, new_holds[joint])
-        else:
-            report.field(group, subject, f"hold {joint}", old_holds[joint], new_holds[joint])
-
-
-def _collisions(robot: RobotPlan) -> str:
-    return "keep" if robot.keep_collisions else "drop"
-
-
-def _slack(robot: RobotPlan) -> float | None:
-    """The config's limits.slack (source units): each channel holds it in URDF units, times its gain."""
-    return next((c.slack_in_source_unit for c in robot.channels if c.slack_in_source_unit is not None), None)
-
-
-def _channels_by_name(robot: RobotPlan) -> dict[str, list[JointChannel]]:
-    by_name: dict[str, list[JointChannel]] = {}
-    for channel in robot.channels:
-        by_name.setdefault(channel.source_name, []).append(channel)
-    return by_name
-
-
-def _joints(channels: Sequence[JointChannel]) -> str:
-    return ", ".join(c.joint for c in channels)
-
-
-def _channel_summary(c: JointChannel) -> str:
-    if c.source_range is not None:
-        return f"source_range {_text(c.source_range)} onto {_text(c.target_range)}"
-    parts = [f"unit {c.source_unit}", f"sign {_text(c.sign)}"]
-    parts += [f"scale {_text(c.scale)}"] if c.scale != 1 else []
-    parts += [f"offset {_text(c.offset)}"] if c.offset else []
-    parts += [f"wrap {_text(c.wrap)}"] if c.wrap else []
-    return ", ".join(parts)
-
-
-def _channel_changes(report: _Report, subject: str, name: str, old: list[JointChannel], new: list[JointChannel]) -> None:
-    old_joints, new_joints = [c.joint for c in old], [c.joint for c in new]
-    if sorted(old_joints) != sorted(new_joints):
-        report.add("robot", subject, f"{name}: remapped {_joints(old)} -> {_joints(new)}", _joints(old), _joints(new))
-    pairs: list[tuple[JointChannel, JointChannel]]
-    if sorted(old_joints) == sorted(new_joints):
-        pairs = [(o, next(n for n in new if n.joint == o.joint)) for o in old]
-    elif len(old) == len(new):
-        pairs = list(zip(old, new, strict=True))
-    else:
-        pairs = [(o, n) for o in old for n in new if o.joint == n.joint]
-    for o, n in pairs:
-        label = f"{name} -> {n.joint}"
-        report.field("robot", subject, f"{label}: sign", o.sign, n.sign)
-        report.field("robot", subject, f"{label}: unit", o.source_unit, n.source_unit)
-        report.field("robot", subject, f"{label}: scale", o.scale, n.scale)
-        report.field("robot", subject, f"{label}: offset", o.offset, n.offset)
-        report.field("robot", subject, f"{label}: wrap", o.wrap, n.wrap)
-        report.field("robot", subject, f"{label}: source_range", o.source_range, n.source_range)
-        if not (_follows_limits(o) and _follows_limits(n)):  # URDF limits changes are reported with the URDF
-            report.field("robot", subject, f"{label}: joint_range", o.target_range, n.target_range)
-        if o.joint == n.joint:  # what the changes above (or the URDF's) mean for the data, as plan and check print it
-            report.field("robot", subject, f"{label}: limits (source units)", _limits(o), _limits(n))
-
-
-def _limits(c: JointChannel) -> tuple[float, ...] | None:
-    """JointChannel.limits_in_source_unit to 6 significant digits, as plan's text, check and the run print it."""
-    limits = c.limits_in_source_unit
-    return tuple(float(f"{v:.6g}") for v in limits) if limits is not None else None
-
-
-def _follows_limits(c: JointChannel) -> bool:
-    return c.target_range is None or _same(c.target_range, (c.lower, c.upper))
-
-
-def _model(robot: RobotPlan) -> UrdfModel | None:
-    try:
-        return parse_urdf_text(robot.urdf_text, str(robot.urdf_path))
-    except UrdfParseError:
-        return None
-
-
-def _urdf_changes(report: _Report, subject: str, old: UrdfModel, new: UrdfModel) -> None:
-    group = "robot"
-    report.field(group, subject, "URDF robot name", old.name, new.name)
-    report.field(group, subject, "URDF root link", old.root_link, new.root_link)
-    _added_removed(report, subject, "URDF joints", [j.name for j in old.joints], [j.name for j in new.joints])
-    _added_removed(report, subject, "URDF links", list(old.links), list(new.links))
-    new_joints = {j.name: j for j in new.joints}
-    for joint in old.joints:
-        if joint.name in new_joints:
-            _urdf_joint_changes(report, subject, joint, new_joints[joint.name])
-
-
-def _added_removed(report: _Report, subject: str, what: str, old: list[str], new: list[str]) -> None:
-    added = [n for n in new if n not in old]
-    removed = [n for n in old if n not in new]
-    if added:
-        report.add("robot", subject, f"{what} added: {listing(added)}", None, added)
-    if removed:
-        report.add("robot", subject, f"{what} removed: {listing(removed)}", removed, None)
-
-
-def _urdf_joint_changes(report: _Report, subject: str, old: Joint, new: Joint) -> None:
-    label = f"URDF joint {old.name}"
-    report.field("robot", subject, f"{label}: type", old.type, new.type)
-    report.field("robot", subject, f"{label}: parent", old.parent, new.parent)
-    report.field("robot", subject, f"{label}: child", old.child, new.child)
-    moved = _moved(old.xyz, quaternion_from_rpy(*old.rpy), new.xyz, quaternion_from_rpy(*new.rpy))
-    if moved is not None:
-        report.add("robot", subject, f"{label}: origin {moved}", [*old.xyz, *old.rpy], [*new.xyz, *new.rpy])
-    report.field("robot", subject, f"{label}: axis", old.axis, new.axis)
-    if old.type != "continuous" or new.type != "continuous":
-        report.field("robot", subject, f"{label}: limits", (old.lower, old.upper), (new.lower, new.upper))
-    old_mimic = (old.mimic.joint, old.mimic.multiplier, old.mimic.offset) if old.mimic else None
-    new_mimic = (new.mimic.joint, new.mimic.multiplier, new.mimic.offset) if new.mimic else None
-    report.field("robot", subject, f"{label}: mimic (joint, multiplier, offset)", old_mimic, new_mimic)
-
-
-def _mesh_changes(report: _Report, subject: str, old: UrdfModel, new: UrdfModel) -> None:
-    """Meshes of the same link resolved to another file (package_paths changed, say)."""
-
-    def by_link(model: UrdfModel, base: Path) -> dict[tuple[str, str], list[PathValue]]:
-        meshes: dict[tuple[str, str], list[PathValue]] = {}
-        for mesh in model.meshes:
-            meshes.setdefault((mesh.link, mesh.kind), []).append(_path_value(Path(mesh.uri), base))
-        return meshes
-
-    old_meshes, new_meshes = by_link(old, report.old_base), by_link(new, report.new_base)
-    for key in sorted(old_meshes.keys() & new_meshes.keys()):
-        report.field("robot", subject, f"mesh of link {key[0]} ({key[1]})", old_meshes[key], new_meshes[key])
+    return tuple(report.changes)
 
 
 # ---------------------------------------------------------------------------------------------------------- edges
@@ -394,10 +176,6 @@ def _names_changes(report: _Report, subject: str, old: tuple[str, ...], new: tup
 def _output_changes(report: _Report, old: Plan, new: Plan) -> None:
     subject = "output"
     report.field("output", subject, "application_id", old.output.application_id, new.output.application_id)
-    if old.dataset is None or new.dataset is None:
-        report.field("output", subject, "path", report.old_path(old.output.path), report.new_path(new.output.path))
-        report.field("output", subject, "segment", old.output.recording_id, new.output.recording_id)
-        return
     report.field("output", subject, "layout", old.dataset.layout, new.dataset.layout)
     old_model = report.old_path(old.dataset.model) if old.dataset.model else None
     new_model = report.new_path(new.dataset.model) if new.dataset.model else None
@@ -441,9 +219,3 @@ def _manifest_key(path_value: Callable[[Path], PathValue], plan: Plan) -> tuple[
     """The manifest's folder and name; None for the default name (after the config's file), so configs of other names compare."""
     manifest = plan.dataset.manifest
     return path_value(manifest.parent), None if manifest.name == f"{plan.config_path.stem}.manifest.json" else manifest.name
-
-
-# ---------------------------------------------------------------------------------------------------------- reports
-
-
-# ---------------------------------------------------------------------------------------------------------- compiling

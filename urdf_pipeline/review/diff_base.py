@@ -1,4 +1,5 @@
-"""What a plan difference is made of: a Change, values with their YAML paths, and the tolerances that make two numbers, rotations or translations the same."""
+"""What `diff` reports (DiffReport, made of Changes), how paths are compared, and the tolerances that make two numbers,
+rotations or translations the same."""
 
 from __future__ import annotations
 
@@ -28,8 +29,19 @@ class Change:
     def line(self) -> str:
         return f"{self.subject}: {self.detail}"
 
-    def as_json(self) -> dict[str, Any]:
-        return {"group": self.group, "subject": self.subject, "detail": self.detail, "old": self.old, "new": self.new, "line": self.line}
+
+@dataclass(frozen=True)
+class DiffReport:
+    """What `diff` found: the two configs as the user named them, and every change in report order (diff.diff_plans).
+    diff_render.py prints it as text or JSON."""
+
+    old: str  # "OLD", or "CONFIG@REV" with --git
+    new: str
+    changes: tuple[Change, ...]
+
+    @property
+    def equivalent(self) -> bool:
+        return not self.changes
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,31 +1,24 @@
-"""What `diff` compares: two config files, or a config and its text at a git revision, compiled quietly; and the report's text and JSON forms."""
+"""What `diff` compares: two config files, or a config and its text at a git revision, each compiled quietly.
+
+`diff CONFIG --git REV` compiles the config's text at REV (`git show REV:./NAME`, run in the config's folder) from a
+hidden temporary file beside the config, so relative paths resolve as for the working tree's config. Everything
+else the old config refers to (URDF, data, sidecar edge files) is read from the working tree.
+"""
 
 from __future__ import annotations
 
 import os
 import subprocess
 import tempfile
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
 
 from ..errors import UserError, UserErrors, Where, collect_warnings
-from ..plan import (
-    Plan,
-)
+from ..plan import Plan
 from .diff import diff_plans
-from .diff_base import Change
-
-
-def report_text(changes: Iterable[Change]) -> str:
-    """One line per change; the empty string when there is none."""
-    return "".join(change.line + "\n" for change in changes)
-
-
-def report_json(changes: Sequence[Change], old: str, new: str) -> dict[str, Any]:
-    return {"old": old, "new": new, "equivalent": not changes, "changes": [c.as_json() for c in changes]}
+from .diff_base import DiffReport
 
 
 def compile_quietly(config: Path) -> Plan:
@@ -36,17 +29,19 @@ def compile_quietly(config: Path) -> Plan:
         return compile_config(config)
 
 
-def diff_files(old: Path, new: Path) -> list[Change]:
-    return diff_plans(compile_quietly(old), compile_quietly(new))
+def diff_files(old: str, new: str) -> DiffReport:
+    """OLD and NEW as the user named them."""
+    return DiffReport(old, new, diff_plans(compile_quietly(Path(old)), compile_quietly(Path(new))))
 
 
-def diff_git(config: Path, revision: str) -> list[Change]:
+def diff_git(config: str, revision: str) -> DiffReport:
     """The config at `revision` vs the working tree's. Files the old config refers to are read from the working tree."""
-    new_plan = compile_quietly(config)
-    with git_revision_copy(config, revision) as old_copy:
-        old_plan = _renamed_errors(old_copy, Path(f"{config}@{revision}"))
-        old_plan = _as_if_named(old_plan, old_copy, config)
-    return diff_plans(old_plan, new_plan)
+    path = Path(config)
+    new_plan = compile_quietly(path)
+    with git_revision_copy(path, revision) as old_copy:
+        old_plan = _renamed_errors(old_copy, Path(f"{path}@{revision}"))
+        old_plan = _as_if_named(old_plan, old_copy, path)
+    return DiffReport(f"{config}@{revision}", config, diff_plans(old_plan, new_plan))
 
 
 def _renamed_errors(copy: Path, shown: Path) -> Plan:

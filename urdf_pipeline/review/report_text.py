@@ -1,36 +1,42 @@
-"""The plan as free-form text (`plan` without --format): each joint's conversion, edges and outputs, for a terminal."""
+"""The plan report as free-form text (`plan` without --format): each joint's conversion, edges and outputs, for a
+terminal. Paths as the plan holds them; limits in source units, as markdown and json show them."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
-from ..plan import JointChannel, Plan, RobotPlan
-
-if TYPE_CHECKING:
-    pass
+from .report_model import EdgeEntry, JointRow, OutputEntry, PlanReport, RobotEntry, SampleEntry, number
 
 
-def _channel_text(c: JointChannel) -> str:
-    steps = [f"wrap {c.wrap:g} around {c.wrap_center:g}"] if c.wrap else []
-    if c.source_range is not None and c.target_range is not None:
-        steps.append(f"source_range {list(c.source_range)} onto {[round(v, 9) for v in c.target_range]}")
+def _mapped_text(row: JointRow) -> str:
+    steps = [f"wrap {row.wrap.period:g} around {row.wrap.center:g}"] if row.wrap else []
+    if row.source_range is not None and row.target_range is not None:
+        steps.append(f"source_range {list(row.source_range)} onto {[round(v, 9) for v in row.target_range]}")
     else:
-        steps.append(f"x {c.factor:g} ({c.source_unit})" + (f" x {c.scale:g}" if c.scale != 1 else "") + f" x {c.sign:g} + {c.offset:g}")
-    source = c.limits_in_source_unit
-    if source is None:
+        assert row.factor is not None and row.scale is not None and row.sign is not None and row.offset is not None
+        scale = f" x {row.scale:g}" if row.scale != 1 else ""
+        steps.append(f"x {row.factor:g} ({row.unit}){scale} x {row.sign:g} + {row.offset:g}")
+    limits = row.limits_source_units
+    if limits is None:
         steps.append("limits none")
     else:
-        unit = "source units" if c.source_range is not None else c.source_unit
-        steps.append(
-            f"limits {source[0]:.6g} .. {source[1]:.6g} {unit} (URDF [{c.lower:g}, {c.upper:g}]), slack {c.slack_in_source_unit or 0:g} {unit}"
-        )
+        unit = row.limits_unit
+        steps.append(f"limits {number(limits[0])} .. {number(limits[1])} {unit}, slack {number(row.slack_source_units or 0)} {unit}")
     return "; ".join(steps)
 
 
-def _robot_lines(robot: RobotPlan) -> list[str]:
+def _row_line(row: JointRow) -> str:
+    if row.kind == "held":
+        return f"    hold {row.joint} = {row.hold:g}"
+    if row.kind == "mimic":
+        assert row.mimic is not None
+        return f"    mimic {row.joint} = {row.mimic.driver} * {row.mimic.multiplier:g} + {row.mimic.offset:g}"
+    return f"    {row.source_name}[{row.source_index}] -> {row.joint}: {_mapped_text(row)}"
+
+
+def _robot_lines(robot: RobotEntry) -> list[str]:
     lines = [
         f"robot {robot.key}: URDF '{robot.robot_name}' from {robot.urdf_path}",
-        f"  entity {robot.entity_path_prefix}, frame prefix '{robot.frame_prefix}', root link {robot.frame_prefix}{robot.root_link}, collisions {'kept' if robot.keep_collisions else 'dropped'}",
+        f"  entity {robot.entity_path_prefix}, frame prefix '{robot.frame_prefix}', root link {robot.root_frame}, "
+        f"collisions {'kept' if robot.collision_geometries == 'keep' else 'dropped'}",
     ]
     if robot.source is None:
         return [*lines, "  a scene: no moving joints, no joint source (static transforms only)"]
@@ -39,35 +45,8 @@ def _robot_lines(robot: RobotPlan) -> list[str]:
         "    wrap (source units) -> (value * unit factor * scale) * sign + offset, or source_range onto the joint's range"
         " -> limits (clamp within slack) -> mimic joints",
     ]
-    for c in robot.channels:
-        lines.append(f"    {c.source_name}[{c.source_index}] -> {c.joint}: {_channel_text(c)}")
-    lines += [f"    hold {h.joint} = {h.value:g}" for h in robot.holds]
-    lines += [f"    mimic {m.joint} = {m.driver} * {m.multiplier:g} + {m.offset:g}" for m in robot.mimics]
+    lines += [_row_line(row) for row in robot.joints]
     lines.append(f"  beyond-slack values: {robot.on_violation}")
-    return lines
-
-
-def _edge_lines(plan: Plan) -> list[str]:
-    lines = []
-    for edge in plan.edges:
-        pose = f"t={[round(v, 9) for v in edge.translation]} q_xyzw={[round(v, 9) for v in edge.quaternion_xyzw]}"
-        origin = f" ({edge.label}, line {edge.where.line})" if edge.label else ""
-        if edge.kind == "fixed_chain" and edge.fixed_chain is not None:
-            chain = edge.fixed_chain
-            joints = ", ".join(chain.joints) or "none: from and to are the same link"
-            lines.append(f"edge {edge.parent} -> {edge.child}: fixed chain {chain.start} -> {chain.end} of robot {chain.robot}{origin}")
-            lines.append(f"  fixed joints composed: {joints}; {pose}")
-        elif edge.kind == "assume_identity":
-            lines.append(f"edge {edge.parent} -> {edge.child}: identity ASSUMED, not calibrated{origin}")
-        else:
-            lines.append(f"edge {edge.parent} -> {edge.child}: {pose}{origin}")
-    for temporal in plan.temporal_edges:
-        lines.append(
-            f"temporal edge {temporal.parent} -> {temporal.child} on {temporal.entity} ({temporal.label}, "
-            f"line {temporal.where.line}): per row of source '{temporal.source}', "
-            f"translation {_named(temporal.translation_names, temporal.translation_indices)}, "
-            f"quaternion_xyzw {_named(temporal.quaternion_names, temporal.quaternion_indices)} (normalised per row)"
-        )
     return lines
 
 
@@ -75,26 +54,58 @@ def _named(names: tuple[str, ...], indices: tuple[int, ...]) -> str:
     return "[" + ", ".join(f"{name}[{index}]" for name, index in zip(names, indices, strict=True)) + "]"
 
 
-def describe_plan(plan: Plan) -> str:
-    lines = [f"config {plan.config_path}", f"root frame: {plan.root_frame}"]
-    for source in plan.sources:
-        lines.append(f"source {source.name}: {type(source).__name__.removesuffix('SourcePlan').lower()} with {len(source.names)} names")
-    for robot in plan.robots:
-        lines += _robot_lines(robot)
-    lines += _edge_lines(plan)
-    lines += _output_lines(plan)
-    return "\n".join(lines)
+def _edge_lines(edge: EdgeEntry) -> list[str]:
+    origin, temporal = edge.origin, edge.temporal
+    if temporal is not None:
+        return [
+            f"temporal edge {edge.parent} -> {edge.child} on {temporal.entity} ({origin.label}, "
+            f"line {origin.line}): per row of source '{temporal.source}', "
+            f"translation {_named(temporal.translation_names, temporal.translation_indices)}, "
+            f"quaternion_xyzw {_named(temporal.quaternion_names, temporal.quaternion_indices)} (normalised per row)"
+        ]
+    assert edge.translation is not None and edge.quaternion_xyzw is not None
+    pose = f"t={[round(v, 9) for v in edge.translation]} q_xyzw={[round(v, 9) for v in edge.quaternion_xyzw]}"
+    place = f" ({origin.label}, line {origin.line})" if origin.label else ""
+    if origin.fixed_chain is not None:
+        chain = origin.fixed_chain
+        joints = ", ".join(chain.joints) or "none: from and to are the same link"
+        return [
+            f"edge {edge.parent} -> {edge.child}: fixed chain {chain.start} -> {chain.end} of robot {chain.robot}{place}",
+            f"  fixed joints composed: {joints}; {pose}",
+        ]
+    if origin.kind == "assumed_identity":
+        return [f"edge {edge.parent} -> {edge.child}: identity ASSUMED, not calibrated{place}"]
+    return [f"edge {edge.parent} -> {edge.child}: {pose}{place}"]
 
 
-def _output_lines(plan: Plan) -> list[str]:
-    if plan.dataset is None or len(plan.segments) == 1 and plan.dataset.layout == "single":
-        return [f"output {plan.output.path} (application_id {plan.output.application_id}, recording_id {plan.output.recording_id})"]
-    dataset, segments = plan.dataset, plan.segments
+def _output_lines(output: OutputEntry) -> list[str]:
+    if output.single:
+        return [f"output {output.path.planned} (application_id {output.application_id}, recording_id {output.recording_id})"]
+    segments = output.segments
     named = ", ".join(s.id for s in segments[:3]) + (f", ... {segments[-1].id}" if len(segments) > 3 else "")
-    lines = [f"output: {len(segments)} segments ({named}), layout {dataset.layout}, application_id {plan.output.application_id}"]
-    if dataset.model is not None:
-        lines.append(f"  model (meshes, static URDF transforms, written once, static only): {dataset.model}")
-    what = "layer (forward kinematics, calibration edges)" if dataset.layout == "split" else "recording"
-    lines.append(f"  each segment's {what}: {segments[0].output} ... recording_id = segment id")
-    lines.append(f"  manifest: {dataset.manifest}")
+    lines = [f"output: {len(segments)} segments ({named}), layout {output.layout}, application_id {output.application_id}"]
+    if output.model is not None:
+        lines.append(f"  model (meshes, static URDF transforms, written once, static only): {output.model.planned}")
+    what = "layer (forward kinematics, calibration edges)" if output.layout == "split" else "recording"
+    lines.append(f"  each segment's {what}: {segments[0].output.planned} ... recording_id = segment id")
+    lines.append(f"  manifest: {output.manifest.planned}")
     return lines
+
+
+def _sample_text(sample: SampleEntry) -> str:
+    from .check import as_text  # check's own rendering of its verdicts (imports numpy: only with --sample)
+
+    read = ", ".join(f"{name}: {rows}" for name, rows in sample.read)
+    return f"sample (at most {sample.rows} rows of each source; read {read}):\n" + as_text(sample.reports)
+
+
+def render_text(report: PlanReport) -> str:
+    lines = [f"config {report.config.planned}", f"root frame: {report.root_frame}"]
+    lines += [f"source {source.name}: {source.kind} with {len(source.names)} names" for source in report.sources]
+    for robot in report.robots:
+        lines += _robot_lines(robot)
+    for edge in report.configured_edges:
+        lines += _edge_lines(edge)
+    lines += _output_lines(report.output)
+    text = "\n".join(lines)
+    return text + ("\n" + _sample_text(report.sample) if report.sample is not None else "") + "\n"

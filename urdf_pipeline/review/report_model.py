@@ -1,0 +1,239 @@
+"""The plan report as one typed model: what `plan` shows, whatever the format (text, markdown, json).
+
+`report.build_report` makes it from a Plan; `report_text`, `report_markdown` and `report_json` render it and compute
+nothing of their own from the plan. Numbers are held as the plan holds them: the deterministic formats round them
+(`rounded`, 9 decimals) when they print, and every format shows a limit with `number`, so the three agree.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Literal
+
+from ..plan import FixedChain, IndexPlan
+
+if TYPE_CHECKING:
+    from .check import JointReport
+
+REPORT_VERSION = 1
+JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
+
+RowKind = Literal["mapped", "held", "mimic"]
+OriginKind = Literal[
+    "urdf_moving_joint", "urdf_fixed_joint", "calibration_inline", "calibration_file", "fixed_chain", "assumed_identity", "temporal"
+]
+SettingValue = str | int | bool | None | IndexPlan
+
+
+def rounded(value: float) -> float:
+    """Rounded to 9 decimals, -0.0 as 0.0: equal across machines whose last bits of sin/cos differ."""
+    return round(float(value), 9) + 0.0
+
+
+def number(value: float) -> str:
+    """A number as every format shows a limit, a slack or a table cell: 6 significant digits of its rounded value."""
+    return f"{rounded(value):.6g}"
+
+
+@dataclass(frozen=True)
+class ShownPath:
+    """A plan path two ways: as the plan holds it (text, for the terminal that ran the command) and relative to the
+    config's folder, posix (markdown and json: the same bytes on every machine)."""
+
+    planned: Path
+    relative: str
+
+
+@dataclass(frozen=True)
+class SourceEntry:
+    name: str
+    kind: str  # "parquet", "lerobot", ...
+    file_key: str  # "path", or "root" for a LeRobot dataset
+    file: ShownPath
+    names: tuple[str, ...]
+    settings: tuple[tuple[str, SettingValue], ...]  # the kind's other fields, by name (column, index, episode, ...)
+
+
+@dataclass(frozen=True)
+class Wrap:
+    period: float  # source units
+    center: float
+
+
+@dataclass(frozen=True)
+class Mimic:
+    driver: str
+    multiplier: float
+    offset: float
+
+
+@dataclass(frozen=True)
+class Observed:
+    """What `--sample` saw of one mapped value (check's JointReport, in the report's terms)."""
+
+    rows: int
+    min: float | None
+    max: float | None
+    fits: bool
+    verdict: str
+    slack_rows: int
+
+
+@dataclass(frozen=True)
+class JointRow:
+    """One URDF joint the pipeline drives: mapped from a source value, held at a value, or a <mimic> joint."""
+
+    kind: RowKind
+    joint: str
+    type: str  # the URDF joint type
+    unit: str | None  # the source unit (mapped without source_range), the URDF unit (held, mimic), None (source_range)
+    limits_urdf: tuple[float, float] | None
+    source_name: str | None = None
+    source_index: int | None = None
+    factor: float | None = None  # the unit factor (mapped without source_range)
+    sign: float | None = None
+    offset: float | None = None  # URDF units
+    scale: float | None = None
+    wrap: Wrap | None = None
+    source_range: tuple[float, float] | None = None
+    target_range: tuple[float, float] | None = None  # URDF units
+    limits_source_units: tuple[float, float] | None = None  # JointChannel.limits_in_source_unit
+    slack_source_units: float | None = None
+    mimic: Mimic | None = None
+    hold: float | None = None  # URDF units
+    observed: Observed | None = None
+
+    @property
+    def limits_unit(self) -> str:
+        """The unit of limits_source_units: the source's, or "source units" when source_range maps the values."""
+        return self.unit if self.unit is not None and self.source_range is None else "source units"
+
+
+@dataclass(frozen=True)
+class RobotEntry:
+    key: str
+    robot_name: str
+    urdf_path: Path  # the file the URDF text came from, as the plan holds it
+    urdf_origin: str
+    urdf_sha256: str
+    entity_path_prefix: str
+    frame_prefix: str
+    root_frame: str
+    collision_geometries: Literal["keep", "drop"]
+    source: str | None  # None: a scene, no joint source
+    nan_policy: str | None
+    on_violation: str | None
+    joint_counts: Mapping[str, int]  # per URDF joint type (JOINT_TYPES), and "mimic"
+    joints: tuple[JointRow, ...]  # mapped (config order), held, mimic
+    ignored_source_values: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class EdgeOrigin:
+    kind: OriginKind
+    description: str
+    robot: str | None = None
+    joint: str | None = None
+    joint_type: str | None = None
+    file: str | None = None  # relative to the config's folder
+    line: int | None = None
+    label: str | None = None  # "edges[2]", "calib/extrinsics.yaml[0]", ...
+    source: str | None = None  # a temporal edge's source
+    fixed_chain: FixedChain | None = None
+
+
+@dataclass(frozen=True)
+class TemporalValues:
+    """A temporal edge's pose: named values of a source, per row."""
+
+    source: str
+    entity: str
+    translation_names: tuple[str, ...]
+    translation_indices: tuple[int, ...]
+    quaternion_names: tuple[str, ...]  # x, y, z, w
+    quaternion_indices: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class EdgeEntry:
+    """One edge of the frame graph. URDF moving joints are at their origin (joint value 0)."""
+
+    parent: str
+    child: str
+    origin: EdgeOrigin
+    translation: tuple[float, ...] | None  # metres; None for a temporal edge
+    rotation_rpy_deg: tuple[float, ...] | None  # rounded, -180 as 180; None for a temporal edge
+    quaternion_xyzw: tuple[float, ...] | None = None  # a configured edge's, as the plan holds it
+    temporal: TemporalValues | None = None
+
+
+@dataclass(frozen=True)
+class SegmentEntry:
+    id: str
+    episode: int | None
+    stem: str | None
+    frames: int | None
+    output: ShownPath
+
+
+@dataclass(frozen=True)
+class OutputEntry:
+    layout: str
+    application_id: str
+    recording_id: str  # the first segment's
+    path: ShownPath  # the first segment's output
+    segments: tuple[SegmentEntry, ...]
+    model: ShownPath | None
+    manifest: ShownPath
+
+    @property
+    def segment_count(self) -> int:
+        return len(self.segments)
+
+    @property
+    def single(self) -> bool:
+        """One recording, no model: text prints it on one line."""
+        return self.segment_count == 1 and self.layout == "single"
+
+
+@dataclass(frozen=True)
+class WarningEntry:
+    file: str | None  # relative to the config's folder
+    line: int  # 0: unknown
+    column: int
+    path: str
+    message: str
+
+
+@dataclass(frozen=True)
+class SampleEntry:
+    """What `plan --sample` read: the first `rows` rows (at most) of each robot source of the first segment."""
+
+    rows: int
+    read: tuple[tuple[str, int], ...]  # (source name, rows read), by name
+    reports: tuple[JointReport, ...]  # check's verdict per mapped value
+
+    def rows_read(self, source: str) -> int:
+        return dict(self.read).get(source, 0)
+
+
+@dataclass(frozen=True)
+class PlanReport:
+    """What a run of the config would do, read from its plan (and, with --sample, the first rows of its sources)."""
+
+    config: ShownPath
+    root_frame: str
+    sources: tuple[SourceEntry, ...]  # config order
+    robots: tuple[RobotEntry, ...]
+    edges: tuple[EdgeEntry, ...]  # every edge, top down from the root (children by name)
+    configured_edges: tuple[EdgeEntry, ...]  # the config's own edges in config order: static ones, then temporal ones
+    mermaid: str  # the frame tree as a mermaid `graph TD`
+    output: OutputEntry
+    warnings: tuple[WarningEntry, ...]  # sorted, each once
+    sample: SampleEntry | None
+
+    @property
+    def sources_by_name(self) -> tuple[SourceEntry, ...]:
+        return tuple(sorted(self.sources, key=lambda s: s.name))
