@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 from .errors import ExitCode, UserError
 
 if TYPE_CHECKING:
-    from .execute.segment_run import SegmentResult
+    from .execute import SegmentResult
 
 
 def _positive(text: str) -> int:
@@ -30,9 +30,8 @@ def _positive(text: str) -> int:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from .compile.compiler import compile_config
-    from .dataset.run import RunOptions, register_outputs, run_dataset
-    from .dataset.summary import summary_table, totals_line, write_report
+    from .compile import compile_config
+    from .dataset import RunOptions, register_outputs, run_dataset, summary_table, totals_line, write_report
     from .progress import SegmentProgress, say
 
     if args.catalog and not args.dataset:
@@ -41,7 +40,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     for robot in plan.robots:
         say(f"robot {robot.key}: URDF sha256 {robot.urdf_sha256} from {robot.urdf_origin}")
     if args.base:
-        from .dataset.base_check import check_base
+        from .dataset import check_base
 
         say(f"all {check_base(plan, args.base)} segment id(s) found among the base recordings in {args.base}")
     segments = len(plan.segments)
@@ -49,7 +48,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     if many:
         say(f"{segments} segment(s), layout {plan.dataset.layout}, {args.jobs} job(s) on the {args.executor} executor")
     if many and args.jobs > 1 and args.executor == "local":
-        from .dataset.local_executor import start_fork_server
+        from .dataset import start_fork_server
 
         start_fork_server()  # its imports overlap with hashing the inputs
     options = RunOptions(args.jobs, args.executor, args.ray_address, args.force, verbose=not many)
@@ -57,7 +56,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.report:
         write_report(Path(args.report), plan, run, options)
     if not run.interrupted and any(r.status in ("written", "skipped") for r in run.results):
-        from .execute.blueprint import write_blueprint
+        from .execute import write_blueprint
 
         say(f"blueprint (a 3D view of the scene and one per robot): {write_blueprint(plan)}")
     if many or run.interrupted:
@@ -72,14 +71,14 @@ def cmd_run(args: argparse.Namespace) -> int:
     for result in bugs:
         print(f"{result.label}: {result.reason}", file=sys.stderr)
     if run.interrupted:
-        from .dataset.interrupts import describe, exit_status
+        from .dataset import exit_status, signal_name
 
-        print(f"interrupted ({describe(run.signal)}): only complete outputs were kept", file=sys.stderr)
+        print(f"interrupted ({signal_name(run.signal)}): only complete outputs were kept", file=sys.stderr)
         return exit_status(run.signal)
     if args.catalog:  # what was written (or is up to date) is registered even when other segments failed
         say(register_outputs(run, args.catalog, args.dataset, args.layer).summary())
     if args.spawn or args.connect:
-        from .execute.viewer import send_to_viewer
+        from .execute import send_to_viewer
 
         say(f"sent {send_to_viewer(plan, run.results, args.connect, args.spawn)} segment(s) to the viewer")
     if bugs:
@@ -102,7 +101,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
     """text: `ok: CONFIG` on stdout, `error:` / `warning: FILE:LINE:COL: ...` lines on stderr. github / json: stdout
     holds only the annotations (workflow commands, or one JSON list), `ok: CONFIG` goes to stderr. Exit 1 if any
     config has an error (warnings alone: 0)."""
-    from .review.annotations import render_annotations, render_text_errors, render_text_progress, validate_config
+    from .review import render_annotations, render_text_errors, render_text_progress, validate_config
 
     results = []
     for config in args.configs:
@@ -122,22 +121,17 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 
 def cmd_check(args: argparse.Namespace) -> int:
-    import json
+    from .review import check_config, check_exit_code, render_check
 
-    from .compile.compiler import compile_config
-    from .review.check import as_json, as_text, check_plan, exit_code, read_sample
-
-    plan = compile_config(Path(args.config))
-    sample = {source.name: read_sample(source, args.rows) for source in plan.sources if plan.robots_for(source.name)}
-    reports = check_plan(plan, sample)
-    print(json.dumps(as_json(reports), indent=2) if args.format == "json" else as_text(reports))
-    return exit_code(reports)
+    reports = check_config(Path(args.config), args.rows)
+    sys.stdout.write(render_check(reports, args.format))
+    return check_exit_code(reports)
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
     """text (default): the free-form account; markdown / json: the deterministic report for PR comments. Joint values
     are read only with --sample (then Rerun is imported)."""
-    from .review.report import plan_command
+    from .review import plan_command
 
     if args.rows is not None and not args.sample:
         args.parser.error("--rows needs --sample")
@@ -147,14 +141,14 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
 
 def cmd_schema(args: argparse.Namespace) -> int:
-    from .config.schema import schema_text
+    from .config import schema_text
 
     sys.stdout.write(schema_text())
     return ExitCode.OK
 
 
 def cmd_init(args: argparse.Namespace) -> int:
-    from .review.scaffold import init_config
+    from .review import init_config
 
     result, said = init_config(Path(args.urdf), args.source, Path(args.output) if args.output else None, args.force)
     if not args.output:
@@ -165,13 +159,12 @@ def cmd_init(args: argparse.Namespace) -> int:
 
 
 def cmd_diff(args: argparse.Namespace) -> int:
-    from .review.diff_inputs import diff_files, diff_git
-    from .review.diff_render import render
+    from .review import diff_files, diff_git, render_diff
 
     if (args.git is None) == (args.new is None):
         args.parser.error("give OLD NEW, or CONFIG --git REV")
     report = diff_git(args.old, args.git) if args.git is not None else diff_files(args.old, args.new)
-    sys.stdout.write(render(report, args.format))
+    sys.stdout.write(render_diff(report, args.format))
     return ExitCode.USER_ERROR if args.exit_code and not report.equivalent else ExitCode.OK
 
 
@@ -252,7 +245,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """SIGTERM is handled as Ctrl-C while a command runs (the caller's handler is given back: tests call this in-process)."""
-    from .dataset.interrupts import handle_sigterm, keep_sigterm_handler, restore_sigterm_handler
+    from .dataset import handle_sigterm, keep_sigterm_handler, restore_sigterm_handler
 
     previous = keep_sigterm_handler()
     handle_sigterm()
@@ -263,7 +256,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _main(argv: Sequence[str] | None) -> int:
-    from .dataset.interrupts import exit_status, signal_number
+    from .dataset import exit_status, signal_number
 
     args = build_parser().parse_args(argv)
     handler: Callable[[argparse.Namespace], int] = args.handler

@@ -16,7 +16,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from .urdf.model import UrdfModel, read_urdf
+from .urdf import UrdfModel, read_urdf
 
 PANDA_NAMES = ["j1", "j2", "j3", "j4", "j5", "j6", "j7", "finger"]
 SO101_NAMES = ["shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll", "gripper"]

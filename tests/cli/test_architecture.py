@@ -1,4 +1,4 @@
-"""The package's import graph has no cycle: each module's imports (top level and inside functions) form a DAG."""
+"""The package's shape: no import cycle, no upward import, packages used through their surface, small modules."""
 
 from __future__ import annotations
 
@@ -113,3 +113,77 @@ def test_no_module_is_too_long() -> None:
         if (n := len(path.read_text().splitlines())) > MAX_MODULE_LINES
     ]
     assert not long, f"modules over {MAX_MODULE_LINES} lines (split them by what they own): " + "; ".join(long)
+
+
+STAGE_PACKAGES = ("config", "urdf", "sources", "compile", "execute", "dataset", "review")
+
+
+def _absolute_imports(path: Path) -> list[tuple[str, list[str]]]:
+    """(module imported from, names) for each `from X import names` in `path`, X made absolute."""
+    name = _module_name(path)
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.rsplit(".", node.level - 1)[0] if node.level > 1 else package
+                target = f"{base}.{node.module}" if node.module else base
+            else:
+                target = node.module or ""
+            found.append((target, [alias.name for alias in node.names]))
+    return found
+
+
+def _stage_package(module: str) -> str | None:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 and parts[0] == "urdf_pipeline" and parts[1] in STAGE_PACKAGES else None
+
+
+def test_other_packages_import_only_a_package_surface() -> None:
+    """A stage's modules are private: another package imports the names its `__init__` exports, so a module can be
+    split or renamed without touching its users."""
+    reaching_in = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        own = _stage_package(_module_name(path))
+        for target, _ in _absolute_imports(path):
+            other = _stage_package(target)
+            if other is not None and other != own and target != f"urdf_pipeline.{other}":
+                reaching_in.append(f"{_module_name(path)} imports {target}")
+    assert not reaching_in, "imports past a package's surface: " + "; ".join(reaching_in)
+
+
+def test_no_module_imports_its_own_package_surface() -> None:
+    """Inside a package, modules import their siblings: importing the package's own `__init__` is the hidden loop that
+    function-local imports used to dodge."""
+    modules = {_module_name(f) for f in PACKAGE.rglob("*.py")}
+    inward = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        name = _module_name(path)
+        own = _stage_package(name)
+        if own is None or path.name == "__init__.py":
+            continue
+        for target, names in _absolute_imports(path):
+            if target == f"urdf_pipeline.{own}" and any(f"{target}.{n}" not in modules for n in names):
+                inward.append(f"{name} imports {', '.join(names)} from its own package")
+    assert not inward, "; ".join(inward)
+
+
+def test_every_surface_name_resolves() -> None:
+    import importlib
+
+    missing = []
+    for package in STAGE_PACKAGES:
+        module = importlib.import_module(f"urdf_pipeline.{package}")
+        missing += [f"urdf_pipeline.{package}.{name}" for name in module.__all__ if not hasattr(module, name)]
+    assert not missing, "exported but not defined: " + ", ".join(missing)
+
+
+def test_urdf_knows_nothing_of_configs() -> None:
+    """`urdf/` reads robot descriptions for anyone (init, tests, users' scripts): locations come in as `Where`s."""
+    reaching = [
+        f"{_module_name(path)} imports {target}"
+        for path in sorted((PACKAGE / "urdf").rglob("*.py"))
+        for target, _ in _absolute_imports(path)
+        if _stage_package(target) == "config"
+    ]
+    assert not reaching, "; ".join(reaching)

@@ -1,3 +1,31 @@
 """Stage 2, located config -> frozen Plan: robots, joint mapping and units, edges and the frame graph, sources and
 segments. Everything that needs the URDF is checked here, before anything is written.
-May import: the top-level base, config, urdf, sources."""
+May import: the top-level base, config, urdf, sources.
+
+The names below are the package's public surface; other packages import them from here, never from its modules.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from .. import lazy_surface
+
+if TYPE_CHECKING:
+    from .compiler import compile_config, compile_document
+    from .temporal_edges import describe_temporal_edge
+
+__all__ = [
+    "compile_config",
+    "compile_document",
+    "describe_temporal_edge",
+]
+
+__getattr__ = lazy_surface(
+    __name__,
+    {
+        "compile_config": "compiler",
+        "compile_document": "compiler",
+        "describe_temporal_edge": "temporal_edges",
+    },
+)

@@ -4,11 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..config.document import Document, load_document
-from ..config.schema import require_schema_valid
-from ..config.sidecar import expand_edge_specs
+from ..config import Document, expand_edge_specs, load_document, require_schema_valid
 from ..plan import OutputPlan, Plan, RobotPlan, SourcePlan
-from ..urdf.model import UrdfModel
+from ..urdf import UrdfModel
 from .context import CompileContext
 from .edges import assumed_identity_edges, compile_edges, frame_edges, urdf_frames
 from .frame_graph import check_frame_graph

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..config.document import Document
+from ..config import Document
 from ..confine import Confinement, confinement_for
 from ..errors import Problems, Where
 

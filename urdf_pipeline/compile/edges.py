@@ -8,12 +8,10 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from ..config.sidecar import EdgeSpec
+from ..config import EdgeSpec
 from ..errors import warn
 from ..plan import EdgePlan, FixedChain, RobotPlan, SourcePlan, TemporalEdgePlan
-from ..urdf.fixed_chain import NoFixedChain, compose_chain, find_fixed_chain
-from ..urdf.geometry import normalized_quaternion, quaternion_from_rpy
-from ..urdf.model import UrdfModel
+from ..urdf import NoFixedChain, UrdfModel, compose_chain, find_fixed_chain, normalized_quaternion, quaternion_from_rpy
 from .context import CompileContext
 from .frame_graph import FrameEdge, check_assume_identity
 from .temporal_edges import compile_temporal_edge

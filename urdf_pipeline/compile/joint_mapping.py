@@ -13,7 +13,7 @@ from typing import Any
 from ..errors import Where
 from ..errors import did_you_mean as _hint
 from ..plan import HeldJoint, JointChannel, MimicJoint, OnViolation
-from ..urdf.model import UrdfModel
+from ..urdf import UrdfModel
 from .context import CompileContext
 from .units import ANGULAR_UNITS, FACTORS, RobotUnits, fits, robot_units, urdf_unit
 

@@ -8,10 +8,18 @@ from typing import Any
 
 from ..errors import UserError, UserErrors, listing, warn
 from ..plan import RobotPlan, SourcePlan
-from ..urdf.load import LoadedUrdf, load_urdf_source
-from ..urdf.meshes import garbage_meshes, resolve_meshes, rewrite_mesh_uris
-from ..urdf.model import UrdfModel, UrdfParseError, parse_urdf_text
-from ..urdf.repair import rerun_loader_error, text_for_rerun
+from ..urdf import (
+    LoadedUrdf,
+    UrdfModel,
+    UrdfParseError,
+    garbage_meshes,
+    load_urdf_source,
+    parse_urdf_text,
+    rerun_loader_error,
+    resolve_meshes,
+    rewrite_mesh_uris,
+    text_for_rerun,
+)
 from .context import CompileContext
 from .joint_mapping import JointMapping, compile_joints
 

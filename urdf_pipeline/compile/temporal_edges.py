@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import re
 
-from ..config.sidecar import EdgeSpec
+from ..config import EdgeSpec
 from ..errors import closest, listing
 from ..plan import SourcePlan, TemporalEdgePlan
 from .context import CompileContext
@@ -17,7 +17,7 @@ from .context import CompileContext
 TEMPORAL_ENTITY = "/calibration/temporal"
 
 
-def describe(edge: TemporalEdgePlan) -> str:
+def describe_temporal_edge(edge: TemporalEdgePlan) -> str:
     return f"temporal edge {edge.parent} -> {edge.child} ({edge.label}, source '{edge.source}')"
 
 

@@ -11,7 +11,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import Literal, Protocol
 
-from ..execute.segment_run import SegmentJob, SegmentResult, install_run_plan
+from ..execute import SegmentJob, SegmentResult, install_run_plan
 from ..plan import Plan
 
 ExecutorName = Literal["local", "ray"]

@@ -51,7 +51,7 @@ def signal_number(interrupt: BaseException) -> int:
     return interrupt.signum if isinstance(interrupt, Terminated) else int(signal.SIGINT)
 
 
-def describe(signum: int) -> str:
+def signal_name(signum: int) -> str:
     return "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
 
 

@@ -23,7 +23,7 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from typing import TypeVar
 
-from ..execute.writer import process_alive
+from ..execute import process_alive
 from .interrupts import deferred_signals
 
 PRELOAD = ["urdf_pipeline.execute.segment_run", "urdf_pipeline.execute.segment", "rerun.chunk", "rerun.urdf", "rerun.experimental"]

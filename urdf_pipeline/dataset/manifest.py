@@ -16,7 +16,7 @@ from typing import Any
 
 from .. import __version__
 from ..errors import Where
-from ..execute.writer import require_ours, write_file_atomically
+from ..execute import require_ours, write_file_atomically
 
 FORMAT = 1
 

@@ -15,14 +15,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..errors import Problems, UserError
-from ..execute.segment import Parts
-from ..execute.segment_run import SegmentJob, SegmentResult, run_segment
-from ..execute.writer import remove_stale_partials, require_ours, require_writable
+from ..execute import Parts, SegmentJob, SegmentResult, remove_stale_partials, require_ours, require_writable, run_segment
 from ..plan import Plan
 from ..progress import SegmentProgress
 from .executors import ExecutorName, executor_for
 from .fingerprint import model_hash, segment_hashes
-from .interrupts import describe, signal_number
+from .interrupts import signal_name, signal_number
 from .manifest import Manifest
 
 if TYPE_CHECKING:
@@ -102,10 +100,10 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
             if job.label in results:
                 continue
             if _adopt_if_written(job, manifest):  # finished by a worker stopped before its result arrived
-                reason = f"finished as {describe(interrupted)} came"
+                reason = f"finished as {signal_name(interrupted)} came"
                 results[job.label] = SegmentResult(job.label, job.output, "written", job.content_hash, reason=reason)
             else:
-                results[job.label] = SegmentResult(job.label, job.output, "interrupted", job.content_hash, reason=describe(interrupted))
+                results[job.label] = SegmentResult(job.label, job.output, "interrupted", job.content_hash, reason=signal_name(interrupted))
     finally:
         if progress is not None:
             progress.finish()
@@ -117,7 +115,7 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
 def _prepare_outputs(plan: Plan, jobs: list[SegmentJob], to_run: list[SegmentJob]) -> None:
     """Before computing anything: no file the pipeline did not write would be replaced (not even with --force), every
     folder written to takes files, and the partial files of killed runs are gone. Every refusal at once, exit 1."""
-    from ..execute.blueprint import blueprint_path
+    from ..execute import blueprint_path
 
     where = plan.output.where
     problems = Problems()
@@ -142,7 +140,7 @@ def _prepare_outputs(plan: Plan, jobs: list[SegmentJob], to_run: list[SegmentJob
 
 def _adopt_if_written(job: SegmentJob, manifest: Manifest) -> bool:
     """The job's output exists with the content hash it would be written with: list it in the manifest."""
-    from ..execute.provenance import stored_content_hash
+    from ..execute import stored_content_hash
 
     if not job.output.is_file() or stored_content_hash(job.output, job.parts) != job.content_hash:
         return False

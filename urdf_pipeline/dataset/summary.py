@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..errors import UserError
-from ..execute.segment_run import SegmentResult
+from ..execute import SegmentResult
 
 if TYPE_CHECKING:
     from ..plan import Plan

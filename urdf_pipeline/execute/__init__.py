@@ -1,2 +1,60 @@
 """Stage 3, one segment of a Plan -> one recording: lazy Rerun streams (model, FK, edges), provenance, blueprint,
-viewer, atomic writing. May import: the top-level base, config, urdf, sources, compile."""
+viewer, atomic writing. May import: the top-level base, config, urdf, sources, compile.
+
+The names below are the package's public surface; other packages import them from here, never from its modules.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from .. import lazy_surface
+
+if TYPE_CHECKING:
+    from .blueprint import blueprint_path, write_blueprint
+    from .provenance import stored_content_hash
+    from .segment import Parts, RunResult, execute
+    from .segment_run import SegmentJob, SegmentResult, install_run_plan, run_segment
+    from .viewer import send_to_viewer
+    from .writer import process_alive, remove_stale_partials, require_ours, require_writable, write_file_atomically
+
+__all__ = [
+    "Parts",
+    "RunResult",
+    "SegmentJob",
+    "SegmentResult",
+    "blueprint_path",
+    "execute",
+    "install_run_plan",
+    "process_alive",
+    "remove_stale_partials",
+    "require_ours",
+    "require_writable",
+    "run_segment",
+    "send_to_viewer",
+    "stored_content_hash",
+    "write_blueprint",
+    "write_file_atomically",
+]
+
+__getattr__ = lazy_surface(
+    __name__,
+    {
+        "Parts": "segment",
+        "RunResult": "segment",
+        "SegmentJob": "segment_run",
+        "SegmentResult": "segment_run",
+        "blueprint_path": "blueprint",
+        "execute": "segment",
+        "install_run_plan": "segment_run",
+        "process_alive": "writer",
+        "remove_stale_partials": "writer",
+        "require_ours": "writer",
+        "require_writable": "writer",
+        "run_segment": "segment_run",
+        "send_to_viewer": "viewer",
+        "stored_content_hash": "provenance",
+        "write_blueprint": "blueprint",
+        "write_file_atomically": "writer",
+    },
+)

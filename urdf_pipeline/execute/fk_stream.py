@@ -9,15 +9,14 @@ import numpy as np
 import pyarrow as pa
 
 from ..progress import RowProgress
-from ..sources.callbacks import CallbackErrors
-from ..sources.joint_values import JointValueMapper, raw_matrix
+from ..sources import CallbackErrors, JointValueMapper, raw_matrix
 from .transform_lenses import transform_lenses, transform_stream
 
 if TYPE_CHECKING:
     from rerun.chunk import LazyChunkStream
     from rerun.urdf import UrdfTree
 
-    from ..sources.stream import SourceStream
+    from ..sources import SourceStream
 
 
 def _batch_component(robot_key: str) -> str:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ..errors import Problems
 from ..plan import JointChannel
-from ..sources.joint_values import JointValueMapper
+from ..sources import JointValueMapper
 
 
 def _limits_text(channel: JointChannel) -> str:

@@ -12,9 +12,7 @@ from typing import Literal
 from ..errors import Problems
 from ..plan import Plan
 from ..progress import RowProgress, say
-from ..sources import module_for
-from ..sources.callbacks import CallbackErrors
-from ..sources.joint_values import JointValueMapper
+from ..sources import CallbackErrors, JointValueMapper, module_for
 from .edges_stream import edges_stream
 from .fk_stream import JointTransformBatches, fk_stream
 from .limits_report import check_joint_statistics

@@ -9,17 +9,16 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pyarrow as pa
 
-from ..compile.temporal_edges import describe
+from ..compile import describe_temporal_edge
 from ..errors import Problems
 from ..plan import Plan, SourcePlan, TemporalEdgePlan
-from ..sources.callbacks import CallbackErrors
-from ..sources.joint_values import raw_matrix
+from ..sources import CallbackErrors, raw_matrix
 from .transform_lenses import transform_lenses, transform_stream
 
 if TYPE_CHECKING:
     from rerun.chunk import LazyChunkStream
 
-    from ..sources.stream import SourceStream
+    from ..sources import SourceStream
 
 
 _FLOAT3 = pa.list_(pa.field("item", pa.float32(), nullable=False), 3)
@@ -125,17 +124,19 @@ def check_temporal_edges(values: list[TemporalEdgeValues], problems: Problems) -
         edge, stats = edge_values.edge, edge_values.stats
         if stats.rows == 0:
             problems.add(
-                f"{describe(edge)}: source '{edge.source}' yielded zero rows; frame '{edge.child}' would never be placed", edge.where
+                f"{describe_temporal_edge(edge)}: source '{edge.source}' yielded zero rows; frame '{edge.child}' would never be placed",
+                edge.where,
             )
             continue
         if stats.nonfinite_rows:
             counts = ", ".join(f"{name} {count}" for name, count in stats.nonfinite_by_value.items())
             problems.add(
-                f"{describe(edge)}: {stats.nonfinite_rows} of {stats.rows} rows are NaN or infinite (per value: {counts})", edge.where
+                f"{describe_temporal_edge(edge)}: {stats.nonfinite_rows} of {stats.rows} rows are NaN or infinite (per value: {counts})",
+                edge.where,
             )
         if stats.zero_quaternion_rows:
             problems.add(
-                f"{describe(edge)}: {stats.zero_quaternion_rows} of {stats.rows} rows have an all-zero quaternion "
+                f"{describe_temporal_edge(edge)}: {stats.zero_quaternion_rows} of {stats.rows} rows have an all-zero quaternion "
                 f"({', '.join(edge.quaternion_names)}), which is no rotation at all",
                 edge.where,
             )

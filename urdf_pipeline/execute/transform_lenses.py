@@ -15,8 +15,7 @@ if TYPE_CHECKING:
     import pyarrow as pa
     from rerun.chunk import DeriveLens, LazyChunkStream
 
-    from ..sources.callbacks import CallbackErrors
-    from ..sources.stream import SourceStream
+    from ..sources import CallbackErrors, SourceStream
 
 
 def transform_lenses(

@@ -85,7 +85,7 @@ class Annotation:
 
 def validate_config(config: str) -> ConfigResult:
     """Compile the config as `validate` does, collecting its errors and warnings instead of printing them."""
-    from ..compile.compiler import compile_config
+    from ..compile import compile_config
 
     errors: list[UserError] = []
     warnings: list[ConfigWarning]

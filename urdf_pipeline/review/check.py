@@ -12,12 +12,14 @@ import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
+from ..compile import compile_config
 from ..errors import ExitCode
 from ..plan import JointChannel, Plan, RobotPlan, SourcePlan
-from ..sources.joint_values import wrapped
+from ..sources import wrapped
 
 SAMPLE_ROWS = 100_000
 
@@ -185,8 +187,7 @@ def check_plan(plan: Plan, sample: dict[str, np.ndarray]) -> list[JointReport]:
 
 def read_sample(source: SourcePlan, rows: int = SAMPLE_ROWS) -> np.ndarray:
     """The first `rows` rows of a source, as a (rows x names) matrix, read with the same Rerun reader as a run."""
-    from ..sources import module_for
-    from ..sources.joint_values import raw_matrix
+    from ..sources import module_for, raw_matrix
 
     opened = module_for(source).open_stream(source)
     matrices, total = [], 0
@@ -203,12 +204,24 @@ def read_sample(source: SourcePlan, rows: int = SAMPLE_ROWS) -> np.ndarray:
     return np.concatenate(matrices)[:rows] if matrices else np.empty((0, width))
 
 
-def exit_code(reports: Sequence[JointReport]) -> int:
+def check_exit_code(reports: Sequence[JointReport]) -> int:
     return ExitCode.OK if all(r.current_fits for r in reports) else ExitCode.DOES_NOT_FIT
 
 
-def as_json(reports: Sequence[JointReport]) -> list[dict]:
-    return [asdict(r) for r in reports]
+def check_config(config: Path, rows: int = SAMPLE_ROWS) -> list[JointReport]:
+    """`check CONFIG`: the first `rows` rows of every source that drives a robot, checked joint by joint."""
+    plan = compile_config(config)
+    sample = {source.name: read_sample(source, rows) for source in plan.sources if plan.robots_for(source.name)}
+    return check_plan(plan, sample)
+
+
+def render_check(reports: Sequence[JointReport], format: str) -> str:
+    """`check`'s output: the reports as text, or as one JSON list."""
+    if format == "json":
+        import json
+
+        return json.dumps([asdict(r) for r in reports], indent=2) + "\n"
+    return as_text(reports) + "\n"
 
 
 def as_text(reports: Sequence[JointReport]) -> str:

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..urdf.geometry import Quaternion, Vector, normalized_quaternion, quaternion_multiply
+from ..urdf import Quaternion, Vector, normalized_quaternion, quaternion_multiply
 
 TOLERANCE = 1e-9
 

@@ -23,7 +23,7 @@ from .diff_base import DiffReport
 
 def compile_quietly(config: Path) -> Plan:
     """compile_config without printing warnings: the diff is about what differs, not what each config does."""
-    from ..compile.compiler import compile_config
+    from ..compile import compile_config
 
     with collect_warnings():
         return compile_config(config)

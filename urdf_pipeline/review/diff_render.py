@@ -31,5 +31,5 @@ def render_json(report: DiffReport) -> str:
     return json.dumps(data, indent=2) + "\n"
 
 
-def render(report: DiffReport, format: DiffFormat) -> str:
+def render_diff(report: DiffReport, format: DiffFormat) -> str:
     return render_json(report) if format == "json" else render_text(report)

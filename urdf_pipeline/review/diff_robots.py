@@ -8,8 +8,7 @@ from pathlib import Path
 
 from ..errors import listing
 from ..plan import JointChannel, Plan, RobotPlan
-from ..urdf.geometry import quaternion_from_rpy
-from ..urdf.model import Joint, UrdfModel, UrdfParseError, parse_urdf_text
+from ..urdf import Joint, UrdfModel, UrdfParseError, parse_urdf_text, quaternion_from_rpy
 from .diff_base import PathValue, _moved, _path_value, _Report, _same, _text
 
 

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Literal
 
 from ..errors import ConfigWarning, collect_warnings
 from ..plan import IndexPlan, Plan, RobotPlan, SourcePlan
-from ..urdf.model import Joint, UrdfModel, parse_urdf_text
+from ..urdf import Joint, UrdfModel, parse_urdf_text
 from .report_json import render_json
 from .report_markdown import render_markdown
 from .report_model import (
@@ -62,7 +62,7 @@ RENDERERS = {"text": render_text, "markdown": render_markdown, "json": render_js
 
 def plan_command(config: Path, output_format: PlanFormat, sample_rows: int | None) -> str:
     """The bytes `urdf-pipeline plan` prints. Warnings go to stderr as usual, and into the report."""
-    from ..compile.compiler import compile_config
+    from ..compile import compile_config
 
     warnings: list[ConfigWarning] = []
     try:

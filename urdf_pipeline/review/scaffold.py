@@ -32,12 +32,10 @@ from urllib.parse import unquote
 
 import yaml
 
-from ..config.document import Document, parse_document
-from ..config.schema import SCHEMA_RESOURCE
+from ..config import SCHEMA_RESOURCE, Document, parse_document
 from ..errors import UserError
 from ..sources import SourceDescription
-from ..urdf.meshes import package_roots
-from ..urdf.model import Joint, UrdfModel, UrdfParseError, read_urdf
+from ..urdf import Joint, UrdfModel, UrdfParseError, package_roots, read_urdf
 from .name_match import Match, match_names
 from .source_probe import SourceInfo, _relative, read_source, stub_source
 from .yaml_writer import Block, Item, Seq, number, render_block, to_data
@@ -345,7 +343,7 @@ def scaffold(urdf: Path, source: str | None, out_file: Path) -> Scaffold:
 
 def self_check(result: Scaffold, out_file: Path) -> Document:
     """The text must read back as the intended data and satisfy the schema: anything else is a bug of init's."""
-    from ..config.schema import validate_document
+    from ..config import validate_document
 
     document = parse_document(result.text, out_file)
     if yaml.safe_load(result.text) != result.data:
@@ -359,7 +357,7 @@ def self_check(result: Scaffold, out_file: Path) -> Document:
 
 def remaining_problems(document: Document) -> list[str]:
     """What `validate` would still refuse (expected: the TODO stubs), as messages without the file location."""
-    from ..compile.compiler import compile_document
+    from ..compile import compile_document
     from ..errors import UserErrors
 
     try:

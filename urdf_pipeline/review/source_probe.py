@@ -7,7 +7,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..config.document import Document
+from ..config import Document
 from ..errors import UserError
 from ..sources import GLOB, KINDS, EntryField, SourceDescription, kind_for_path
 

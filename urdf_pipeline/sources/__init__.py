@@ -11,22 +11,28 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from ..config.document import Document
 from ..plan import SourcePlan
 from . import hdf5, lerobot, mcap, parquet, rrd
 from .base import GLOB, EntryField, SourceDescription, SourceKind, resolve_input
+from .callbacks import CallbackErrors
+from .joint_values import JointValueMapper, raw_matrix, wrapped
+from .stream import SourceStream
 
 __all__ = [
     "GLOB",
     "KINDS",
+    "CallbackErrors",
     "EntryField",
+    "JointValueMapper",
     "SourceDescription",
     "SourceKind",
-    "compile_source",
+    "SourceStream",
     "kind_for_path",
     "kind_of",
     "module_for",
+    "raw_matrix",
     "resolve_input",
+    "wrapped",
 ]
 
 KINDS: dict[str, SourceKind] = {"lerobot": lerobot, "parquet": parquet, "mcap": mcap, "hdf5": hdf5, "rrd": rrd}
@@ -34,12 +40,6 @@ KINDS: dict[str, SourceKind] = {"lerobot": lerobot, "parquet": parquet, "mcap": 
 
 def kind_of(spec: dict[str, Any]) -> str:
     return next(kind for kind in KINDS if kind in spec)
-
-
-def compile_source(name: str, spec: dict[str, Any], document: Document) -> SourcePlan:
-    kind = kind_of(spec)
-    plan: SourcePlan = KINDS[kind].compile_source(name, spec, document, document.file.parent)
-    return plan
 
 
 def module_for(plan: SourcePlan) -> SourceKind:

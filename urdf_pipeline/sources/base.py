@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
-from ..config.document import Document
+from ..config import Document
 from ..confine import confinement_for
 from ..errors import UserError
 from .stream import SourceStream

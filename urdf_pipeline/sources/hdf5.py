@@ -10,7 +10,7 @@ import posixpath
 from pathlib import Path
 from typing import Any
 
-from ..config.document import Document
+from ..config import Document
 from ..errors import UserError, listing
 from ..plan import Hdf5SourcePlan, IndexPlan
 from .base import EntryField, SourceDescription, file_input, resolve_input

@@ -10,7 +10,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute  # noqa: F401  (pa.compute)
 
-from ..config.document import Document
+from ..config import Document
 from ..errors import UserError, Where
 from ..plan import LeRobotSourcePlan
 from .base import EntryField, SourceDescription, resolve_input

@@ -15,7 +15,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 
-from ..config.document import Document
+from ..config import Document
 from ..errors import UserError, Where, listing
 from ..plan import McapSourcePlan
 from .base import EntryField, SourceDescription, file_input, resolve_input

@@ -8,7 +8,7 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from ..config.document import Document
+from ..config import Document
 from ..errors import UserError, listing
 from ..plan import IndexPlan, ParquetSourcePlan
 from .base import EntryField, SourceDescription, file_input, resolve_input

@@ -1,3 +1,71 @@
 """The robot description: URDF text (a file, xacro in a bounded child process, robot_descriptions), the light model
 (joints, links, limits, mimics), repairs for Rerun's loader, meshes, fixed chains, geometry.
-May import: the top-level base (errors, plan, confine) and config (for locations)."""
+May import: the top-level base (errors, plan, confine) only: it knows nothing of configs.
+
+The names below are the package's public surface; other packages import them from here, never from its modules.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from .. import lazy_surface
+
+if TYPE_CHECKING:
+    from .fixed_chain import NoFixedChain, compose_chain, find_fixed_chain
+    from .geometry import Quaternion, Vector, normalized_quaternion, quaternion_from_rpy, quaternion_multiply
+    from .load import LoadedUrdf, load_urdf_source
+    from .meshes import garbage_meshes, package_roots, resolve_meshes, rewrite_mesh_uris
+    from .model import Joint, UrdfModel, UrdfParseError, parse_urdf_text, read_urdf
+    from .repair import rerun_loader_error, text_for_rerun
+
+__all__ = [
+    "Joint",
+    "LoadedUrdf",
+    "NoFixedChain",
+    "Quaternion",
+    "UrdfModel",
+    "UrdfParseError",
+    "Vector",
+    "compose_chain",
+    "find_fixed_chain",
+    "garbage_meshes",
+    "load_urdf_source",
+    "normalized_quaternion",
+    "package_roots",
+    "parse_urdf_text",
+    "quaternion_from_rpy",
+    "quaternion_multiply",
+    "read_urdf",
+    "rerun_loader_error",
+    "resolve_meshes",
+    "rewrite_mesh_uris",
+    "text_for_rerun",
+]
+
+__getattr__ = lazy_surface(
+    __name__,
+    {
+        "Joint": "model",
+        "LoadedUrdf": "load",
+        "NoFixedChain": "fixed_chain",
+        "Quaternion": "geometry",
+        "UrdfModel": "model",
+        "UrdfParseError": "model",
+        "Vector": "geometry",
+        "compose_chain": "fixed_chain",
+        "find_fixed_chain": "fixed_chain",
+        "garbage_meshes": "meshes",
+        "load_urdf_source": "load",
+        "normalized_quaternion": "geometry",
+        "package_roots": "meshes",
+        "parse_urdf_text": "model",
+        "quaternion_from_rpy": "geometry",
+        "quaternion_multiply": "geometry",
+        "read_urdf": "model",
+        "rerun_loader_error": "repair",
+        "resolve_meshes": "meshes",
+        "rewrite_mesh_uris": "meshes",
+        "text_for_rerun": "repair",
+    },
+)
