@@ -13,9 +13,13 @@ def say(message: str) -> None:
 
 
 class RowProgress:
-    def __init__(self, label: str, every_seconds: float = 5.0) -> None:
+    """Rows through the FK of one robot: a line every few seconds, with the share done and an ETA when the row count
+    is known from the source's metadata."""
+
+    def __init__(self, label: str, every_seconds: float = 5.0, total: int | None = None) -> None:
         self.label = label
         self.every = every_seconds
+        self.total = total
         self.rows = 0
         self._started = self._last = time.monotonic()
         self._lock = threading.Lock()
@@ -26,7 +30,15 @@ class RowProgress:
             now = time.monotonic()
             if now - self._last >= self.every:
                 self._last = now
-                say(f"{self.label}: {self.rows:,} rows ({self.rows / (now - self._started):,.0f} rows/s)")
+                say(self.line(now - self._started))
+
+    def line(self, elapsed: float) -> str:
+        rate = self.rows / max(elapsed, 1e-9)
+        if not self.total:
+            return f"{self.label}: {self.rows:,} rows ({rate:,.0f} rows/s)"
+        done = min(self.rows, self.total)
+        eta = time.strftime("%H:%M:%S", time.gmtime((self.total - done) / max(rate, 1e-9)))
+        return f"{self.label}: {done:,} of {self.total:,} rows ({100 * done / self.total:.0f}%, {rate:,.0f} rows/s, ETA {eta})"
 
 
 class SegmentProgress:

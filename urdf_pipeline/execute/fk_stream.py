@@ -61,4 +61,4 @@ def fk_stream(source: SourceStream, robots: list[tuple[str, str, JointTransformB
         transform_lenses(source, f"/__urdf_pipeline/{key}/joint_transform_batches", _batch_component(key), fk_entity, batches, errors)
         for key, fk_entity, batches in robots
     ]
-    return transform_stream(source, pairs)
+    return transform_stream(source, pairs, errors)

@@ -1,4 +1,5 @@
-"""Run a plan: build the lazy streams, pull them once, check what the data pass found, then write."""
+"""Run a plan: build the lazy streams, write them as they are read (bounded memory), then check what the pass found
+before the file is renamed into place."""
 
 from __future__ import annotations
 
@@ -18,8 +19,9 @@ from .fk_stream import JointTransformBatches, fk_stream
 from .limits_report import check_joint_statistics
 from .model_stream import cached_tree, model_stream
 from .provenance import provenance_stream
+from .stream_writer import write_streams
 from .temporal_stream import check_temporal_edges, temporal_edge_streams
-from .writer import write_atomically
+from .writer import write_file_atomically
 
 Parts = Literal["all", "layer", "model"]  # single layout | split layout's per-segment layer | split layout's model asset
 
@@ -46,12 +48,12 @@ def execute(
     provenance: dict[str, str] | None = None,
     on_note: Callable[[str], None] = _note,
     quiet: bool = False,
+    rows_expected: int | None = None,
 ) -> RunResult:
     """Write one recording. `provenance` adds fields (the content hash) to the recording's properties; `on_note` and
-    `quiet` (no progress lines) let a worker running many segments keep its output for the run's summary."""
+    `quiet` (no progress lines) let a worker running many segments keep its output for the run's summary;
+    `rows_expected` (from the source's metadata) gives the progress lines a share done and an ETA."""
     log: Callable[[str], None] = _silent if quiet else say
-    from rerun.chunk import LazyChunkStream, OptimizationProfile
-
     started = time.perf_counter()
     errors = CallbackErrors()
     mappers: list[JointValueMapper] = []
@@ -66,7 +68,7 @@ def execute(
             for robot in plan.robots_for(source.name):
                 mapper = JointValueMapper(robot, source)
                 mappers.append(mapper)
-                progress = None if quiet else RowProgress(f"robot {robot.key}")
+                progress = None if quiet else RowProgress(f"robot {robot.key}", total=rows_expected)
                 batches = JointTransformBatches(mapper, trees[robot.key], progress)
                 driven.append((robot.key, robot.fk_entity, batches))
             if driven:  # a source used only by temporal edges is read there
@@ -80,17 +82,18 @@ def execute(
         log(f"writing the model of {len(plan.robots)} robot(s)")
     else:
         log(f"reading {len(plan.sources)} source(s), computing forward kinematics for {len(plan.robots)} robot(s)")
-    try:
-        store = LazyChunkStream.merge(*streams).collect(optimize=OptimizationProfile.OBJECT_STORE)
-    except (RuntimeError, ValueError) as exc:
-        errors.reraise_original(exc)
-        raise
-    problems = Problems()
-    notes = [note for mapper in mappers for note in check_joint_statistics(mapper, problems)]
-    check_temporal_edges(temporal_values, problems)
-    for note in notes:
-        on_note(note)
-    problems.raise_if_any()
     log(f"writing {plan.output.path}")
-    written = write_atomically(store, plan.output)
+    notes: list[str] = []
+
+    def write(partial: Path) -> None:
+        """The streams into the partial file, then the checks of what the pass found: a failed check leaves no file."""
+        write_streams(streams, partial, plan.output.application_id, plan.output.recording_id, errors)
+        problems = Problems()
+        notes.extend(note for mapper in mappers for note in check_joint_statistics(mapper, problems))
+        check_temporal_edges(temporal_values, problems)
+        for note in notes:
+            on_note(note)
+        problems.raise_if_any()
+
+    written = write_file_atomically(plan.output.path, write, "recording", plan.output.where)
     return RunResult(written, {m.robot.key: m.stats.rows for m in mappers}, tuple(notes), time.perf_counter() - started)

@@ -77,7 +77,7 @@ def run_segment(job: SegmentJob) -> SegmentResult:
     failed = SegmentResult(job.label, job.output, "failed", job.content_hash)
     try:
         provenance = {"content_sha256": job.content_hash}
-        result = execute(job.plan(), job.parts, provenance, on_note=on_note, quiet=not job.verbose)
+        result = execute(job.plan(), job.parts, provenance, on_note=on_note, quiet=not job.verbose, rows_expected=job.frames_expected)
     except UserError as exc:
         return _finished(replace(failed, reason="\n".join(exc.lines()), notes=tuple(notes)), started)
     except Exception:

@@ -98,7 +98,7 @@ def temporal_edge_stream(source: SourceStream, values: list[TemporalEdgeValues],
         transform_lenses(source, f"/__urdf_pipeline/temporal_edge_batches{v.edge.entity}", _component(v.edge), v.edge.entity, v, errors)
         for v in values
     ]
-    return transform_stream(source, pairs)
+    return transform_stream(source, pairs, errors)
 
 
 def temporal_edge_streams(plan: Plan, errors: CallbackErrors) -> tuple[list[LazyChunkStream], list[TemporalEdgeValues]]:

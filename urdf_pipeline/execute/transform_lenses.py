@@ -41,6 +41,8 @@ def transform_lenses(
     return compute, scatter
 
 
-def transform_stream(source: SourceStream, pairs: list[tuple[DeriveLens, DeriveLens]]) -> LazyChunkStream:
-    """One read of the source feeds every pair: all computes on the source's entity, then all scatters."""
-    return source.stream.lenses([compute for compute, _ in pairs], content=source.entity).lenses([scatter for _, scatter in pairs])
+def transform_stream(source: SourceStream, pairs: list[tuple[DeriveLens, DeriveLens]], errors: CallbackErrors) -> LazyChunkStream:
+    """One read of the source feeds every pair: all computes on the source's entity, then all scatters. The source is
+    passed through `errors` so that its own checks' errors reach the user as themselves."""
+    stream = errors.wrap_stream(source.stream)
+    return stream.lenses([compute for compute, _ in pairs], content=source.entity).lenses([scatter for _, scatter in pairs])

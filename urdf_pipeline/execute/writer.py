@@ -13,13 +13,9 @@ import re
 import tempfile
 from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal
+from typing import Literal
 
 from ..errors import UserError, Where
-from ..plan import OutputPlan
-
-if TYPE_CHECKING:
-    from rerun.chunk import ChunkStore
 
 Kind = Literal["recording", "manifest", "blueprint"]
 OUR_PROPERTIES = ("/__properties/urdf_pipeline ", "/__properties/urdf_pipeline_model ")  # provenance.py's, as summary() lists them
@@ -30,16 +26,6 @@ WRITTEN_SUFFIXES = (".rrd", ".json", ".rbl")  # what a run writes: recordings, t
 
 def partial_path(target: Path) -> Path:
     return target.with_name(f".{target.name}.partial-{os.getpid()}")
-
-
-def write_atomically(store: ChunkStore, output: OutputPlan) -> Path:
-    """The segment's recording, written as `write_file_atomically` writes every output."""
-    return write_file_atomically(
-        output.path,
-        lambda partial: store.write_rrd(partial, application_id=output.application_id, recording_id=output.recording_id),
-        "recording",
-        output.where,
-    )
 
 
 def write_file_atomically(

@@ -1,12 +1,19 @@
-"""Exceptions raised inside Rerun lens callbacks come back wrapped in a RuntimeError; keep the original."""
+"""Exceptions raised inside Rerun lens callbacks and Python-fed streams come back as a RuntimeError; keep the original."""
 
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable
-from typing import Any, TypeVar
+from collections.abc import Callable, Iterator
+from typing import TYPE_CHECKING, Any, TypeVar
+
+if TYPE_CHECKING:
+    from rerun.chunk import Chunk, LazyChunkStream
 
 T = TypeVar("T")
+
+
+class Cancelled(Exception):
+    """Raised inside the pipeline after `CallbackErrors.cancel`."""
 
 
 class CallbackErrors:
@@ -15,18 +22,48 @@ class CallbackErrors:
     def __init__(self) -> None:
         self.first: BaseException | None = None
         self._lock = threading.Lock()
+        self._cancelled = threading.Event()
+
+    def cancel(self) -> None:
+        """Make every wrapped callback and stream raise from now on: Rerun's pipeline then stops within one chunk
+        (how Ctrl-C stops a write that runs on Rerun's threads)."""
+        self._cancelled.set()
+
+    def _check(self) -> None:
+        if self._cancelled.is_set():
+            raise Cancelled("cancelled")
 
     def wrap(self, function: Callable[..., T]) -> Callable[..., T]:
         def guarded(*args: Any) -> T:
             try:
+                self._check()
                 return function(*args)
             except BaseException as exc:
-                with self._lock:
-                    if self.first is None:
-                        self.first = exc
+                self._remember(exc)
                 raise
 
         return guarded
+
+    def wrap_stream(self, stream: LazyChunkStream) -> LazyChunkStream:
+        """`stream` passed through Python, so that an error raised while reading it (a source's own checks, which run
+        in Python) is remembered: Rerun's writer reports it only as text."""
+        from rerun.chunk import LazyChunkStream
+
+        def chunks() -> Iterator[Chunk]:
+            try:
+                for chunk in stream:
+                    self._check()
+                    yield chunk
+            except BaseException as exc:
+                self._remember(exc)
+                raise
+
+        return LazyChunkStream.from_iter(chunks())
+
+    def _remember(self, exc: BaseException) -> None:
+        with self._lock:
+            if self.first is None:
+                self.first = exc
 
     def reraise_original(self, wrapper: BaseException) -> None:
         """Raise the callback's own exception if there was one; otherwise let the caller re-raise `wrapper`."""

@@ -1,0 +1,103 @@
+"""The recording is written while it is read: the same content as a collected store, in chunks about as large as the
+collected store's (never confetti)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pyarrow as pa
+import pytest
+import rerun as rr
+from rerun.chunk import Chunk, LazyChunkStream, OptimizationProfile, RrdReader
+
+from urdf_pipeline.compile import compile_config
+from urdf_pipeline.execute import execute
+from urdf_pipeline.execute import segment as segment_module
+from urdf_pipeline.execute.stream_writer import write_streams
+from urdf_pipeline.sources import CallbackErrors
+
+ROW_ID = "rerun.controls.RowId"
+
+
+def _collected(streams: list, path: Path, application_id: str, recording_id: str, errors: object = None) -> None:
+    """What the pipeline did before it streamed: merge, collect(OBJECT_STORE), write."""
+    store = LazyChunkStream.merge(*streams).collect(optimize=OptimizationProfile.OBJECT_STORE)
+    store.write_rrd(path, application_id=application_id, recording_id=recording_id)
+
+
+def _content(path: Path) -> tuple[dict[str, pa.Table], list[str]]:
+    """Per (entity, temporal columns): every row, sorted on every column but the row id; and the static chunks."""
+    temporal: dict[str, list[pa.Table]] = {}
+    static: list[str] = []
+    for chunk in RrdReader(path).stream():
+        batch = chunk.to_record_batch()
+        batch = batch.drop_columns([ROW_ID]) if ROW_ID in batch.schema.names else batch
+        if chunk.is_static:
+            static.append(f"{chunk.entity_path} {pa.Table.from_batches([batch]).to_pylist()}")
+            continue
+        key = f"{chunk.entity_path} {sorted(batch.schema.names)}"
+        table = pa.Table.from_batches([batch.replace_schema_metadata({})])
+        temporal.setdefault(key, []).append(table.select(sorted(table.column_names)))
+    tables = {}
+    for key, parts in temporal.items():
+        table = pa.concat_tables(parts)
+        rows = sorted(table.to_pylist(), key=repr)
+        tables[key] = rows
+    return tables, sorted(static)
+
+
+def _chunk_counts(path: Path) -> tuple[int, list[int]]:
+    chunks = list(RrdReader(path).stream())
+    return len(chunks), [chunk.num_rows for chunk in chunks if not chunk.is_static]
+
+
+@pytest.mark.parametrize("config", ["demo.yaml", "bimanual_pandas.yaml", "aloha_bimanual.yaml"])
+def test_streamed_recording_equals_the_collected_one(examples_dir: Path, config: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    plan = compile_config(examples_dir / config)
+    streamed = execute(plan, quiet=True).output.rename(examples_dir / "streamed.rrd")
+    monkeypatch.setattr(segment_module, "write_streams", _collected)
+    collected = execute(plan, quiet=True).output
+
+    assert _content(streamed) == _content(collected)
+    streamed_chunks, streamed_rows = _chunk_counts(streamed)
+    collected_chunks, _ = _chunk_counts(collected)
+    assert streamed_chunks <= 2 * collected_chunks, (streamed_chunks, collected_chunks)
+    assert streamed_chunks <= collected_chunks + 2 * len(plan.robots) + 4  # a few more at most: not confetti
+
+
+def test_an_error_raised_while_reading_is_raised_as_itself(tmp_path: Path) -> None:
+    class Refused(Exception):
+        pass
+
+    def failing():
+        yield Chunk.from_columns("/x", indexes=[rr.TimeColumn("frame", sequence=[0])], columns=rr.Scalars.columns(scalars=[0.0]))
+        raise Refused("source said no")
+
+    errors = CallbackErrors()
+    with pytest.raises(Refused, match="source said no"):
+        write_streams([errors.wrap_stream(LazyChunkStream.from_iter(failing()))], tmp_path / "x.rrd", "app", "rec", errors)
+
+
+def test_ctrl_c_stops_a_write_that_runs_on_rerun_threads(tmp_path: Path) -> None:
+    """An endless source: only the cancellation that Ctrl-C triggers can end the write, and it does, leaving no
+    writer thread behind."""
+    import signal
+    import threading
+    import time
+
+    def endless():
+        frame = 0
+        while True:
+            yield Chunk.from_columns(
+                "/x", indexes=[rr.TimeColumn("frame", sequence=[frame])], columns=rr.Scalars.columns(scalars=[0.0])
+            )
+            frame += 1
+            time.sleep(0.001)
+
+    main = threading.main_thread().ident
+    assert main is not None
+    threading.Timer(0.5, signal.pthread_kill, (main, signal.SIGINT)).start()
+    errors = CallbackErrors()
+    with pytest.raises(KeyboardInterrupt):
+        write_streams([errors.wrap_stream(LazyChunkStream.from_iter(endless()))], tmp_path / "x.rrd", "app", "rec", errors)
+    assert not [t for t in threading.enumerate() if t.name == "urdf-pipeline-writer" and t.is_alive()]
