@@ -54,6 +54,20 @@ def test_validate_and_plan_do_not_import_rerun(examples_dir: Path) -> None:
     assert result.returncode == 0, result.stderr
 
 
+def test_run_and_validate_leave_pandas_out_and_give_it_back(examples_dir: Path) -> None:
+    """pyarrow would import pandas (0.2-0.3 s) to ask whether an input is a pandas object; the commands never use it.
+    After the command, pandas imports as usual (a program embedding the CLI keeps it)."""
+    code = (
+        "import sys; from urdf_pipeline import cli; "
+        f"rc = cli.main(['run', {str(examples_dir / 'demo.yaml')!r}, '--force']); "
+        f"rc |= cli.main(['validate', {str(examples_dir / 'demo.yaml')!r}]); "
+        "assert rc == 0; assert 'pandas' not in sys.modules, 'pandas imported'; "
+        "import pandas, pyarrow as pa; assert type(pa.table({'a': [1]}).to_pandas()).__name__ == 'DataFrame'"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+
+
 def test_plan_shows_conversion_order_and_mimic(run_cli, examples_dir: Path) -> None:
     result = run_cli("plan", str(examples_dir / "demo.yaml"))
     assert result.code == 0

@@ -69,7 +69,7 @@ def run_locally(
     """
     if initializer is not None:
         initializer(*initargs)
-    helpers = min(workers, len(jobs)) if workers > 1 else 0
+    helpers = min(workers, len(jobs)) if workers > 1 and len(jobs) > 1 else 0  # one job: this process, no pool
     if helpers < 1:
         for job in jobs:
             _run_here(work, job, on_done, on_crash)
