@@ -101,3 +101,28 @@ def test_ctrl_c_stops_a_write_that_runs_on_rerun_threads(tmp_path: Path) -> None
     with pytest.raises(KeyboardInterrupt):
         write_streams([errors.wrap_stream(LazyChunkStream.from_iter(endless()))], tmp_path / "x.rrd", "app", "rec", errors)
     assert not [t for t in threading.enumerate() if t.name == "urdf-pipeline-writer" and t.is_alive()]
+
+
+def test_a_write_error_names_the_file_and_keeps_the_previous_one(examples_dir: Path) -> None:
+    """The file system refuses the write part-way (a file size limit stands in for a full disk): exit 1, one error
+    naming the output, the previous recording untouched, no partial file."""
+    import subprocess
+    import sys
+
+    config = examples_dir / "demo.yaml"
+    output = examples_dir / "out" / "episode_000.rrd"
+    first = subprocess.run([sys.executable, "-m", "urdf_pipeline", "run", str(config)], capture_output=True, text=True)
+    assert first.returncode == 0, first.stderr
+    before = output.read_bytes()
+    code = (
+        "import resource, signal, sys; signal.signal(signal.SIGXFSZ, signal.SIG_IGN); "
+        "resource.setrlimit(resource.RLIMIT_FSIZE, (1 << 20, 1 << 20)); "
+        f"from urdf_pipeline.cli import main; sys.exit(main(['run', {str(config)!r}, '--force']))"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert result.returncode == 1, result.stderr
+    errors = [line for line in result.stderr.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and f"cannot write {output}" in errors[0], result.stderr
+    assert "Traceback" not in result.stderr
+    assert output.read_bytes() == before
+    assert not [p for p in output.parent.iterdir() if ".partial-" in p.name]
