@@ -47,18 +47,12 @@ def cmd_run(args: argparse.Namespace) -> int:
     many = segments > 1 or plan.dataset.layout == "split"
     if many:
         say(f"{segments} segment(s), layout {plan.dataset.layout}, {args.jobs} job(s) on the {args.executor} executor")
-    if many and args.jobs > 1 and args.executor == "local":
-        from .dataset import start_fork_server
-
-        start_fork_server()  # its imports overlap with hashing the inputs
     options = RunOptions(args.jobs, args.executor, args.ray_address, args.force, verbose=not many)
     run = run_dataset(plan, options, SegmentProgress() if many else None)
     if args.report:
         write_report(Path(args.report), plan, run, options)
-    if not run.interrupted and any(r.status in ("written", "skipped") for r in run.results):
-        from .execute import write_blueprint
-
-        say(f"blueprint (a 3D view of the scene and one per robot): {write_blueprint(plan)}")
+    if run.blueprint is not None:
+        say(f"blueprint (a 3D view of the scene and one per robot): {run.blueprint}")
     if many or run.interrupted:
         print(summary_table(run.results), file=sys.stderr)
         say(totals_line(run.results, run.seconds) + f"; manifest {run.manifest}")

@@ -11,6 +11,7 @@ import dataclasses
 import hashlib
 import json
 import re
+from collections.abc import Mapping, Sequence
 from functools import cache
 from pathlib import Path
 from typing import Any
@@ -21,9 +22,33 @@ from ..plan import Plan
 MESH_FILENAME = re.compile(r'filename\s*=\s*"([^"]+)"')
 
 
+_KNOWN: dict[str, tuple[int, int, str]] = {}  # path -> (size, mtime_ns, sha256) recorded by an earlier run's manifest
+_USED: dict[str, tuple[int, int, str]] = {}  # the same for every file hashed by this run, for its manifest
+
+
+def remember_file_hashes(known: Mapping[str, Sequence[Any]]) -> None:
+    """Hashes an earlier run recorded: a file whose size and mtime are unchanged is not read again (an up-to-date
+    re-run of a large dataset would otherwise read every input); `--force` still rewrites every output. Starts a run:
+    what the previous run used is forgotten."""
+    _USED.clear()
+    for path, entry in known.items():
+        if isinstance(entry, list | tuple) and len(entry) == 3:
+            _KNOWN[path] = (int(entry[0]), int(entry[1]), str(entry[2]))
+
+
+def file_hashes_used() -> dict[str, list[Any]]:
+    return {path: list(entry) for path, entry in sorted(_USED.items())}
+
+
 def file_sha256(path: Path) -> str:
     stat = path.stat()
-    return _file_sha256(path, stat.st_size, stat.st_mtime_ns)
+    known = _KNOWN.get(str(path))
+    if known is not None and known[:2] == (stat.st_size, stat.st_mtime_ns):
+        digest = known[2]
+    else:
+        digest = _file_sha256(path, stat.st_size, stat.st_mtime_ns)
+    _USED[str(path)] = (stat.st_size, stat.st_mtime_ns, digest)
+    return digest
 
 
 @cache

@@ -28,6 +28,8 @@ class Manifest:
     layout: str
     config: Path
     model: dict[str, Any] | None = None
+    blueprint: dict[str, Any] | None = None
+    files: dict[str, Any] = field(default_factory=dict)  # input path -> [size, mtime_ns, sha256] (fingerprint.py)
     segments: dict[str, dict[str, Any]] = field(default_factory=dict)
     _last_write: float = 0.0
 
@@ -45,6 +47,9 @@ class Manifest:
         if data.get("format") != FORMAT or data.get("application_id") != application_id or data.get("layout") != layout:
             return manifest
         manifest.model = data.get("model")
+        manifest.blueprint = data.get("blueprint")
+        files = data.get("files")
+        manifest.files = files if isinstance(files, dict) else {}
         manifest.segments = {entry["segment"]: entry for entry in data.get("segments", []) if "segment" in entry}
         return manifest
 
@@ -71,6 +76,23 @@ class Manifest:
         else:
             self.segments[label] = {"segment": label, **entry}
 
+    def blueprint_up_to_date(self, path: Path, key: str) -> bool:
+        """The blueprint at `path` is the one this manifest recorded for `key`, untouched since (size and mtime): it
+        is neither checked nor written again, so an up-to-date run needs no Rerun."""
+        entry = self.blueprint
+        if entry is None or entry.get("content_sha256") != key or self.resolve(entry["path"]) != path.resolve():
+            return False
+        try:
+            stat = path.stat()
+        except OSError:
+            return False
+        return [stat.st_size, stat.st_mtime_ns] == [entry.get("bytes"), entry.get("mtime_ns")]
+
+    def record_blueprint(self, path: Path, key: str) -> None:
+        stat = path.stat()
+        relative = os.path.relpath(path, self.path.parent)
+        self.blueprint = {"path": relative, "content_sha256": key, "bytes": stat.st_size, "mtime_ns": stat.st_mtime_ns}
+
     def resolve(self, relative: str) -> Path:
         return (self.path.parent / relative).resolve()
 
@@ -94,6 +116,8 @@ class Manifest:
             "application_id": self.application_id,
             "layout": self.layout,
             "model": self.model,
+            "blueprint": self.blueprint,
+            "files": self.files,
             "segments": segments,
         }
         text = json.dumps(data, indent=1, sort_keys=True) + "\n"

@@ -19,7 +19,7 @@ from ..execute import Parts, SegmentJob, SegmentResult, remove_stale_partials, r
 from ..plan import Plan
 from ..progress import SegmentProgress
 from .executors import ExecutorName, executor_for
-from .fingerprint import model_hash, segment_hashes
+from .fingerprint import file_hashes_used, model_hash, remember_file_hashes, segment_hashes
 from .interrupts import signal_name, signal_number
 from .manifest import Manifest
 
@@ -43,6 +43,7 @@ class DatasetRun:
     manifest: Path
     interrupted: bool
     signal: int = 0  # what interrupted it: SIGINT (Ctrl-C) or SIGTERM
+    blueprint: Path | None = None  # the run's blueprint, when some output was written or is up to date
 
 
 def build_jobs(plan: Plan) -> list[SegmentJob]:
@@ -58,8 +59,10 @@ def build_jobs(plan: Plan) -> list[SegmentJob]:
 
 def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | None = None) -> DatasetRun:
     started = time.perf_counter()
-    jobs = build_jobs(plan)
     manifest = Manifest.load(plan.dataset.manifest, plan.output.application_id, plan.dataset.layout, plan.config_path, plan.output.where)
+    remember_file_hashes(manifest.files)
+    jobs = build_jobs(plan)
+    manifest.files = file_hashes_used()
     results: dict[str, SegmentResult] = {}
     to_run: list[SegmentJob] = []
     for job in jobs:
@@ -70,7 +73,7 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
             results[job.label] = SegmentResult(job.label, job.output, "skipped", job.content_hash, reason="up to date")
         else:
             to_run.append(job)
-    _prepare_outputs(plan, jobs, to_run)
+    _prepare_outputs(plan, jobs, to_run, manifest)
     if progress is not None:
         progress.start(len(jobs), sum(j.frames_expected or 0 for j in to_run), skipped=len(jobs) - len(to_run))
 
@@ -109,13 +112,27 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
             progress.finish()
         manifest.write()
     ordered = tuple(results[job.label] for job in jobs)
-    return DatasetRun(ordered, time.perf_counter() - started, manifest.path, bool(interrupted), interrupted)
+    blueprint = None
+    if not interrupted and any(r.status in ("written", "skipped") for r in ordered):
+        blueprint = _blueprint(plan, manifest)
+    return DatasetRun(ordered, time.perf_counter() - started, manifest.path, bool(interrupted), interrupted, blueprint)
 
 
-def _prepare_outputs(plan: Plan, jobs: list[SegmentJob], to_run: list[SegmentJob]) -> None:
+def _blueprint(plan: Plan, manifest: Manifest) -> Path:
+    """The run's blueprint, written unless the manifest says the one there is current."""
+    from ..execute import blueprint_key, blueprint_path, write_blueprint
+
+    path, key = blueprint_path(plan), blueprint_key(plan)
+    if not manifest.blueprint_up_to_date(path, key):
+        manifest.record_blueprint(write_blueprint(plan), key)
+        manifest.write()
+    return path
+
+
+def _prepare_outputs(plan: Plan, jobs: list[SegmentJob], to_run: list[SegmentJob], manifest: Manifest) -> None:
     """Before computing anything: no file the pipeline did not write would be replaced (not even with --force), every
     folder written to takes files, and the partial files of killed runs are gone. Every refusal at once, exit 1."""
-    from ..execute import blueprint_path
+    from ..execute import blueprint_key, blueprint_path
 
     where = plan.output.where
     problems = Problems()
@@ -126,7 +143,8 @@ def _prepare_outputs(plan: Plan, jobs: list[SegmentJob], to_run: list[SegmentJob
             problems.extend(error)
     blueprint = blueprint_path(plan)
     try:
-        require_ours(blueprint, "blueprint", where)
+        if not manifest.blueprint_up_to_date(blueprint, blueprint_key(plan)):  # recorded as ours: no Rerun needed
+            require_ours(blueprint, "blueprint", where)
     except UserError as error:
         problems.extend(error)
     for directory in dict.fromkeys([*(job.output.parent for job in to_run), plan.dataset.manifest.parent]):

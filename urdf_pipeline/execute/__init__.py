@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 from .. import lazy_surface
 
 if TYPE_CHECKING:
-    from .blueprint import blueprint_path, write_blueprint
+    from .blueprint import blueprint_key, blueprint_path, write_blueprint
     from .provenance import stored_content_hash
     from .segment import Parts, RunResult, execute
     from .segment_run import SegmentJob, SegmentResult, install_run_plan, run_segment
@@ -23,6 +23,7 @@ __all__ = [
     "RunResult",
     "SegmentJob",
     "SegmentResult",
+    "blueprint_key",
     "blueprint_path",
     "execute",
     "install_run_plan",
@@ -44,6 +45,7 @@ __getattr__ = lazy_surface(
         "RunResult": "segment",
         "SegmentJob": "segment_run",
         "SegmentResult": "segment_run",
+        "blueprint_key": "blueprint",
         "blueprint_path": "blueprint",
         "execute": "segment",
         "install_run_plan": "segment_run",

@@ -32,6 +32,18 @@ def blueprint_path(plan: Plan) -> Path:
     return plan.dataset.manifest.parent / f"{plan.config_path.stem}.rbl"
 
 
+def blueprint_key(plan: Plan) -> str:
+    """What the blueprint is made of (the pipeline's version, the application id, the robots' views): the manifest
+    keeps it, so a run whose blueprint is unchanged does not write it again."""
+    import hashlib
+    import json
+
+    from .. import __version__
+
+    parts = [__version__, plan.output.application_id, [[r.key, r.entity_path_prefix] for r in plan.robots]]
+    return hashlib.sha256(json.dumps(parts).encode()).hexdigest()
+
+
 def write_blueprint(plan: Plan) -> Path:
     blueprint = recording_blueprint(plan)
     return write_file_atomically(blueprint_path(plan), lambda partial: blueprint.save(plan.output.application_id, partial))

@@ -1,18 +1,27 @@
 """One pose per time: a source's rows are checked on their timeline before the kinematics see them.
 
 Two rows with the same index value would be two poses at one time (which one the viewer shows is an accident of
-row ids), so they are an error naming the file, the value and both row numbers, unless the source says
+row ids), so they are an error naming the file, the value and its row numbers, unless the source says
 `duplicates: keep_last` (the later row in the file wins). Rows out of order are sorted, stably, with one note:
-hold_last and the row numbers in later messages then follow time order. Everything is done on whole columns; the
-source's rows (only the joint-value component of one entity) are held until the check is done.
+hold_last and the row numbers in later messages then follow time order.
+
+The check streams, so that memory does not grow with the recording: rows in time order (the common case) are passed
+on as they come, one chunk at a time; `keep_last` holds one chunk back (a run of equal values may cross into the
+next chunk), and a repeat under `error` stops the passing on and reads only the index values to the end, to count
+every repeat. Rows out of order cannot be sorted once earlier ones are gone: the stream raises `NeedsSorting`, and
+the caller runs again with that source read whole and sorted as before (`with_sorting_retry`, `sorted_in_memory`).
+Everything is done on whole columns, chunk by chunk.
 """
 
 from __future__ import annotations
 
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 import pyarrow as pa
@@ -25,6 +34,68 @@ if TYPE_CHECKING:
 DUPLICATE_POLICIES = ("error", "keep_last")
 ROW_ID = "rerun.controls.RowId"
 BLOCK_ROWS = 4096  # rows per rebuilt chunk: Rerun's FK is fastest in 1k-10k row batches
+EVERY_SOURCE = "*"
+
+T = TypeVar("T")
+
+# The sources (by name) that `in_time_order` reads whole; read when a stream is opened, in the opener's context.
+_READ_WHOLE: ContextVar[frozenset[str]] = ContextVar("urdf_pipeline_read_whole", default=frozenset())
+
+
+class NeedsSorting(Exception):
+    """A streamed source turned out not to be in time order (or, rarely, to mix chunks with and without its timeline
+    after repeats were handled): what was passed on cannot be taken back, so the caller runs again with the source
+    read whole (`with_sorting_retry`). Not a user error: it never reaches the user."""
+
+    def __init__(self, source: str, path: Path) -> None:
+        super().__init__(f"source '{source}': rows of {path} are out of time order; read it whole to sort it")
+        self.source = source
+        self.path = path
+
+
+@contextmanager
+def sorted_in_memory(*sources: str) -> Iterator[None]:
+    """Streams opened within the block read these sources (every source when none is named) whole and sort them, as
+    before streaming: for a reader that must judge a source whole, such as `check`'s sample of the first rows."""
+    token = _READ_WHOLE.set(_READ_WHOLE.get() | (frozenset(sources) or {EVERY_SOURCE}))
+    try:
+        yield
+    finally:
+        _READ_WHOLE.reset(token)
+
+
+def with_sorting_retry(run: Callable[[], T]) -> T:
+    """`run()`, run again, from the start, with each source that raised `NeedsSorting` read whole. `run` must open
+    its streams itself: a stream keeps the mode it was opened with."""
+    whole: frozenset[str] = frozenset()
+    while True:  # one iteration per source found out of order, and one more
+        token = _READ_WHOLE.set(_READ_WHOLE.get() | whole)
+        try:
+            return run()
+        except Exception as exc:
+            found = needs_sorting(exc)
+            if found is None or found.source in whole:  # a source read whole never raises it
+                raise
+            whole |= {found.source}
+        finally:
+            _READ_WHOLE.reset(token)
+
+
+def needs_sorting(exc: BaseException) -> NeedsSorting | None:
+    """The `NeedsSorting` that `exc` is or wraps (Rerun may wrap an exception raised in a Python-fed stream)."""
+    seen: set[int] = set()
+    current: BaseException | None = exc
+    while current is not None and id(current) not in seen:  # one iteration per link of the chain
+        if isinstance(current, NeedsSorting):
+            return current
+        seen.add(id(current))
+        current = current.__cause__ or current.__context__
+    return None
+
+
+def _reads_whole(source: str) -> bool:
+    names = _READ_WHOLE.get()
+    return EVERY_SOURCE in names or source in names
 
 
 def duplicates_policy(plan: Any) -> str:
@@ -61,7 +132,23 @@ def _first_timeline(batch: pa.RecordBatch) -> str:
     return next((name for name, kind in kinds if kind == b"index"), "")
 
 
+def _repeat_error(label: str, path: Path, timeline: str, count: int, value: int, rows: Iterable[int], total: int, where: Where | None) -> UserError:
+    """`count` rows repeat an earlier row's value; the first repeated `value` is on `total` rows, `rows` the first of them."""
+    shown = ", ".join(str(int(r)) for r in list(rows)[:4]) + (f" and {total - 4} more" if total > 4 else "")
+    return UserError(
+        f"{label}: {path} has {count} rows whose {timeline} repeats an earlier row's; the first: "
+        f"{timeline} = {value} at rows {shown} (counting from 0): two poses at one time. "
+        f"Remove the duplicates, or set duplicates: keep_last on the source to keep the last row of each",
+        where,
+    )
+
+
+def _kept_note(label: str, count: int, path: Path, timeline: str) -> None:
+    _note(f"{label}: {count} rows of {path.name} repeat a {timeline} value; kept the last of each (duplicates: keep_last)")
+
+
 def _check(chunks: list[Chunk], timeline: str | None, policy: str, label: str, path: Path, where: Where | None) -> Iterator[Chunk]:
+    """The whole source at once (rows out of order): sorted, stably, with the repeats' policy applied."""
     batches = [chunk.to_record_batch() for chunk in chunks]
     if timeline is None:
         timeline = _first_timeline(batches[0]) if batches else ""
@@ -79,50 +166,130 @@ def _check(chunks: list[Chunk], timeline: str | None, policy: str, label: str, p
     if repeated.any():
         first = int(np.argmax(repeated))
         rows = np.sort(order[ordered == ordered[first]])
-        shown = ", ".join(str(int(r)) for r in rows[:4]) + (f" and {len(rows) - 4} more" if len(rows) > 4 else "")
         if policy != "keep_last":
-            raise UserError(
-                f"{label}: {path} has {int(repeated.sum())} rows whose {timeline} repeats an earlier row's; the first: "
-                f"{timeline} = {int(ordered[first])} at rows {shown} (counting from 0): two poses at one time. "
-                f"Remove the duplicates, or set duplicates: keep_last on the source to keep the last row of each",
-                where,
-            )
+            raise _repeat_error(label, path, timeline, int(repeated.sum()), int(ordered[first]), rows[:4], len(rows), where)
         keep = np.append(~repeated, True)  # the last of each run of equal values is the file's last row with it
         order = order[keep]
-        _note(
-            f"{label}: {int(repeated.sum())} rows of {path.name} repeat a {timeline} value; kept the last of each (duplicates: keep_last)"
-        )
+        _kept_note(label, int(repeated.sum()), path, timeline)
     if bool(np.any(np.diff(values) < 0)):
         moved = int(np.count_nonzero(order != np.arange(len(order)))) if len(order) == len(values) else len(order)
         _note(f"{label}: rows of {path.name} are out of {timeline} order ({moved} rows moved); sorted by {timeline}, stably")
     yield from _rebuilt(batches, order)
 
 
+@dataclass
+class _FirstRepeat:
+    """Under `error`: the first repeated value and its run of rows, which may go on into later chunks."""
+
+    value: int
+    start: int  # its first row, counting from 0
+    rows: int
+
+
+def _streamed(chunks: Iterator[Chunk], timeline: str | None, policy: str, label: str, path: Path, plan: Any) -> Iterator[Chunk]:
+    """The rows as they come, checked chunk by chunk against the previous row (only index values are kept)."""
+    keep_last = policy == "keep_last"
+    last: int | None = None  # the index value of the previous row
+    seen = 0  # rows before this chunk
+    repeats = 0
+    first: _FirstRepeat | None = None  # under `error`: once set, nothing more is passed on
+    held: tuple[Chunk, pa.RecordBatch, np.ndarray] | None = None  # under `keep_last`: a chunk and which rows stay
+    for chunk in chunks:  # one iteration per chunk
+        batch = chunk.to_record_batch()
+        if timeline is None:
+            timeline = _first_timeline(batch)
+        values = _index_values(batch, timeline)
+        if values is None:  # no such timeline (a generated one): nothing is checked, every chunk passed on as it is
+            if repeats:
+                raise NeedsSorting(plan.name, path)
+            if held is not None:
+                yield held[0]
+            yield chunk
+            yield from chunks
+            return
+        if len(values) == 0:
+            if first is None:
+                yield chunk
+            continue
+        steps = np.diff(values, prepend=values[0] if last is None else last)
+        if bool(np.any(steps < 0)):
+            raise NeedsSorting(plan.name, path)
+        equal = steps == 0
+        equal[0] = equal[0] and last is not None
+        repeats += int(np.count_nonzero(equal))
+        if keep_last:
+            if held is not None:
+                held[2][-1] = not equal[0]  # the held chunk's last row goes when this chunk goes on with its value
+                yield from _kept(*held)
+            held = (chunk, batch, np.append(~equal[1:], True))
+        elif first is not None:
+            first.rows += int(np.count_nonzero(values == first.value))
+        elif equal.any():
+            at = int(np.argmax(equal))
+            value = int(values[at])
+            first = _FirstRepeat(value, seen + at - 1, int(np.count_nonzero(values == value)) + (at == 0))
+        else:
+            yield chunk
+        last = int(values[-1])
+        seen += len(values)
+    if held is not None:
+        yield from _kept(*held)
+    if first is not None:
+        rows = range(first.start, first.start + min(first.rows, 4))
+        raise _repeat_error(label, path, timeline or "", repeats, first.value, rows, first.rows, plan.where)
+    if repeats:
+        _kept_note(label, repeats, path, timeline or "")
+
+
+def _kept(chunk: Chunk, batch: pa.RecordBatch, keep: np.ndarray) -> Iterator[Chunk]:
+    """The chunk as it is when it keeps every row, else its kept rows as a new chunk (fresh row ids)."""
+    if bool(keep.all()):
+        yield chunk
+    else:
+        yield from _rebuilt([batch], np.flatnonzero(keep))
+
+
 def _note(text: str) -> None:
     print(f"note: {text}", file=sys.stderr)
 
 
+def _reading(stream: LazyChunkStream, path: Path, where: Where | None) -> Iterator[Chunk]:
+    """The chunks of `stream`; a reader's decoding error (a corrupt chunk) becomes a user error naming the file."""
+    chunks = iter(stream)
+    while True:  # one iteration per chunk
+        try:
+            chunk = next(chunks)
+        except StopIteration:
+            return
+        except (RuntimeError, ValueError, OSError) as exc:
+            for cause in (exc.__cause__, exc.__context__):
+                if isinstance(cause, UserError):  # raised by one of our own callbacks: keep it
+                    raise cause from None
+            reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+            raise UserError(f"cannot read {path}, it is probably corrupt: {reason}", where) from None
+        yield chunk
+
+
 def read_all(stream: LazyChunkStream, path: Path, where: Where | None) -> list[Chunk]:
     """Every chunk of `stream`; a reader's decoding error (a corrupt chunk) becomes a user error naming the file."""
-    try:
-        return list(stream)
-    except (RuntimeError, ValueError, OSError) as exc:
-        for cause in (exc.__cause__, exc.__context__):
-            if isinstance(cause, UserError):  # raised by one of our own callbacks: keep it
-                raise cause from None
-        reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
-        raise UserError(f"cannot read {path}, it is probably corrupt: {reason}", where) from None
+    return list(_reading(stream, path, where))
 
 
-def in_time_order(stream: LazyChunkStream, timeline: str | None, plan: Any, path: Path) -> LazyChunkStream:
+def in_time_order(stream: LazyChunkStream, timeline: str | None, plan: Any, path: Path, in_memory: bool = False) -> LazyChunkStream:
     """`stream` (temporal chunks of the values' entity) checked for repeated index values and sorted on `timeline`
-    (None: the recording's first timeline)."""
+    (None: the recording's first timeline). Streamed, unless `in_memory` or the source is read whole
+    (`sorted_in_memory`, decided here, when the stream is opened): then read whole first and sorted."""
     from rerun.chunk import LazyChunkStream
 
     label = f"source '{plan.name}'"
+    policy = duplicates_policy(plan)
+    whole = in_memory or _reads_whole(plan.name)
 
     def checked() -> Iterator[Chunk]:
-        yield from _check(read_all(stream, path, plan.where), timeline, duplicates_policy(plan), label, path, plan.where)
+        if whole:
+            yield from _check(read_all(stream, path, plan.where), timeline, policy, label, path, plan.where)
+        else:
+            yield from _streamed(_reading(stream, path, plan.where), timeline, policy, label, path, plan)
 
     return LazyChunkStream.from_iter(checked())
 
