@@ -13,7 +13,7 @@ from typing import Literal
 from ..errors import Problems
 from ..plan import Plan
 from ..progress import RowProgress, say
-from ..sources import CallbackErrors, JointValueMapper, module_for
+from ..sources import CallbackErrors, JointValueMapper, module_for, with_sorting_retry
 from .edges_stream import edges_stream
 from .fk_stream import JointTransformBatches, fk_stream
 from .limits_report import check_joint_statistics
@@ -55,6 +55,20 @@ def execute(
     `rows_expected` (from the source's metadata) gives the progress lines a share done and an ETA."""
     log: Callable[[str], None] = _silent if quiet else say
     started = time.perf_counter()
+    if parts == "model":
+        log(f"writing the model of {len(plan.robots)} robot(s)")
+    else:
+        log(f"reading {len(plan.sources)} source(s), computing forward kinematics for {len(plan.robots)} robot(s)")
+    log(f"writing {plan.output.path}")
+    # A source found out of time order part-way is read again, whole and sorted: the attempt opens every stream anew.
+    written, rows, notes = with_sorting_retry(lambda: _write(plan, parts, provenance or {}, on_note, quiet, rows_expected))
+    return RunResult(written, rows, notes, time.perf_counter() - started)
+
+
+def _write(
+    plan: Plan, parts: Parts, provenance: dict[str, str], on_note: Callable[[str], None], quiet: bool, rows_expected: int | None
+) -> tuple[Path, dict[str, int], tuple[str, ...]]:
+    """One attempt: open the streams, write them to the partial file, check what the pass found, rename."""
     errors = CallbackErrors()
     mappers: list[JointValueMapper] = []
     streams = []
@@ -74,15 +88,10 @@ def execute(
             if driven:  # a source used only by temporal edges is read there
                 streams.append(fk_stream(module_for(source).open_stream(source), driven, errors))
         streams.append(edges_stream(plan.edges))
-    streams.append(provenance_stream(plan, parts, provenance or {}))
+    streams.append(provenance_stream(plan, parts, provenance))
     # Temporal edges (a mobile base, a floating pelvis): their sources are opened again, see temporal_edges.py.
     temporal_streams, temporal_values = temporal_edge_streams(plan, errors) if parts != "model" else ([], [])
     streams += temporal_streams
-    if parts == "model":
-        log(f"writing the model of {len(plan.robots)} robot(s)")
-    else:
-        log(f"reading {len(plan.sources)} source(s), computing forward kinematics for {len(plan.robots)} robot(s)")
-    log(f"writing {plan.output.path}")
     notes: list[str] = []
 
     def write(partial: Path) -> None:
@@ -96,4 +105,4 @@ def execute(
         problems.raise_if_any()
 
     written = write_file_atomically(plan.output.path, write, "recording", plan.output.where)
-    return RunResult(written, {m.robot.key: m.stats.rows for m in mappers}, tuple(notes), time.perf_counter() - started)
+    return written, {m.robot.key: m.stats.rows for m in mappers}, tuple(notes)

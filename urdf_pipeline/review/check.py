@@ -187,9 +187,10 @@ def check_plan(plan: Plan, sample: dict[str, np.ndarray]) -> list[JointReport]:
 
 def read_sample(source: SourcePlan, rows: int = SAMPLE_ROWS) -> np.ndarray:
     """The first `rows` rows of a source, as a (rows x names) matrix, read with the same Rerun reader as a run."""
-    from ..sources import module_for, raw_matrix
+    from ..sources import module_for, raw_matrix, sorted_in_memory
 
-    opened = module_for(source).open_stream(source)
+    with sorted_in_memory():  # the first rows in time order, every repeat seen: as a run reads the source
+        opened = module_for(source).open_stream(source)
     matrices, total = [], 0
     for chunk in opened.stream.to_chunks():
         batch = chunk.to_record_batch()

@@ -16,6 +16,7 @@ from . import hdf5, lerobot, mcap, parquet, rrd
 from .base import GLOB, EntryField, SourceDescription, SourceKind, resolve_input
 from .callbacks import CallbackErrors
 from .joint_values import JointValueMapper, raw_matrix, wrapped
+from .ordering import NeedsSorting, sorted_in_memory, with_sorting_retry
 from .stream import SourceStream
 
 __all__ = [
@@ -24,6 +25,7 @@ __all__ = [
     "CallbackErrors",
     "EntryField",
     "JointValueMapper",
+    "NeedsSorting",
     "SourceDescription",
     "SourceKind",
     "SourceStream",
@@ -32,6 +34,8 @@ __all__ = [
     "module_for",
     "raw_matrix",
     "resolve_input",
+    "sorted_in_memory",
+    "with_sorting_retry",
     "wrapped",
 ]
 

@@ -33,7 +33,8 @@ if TYPE_CHECKING:
 
 DUPLICATE_POLICIES = ("error", "keep_last")
 ROW_ID = "rerun.controls.RowId"
-BLOCK_ROWS = 4096  # rows per rebuilt chunk: Rerun's FK is fastest in 1k-10k row batches
+BLOCK_ROWS = 2048  # rows per joined or rebuilt chunk: Rerun's FK is fastest in 1k-10k row batches, and a block
+# becomes one FK chunk of the recording (2048 x up to 32 joints stays under OBJECT_STORE's 65,536 rows)
 EVERY_SOURCE = "*"
 
 T = TypeVar("T")
@@ -132,7 +133,9 @@ def _first_timeline(batch: pa.RecordBatch) -> str:
     return next((name for name, kind in kinds if kind == b"index"), "")
 
 
-def _repeat_error(label: str, path: Path, timeline: str, count: int, value: int, rows: Iterable[int], total: int, where: Where | None) -> UserError:
+def _repeat_error(
+    label: str, path: Path, timeline: str, count: int, value: int, rows: Iterable[int], total: int, where: Where | None
+) -> UserError:
     """`count` rows repeat an earlier row's value; the first repeated `value` is on `total` rows, `rows` the first of them."""
     shown = ", ".join(str(int(r)) for r in list(rows)[:4]) + (f" and {total - 4} more" if total > 4 else "")
     return UserError(
@@ -289,9 +292,47 @@ def in_time_order(stream: LazyChunkStream, timeline: str | None, plan: Any, path
         if whole:
             yield from _check(read_all(stream, path, plan.where), timeline, policy, label, path, plan.where)
         else:
-            yield from _streamed(_reading(stream, path, plan.where), timeline, policy, label, path, plan)
+            yield from _in_blocks(_streamed(_reading(stream, path, plan.where), timeline, policy, label, path, plan))
 
     return LazyChunkStream.from_iter(checked())
+
+
+def _in_blocks(chunks: Iterable[Chunk]) -> Iterator[Chunk]:
+    """Consecutive small chunks of one entity joined into blocks of about `BLOCK_ROWS` rows, in order (fresh row
+    ids); a chunk of a block's size or more goes on untouched. Each block becomes one FK chunk of the recording, so a
+    source of small chunks (an .rrd logged row by row, a reader's 1024-row chunks) gives chunks as large as a
+    collected store's, and the FK runs on batches of its best size."""
+    pending: list[pa.RecordBatch] = []
+    rows = 0
+    key: tuple[str, tuple[str, ...]] | None = None
+    for chunk in chunks:  # one iteration per chunk
+        if not pending and chunk.num_rows >= BLOCK_ROWS:
+            yield chunk
+            continue
+        batch = chunk.to_record_batch()
+        chunk_key = (chunk.entity_path, tuple(batch.schema.names))
+        if pending and chunk_key != key:
+            yield from _joined(pending)
+            pending, rows = [], 0
+        pending.append(batch)
+        rows += batch.num_rows
+        key = chunk_key
+        if rows >= BLOCK_ROWS:
+            yield from _joined(pending)
+            pending, rows = [], 0
+    if pending:
+        yield from _joined(pending)
+
+
+def _joined(batches: list[pa.RecordBatch]) -> Iterator[Chunk]:
+    """The batches' rows, in order, as one chunk (fresh row ids; one batch: that chunk rebuilt as it was)."""
+    from rerun.chunk import Chunk
+
+    metadata = {k: v for k, v in (batches[0].schema.metadata or {}).items() if k != b"rerun:id"}
+    stripped = [b.drop_columns([ROW_ID]) if ROW_ID in b.schema.names else b for b in batches]
+    table = pa.Table.from_batches([b.replace_schema_metadata(metadata) for b in stripped]).combine_chunks()
+    for batch in table.to_batches():
+        yield from Chunk.from_record_batch(batch.replace_schema_metadata(metadata))
 
 
 def with_duplicates(plan: Any, spec: dict[str, Any]) -> Any:
