@@ -14,6 +14,7 @@ from ..urdf import (
     UrdfParseError,
     garbage_meshes,
     load_urdf_source,
+    parse_urdf,
     parse_urdf_text,
     rerun_loader_error,
     resolve_meshes,
@@ -48,8 +49,8 @@ def load_urdf(ctx: CompileContext, key: str, spec: dict[str, Any], package_paths
     loaded = load_urdf_source(spec["urdf"], package_paths, ctx.config_dir, ctx.confinement, where)
     try:
         is_file = isinstance(spec["urdf"], str) or "xacro" not in spec["urdf"]  # an expanded xacro has no lines to point at
-        model = parse_urdf_text(loaded.text, str(loaded.path), source_lines=is_file)
-        text, notes = text_for_rerun(loaded.text, str(loaded.path))
+        model, root = parse_urdf(loaded.text, str(loaded.path), source_lines=is_file)
+        text, notes = text_for_rerun(loaded.text, str(loaded.path), root)
         if text is not loaded.text:  # repaired: the model is read from what Rerun will draw
             model = parse_urdf_text(text, str(loaded.path))
     except UrdfParseError as exc:

@@ -16,7 +16,7 @@ if TYPE_CHECKING:
     from .geometry import Quaternion, Vector, normalized_quaternion, quaternion_from_rpy, quaternion_multiply
     from .load import LoadedUrdf, load_urdf_source
     from .meshes import garbage_meshes, package_roots, resolve_meshes, rewrite_mesh_uris
-    from .model import Joint, UrdfModel, UrdfParseError, parse_urdf_text, read_urdf
+    from .model import Joint, UrdfModel, UrdfParseError, parse_urdf, parse_urdf_text, read_urdf
     from .repair import rerun_loader_error, text_for_rerun
 
 __all__ = [
@@ -33,6 +33,7 @@ __all__ = [
     "load_urdf_source",
     "normalized_quaternion",
     "package_roots",
+    "parse_urdf",
     "parse_urdf_text",
     "quaternion_from_rpy",
     "quaternion_multiply",
@@ -59,6 +60,7 @@ __getattr__ = lazy_surface(
         "load_urdf_source": "load",
         "normalized_quaternion": "geometry",
         "package_roots": "meshes",
+        "parse_urdf": "model",
         "parse_urdf_text": "model",
         "quaternion_from_rpy": "geometry",
         "quaternion_multiply": "geometry",

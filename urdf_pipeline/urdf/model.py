@@ -288,9 +288,21 @@ def _root(joints: list[Joint], links: tuple[str, ...], origin: str) -> str:
     )
 
 
+_MODELS: dict[tuple[str, bool], UrdfModel] = {}  # the last few texts parsed: plan and diff read the compiled text again
+_KEEP_MODELS = 16
+
+
 def parse_urdf_text(text: str, origin: str, source_lines: bool = True) -> UrdfModel:
     """The model of a URDF text; UrdfParseError with one message per problem, each `origin:LINE:` when `source_lines`
-    (the text is the file itself, not expanded from xacro)."""
+    (the text is the file itself, not expanded from xacro). A text parsed before is not parsed again."""
+    model = _MODELS.get((text, source_lines))
+    if model is None:
+        model, _ = parse_urdf(text, origin, source_lines)
+    return model
+
+
+def parse_urdf(text: str, origin: str, source_lines: bool = True) -> tuple[UrdfModel, ET.Element]:
+    """`parse_urdf_text`, also giving the parsed XML root (for repairs: the text is parsed once)."""
     robot, lines = parse_root(text, origin)
     problems = _Problems(origin, lines if source_lines else None)
     link_elements = robot.findall("link")
@@ -314,7 +326,11 @@ def parse_urdf_text(text: str, origin: str, source_lines: bool = True) -> UrdfMo
     if problems.messages:
         raise UrdfParseError(*problems.messages)
     model_joints = [joint for joint, _ in joints.values()]
-    return UrdfModel(robot.get("name", ""), links, tuple(model_joints), tuple(meshes), _root(model_joints, links, origin))
+    model = UrdfModel(robot.get("name", ""), links, tuple(model_joints), tuple(meshes), _root(model_joints, links, origin))
+    if len(_MODELS) >= _KEEP_MODELS:
+        _MODELS.pop(next(iter(_MODELS)))
+    _MODELS[(text, source_lines)] = model
+    return model, robot
 
 
 def read_urdf(path: Path) -> tuple[str, UrdfModel]:

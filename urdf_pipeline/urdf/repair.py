@@ -159,9 +159,10 @@ def _repair_joint(joint: ET.Element, repairs: _Repairs) -> None:
         repairs.changed = True
 
 
-def text_for_rerun(text: str, origin: str) -> tuple[str, tuple[str, ...]]:
-    """The text to hand Rerun's loader and a note per kind of repair. `text` must have passed `parse_urdf_text`."""
-    robot, _ = parse_root(text, origin)
+def text_for_rerun(text: str, origin: str, root: ET.Element | None = None) -> tuple[str, tuple[str, ...]]:
+    """The text to hand Rerun's loader and a note per kind of repair. `text` must have passed `parse_urdf_text`;
+    `root`, its parsed XML from `parse_urdf`, is repaired in place (then it is not parsed again)."""
+    robot = root if root is not None else parse_root(text, origin)[0]
     repairs = _Repairs()
     for material in robot.findall("material"):
         _repair_material(material, f"material '{material.get('name', '')}'", repairs)
