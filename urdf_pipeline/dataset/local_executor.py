@@ -21,6 +21,7 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from typing import TypeVar
 
 from ..execute import process_alive
@@ -101,6 +102,8 @@ def _run_in_pool(
     def start_workers() -> None:
         try:  # blocks until the fork server has imported Rerun: in a thread, so this process works meanwhile
             wait([pool.submit(_started) for _ in range(helpers)])
+        except (RuntimeError, BrokenProcessPool):  # the run ended first (all done here, Ctrl-C): the pool is shut down
+            pass
         finally:
             ready.set()
 
