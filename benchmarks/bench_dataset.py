@@ -34,7 +34,8 @@ def prepare(workdir: Path) -> dict[str, Path]:
     from urdf_pipeline.examples import prepare as prepare_examples
 
     prepare_examples(workdir, frames=10)  # robots/share/example-robot-data (the G1 URDF and meshes)
-    (workdir / "data" / G1_DATA.name).symlink_to(G1_DATA, target_is_directory=True)
+    # a copy (10 MB): a symlink would point outside the config's folder, where a config may not read
+    shutil.copytree(G1_DATA, workdir / "data" / G1_DATA.name, dirs_exist_ok=True)
     spec = yaml.safe_load(G1_CONFIG.read_text())
     del spec["sources"]["g1_state"]["episode"]  # one segment per episode
     configs = {}
