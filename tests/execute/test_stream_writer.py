@@ -88,9 +88,7 @@ def test_ctrl_c_stops_a_write_that_runs_on_rerun_threads(tmp_path: Path) -> None
     def endless():
         frame = 0
         while True:
-            yield Chunk.from_columns(
-                "/x", indexes=[rr.TimeColumn("frame", sequence=[frame])], columns=rr.Scalars.columns(scalars=[0.0])
-            )
+            yield Chunk.from_columns("/x", indexes=[rr.TimeColumn("frame", sequence=[frame])], columns=rr.Scalars.columns(scalars=[0.0]))
             frame += 1
             time.sleep(0.001)
 
