@@ -13,7 +13,6 @@ from .. import lazy_surface
 if TYPE_CHECKING:
     from .base_check import check_base
     from .interrupts import exit_status, handle_sigterm, keep_sigterm_handler, restore_sigterm_handler, signal_name, signal_number
-    from .local_executor import start_fork_server
     from .run import RunOptions, register_outputs, run_dataset
     from .summary import summary_table, totals_line, write_report
 
@@ -28,7 +27,6 @@ __all__ = [
     "run_dataset",
     "signal_name",
     "signal_number",
-    "start_fork_server",
     "summary_table",
     "totals_line",
     "write_report",
@@ -47,7 +45,6 @@ __getattr__ = lazy_surface(
         "run_dataset": "run",
         "signal_name": "interrupts",
         "signal_number": "interrupts",
-        "start_fork_server": "local_executor",
         "summary_table": "summary",
         "totals_line": "summary",
         "write_report": "summary",

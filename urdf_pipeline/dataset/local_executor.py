@@ -33,16 +33,6 @@ J = TypeVar("J")
 R = TypeVar("R")
 
 
-def start_fork_server() -> None:
-    """Start the fork server now, in the background: its imports (~0.7 s) overlap with compiling the config and
-    hashing the inputs instead of delaying the first job."""
-    context = multiprocessing.get_context("forkserver")
-    context.set_forkserver_preload(PRELOAD)
-    from multiprocessing import forkserver
-
-    forkserver.ensure_running()
-
-
 def _start_worker(initializer: Callable[..., None] | None, initargs: tuple[object, ...], scratch: str, main: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
