@@ -33,6 +33,20 @@ J = TypeVar("J")
 R = TypeVar("R")
 
 
+def _start_fork_server() -> None:
+    """The fork server imports Rerun (~0.7 s) before it ignores Ctrl-C itself: it is started with SIGINT and SIGTERM
+    blocked (a signal mask survives exec), so a Ctrl-C in that window cannot make it print a traceback; in this
+    process they are only held for the spawn and delivered right after."""
+    from multiprocessing import forkserver
+
+    held = {signal.SIGINT, signal.SIGTERM}
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        forkserver.ensure_running()
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
 def _start_worker(initializer: Callable[..., None] | None, initargs: tuple[object, ...], scratch: str, main: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
@@ -84,6 +98,7 @@ def _run_in_pool(
 ) -> None:
     context = multiprocessing.get_context("forkserver")
     context.set_forkserver_preload(PRELOAD)
+    _start_fork_server()
     pool = ProcessPoolExecutor(
         helpers, mp_context=context, initializer=_start_worker, initargs=(initializer, initargs, scratch, os.getpid())
     )
