@@ -15,24 +15,17 @@ def _module_name(path: Path) -> str:
 
 def _imports(path: Path, modules: set[str]) -> set[str]:
     """The package modules `path` imports (`from . import x` names module x when x is a module)."""
-    name = _module_name(path)
-    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
     found: set[str] = set()
+    for target, names in _absolute_imports(path):
+        for alias in names:
+            if f"{target}.{alias}" in modules:
+                found.add(f"{target}.{alias}")
+            elif target in modules:
+                found.add(target)
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-        if isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = package.rsplit(".", node.level - 1)[0] if node.level > 1 else package
-                target = f"{base}.{node.module}" if node.module else base
-            else:
-                target = node.module or ""
-            for alias in node.names:
-                if f"{target}.{alias.name}" in modules:
-                    found.add(f"{target}.{alias.name}")
-                elif target in modules:
-                    found.add(target)
-        elif isinstance(node, ast.Import):
+        if isinstance(node, ast.Import):
             found |= {alias.name for alias in node.names if alias.name in modules}
-    found.discard(name)
+    found.discard(_module_name(path))
     return found
 
 

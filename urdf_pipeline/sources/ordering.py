@@ -114,17 +114,26 @@ def _index_values(batch: pa.RecordBatch, timeline: str) -> np.ndarray | None:
     return np.asarray(column.cast(pa.int64()).to_numpy(zero_copy_only=False))
 
 
-def _rebuilt(batches: list[pa.RecordBatch], rows: np.ndarray) -> Iterator[Chunk]:
-    """The rows in the given order, as new chunks (fresh row ids, so the row order is the time order)."""
-    from rerun.chunk import Chunk
-
+def _fresh(batches: list[pa.RecordBatch]) -> tuple[pa.Table, dict[bytes, bytes]]:
+    """The batches as one table without row ids or chunk id, and the chunk metadata to rebuild chunks with: chunks
+    made from it get fresh ids, so their row order is the order given."""
     metadata = {k: v for k, v in (batches[0].schema.metadata or {}).items() if k != b"rerun:id"}
     stripped = [b.drop_columns([ROW_ID]) if ROW_ID in b.schema.names else b for b in batches]
-    table = pa.Table.from_batches([b.replace_schema_metadata(metadata) for b in stripped])
+    return pa.Table.from_batches([b.replace_schema_metadata(metadata) for b in stripped]), metadata
+
+
+def _chunks(table: pa.Table, metadata: dict[bytes, bytes]) -> Iterator[Chunk]:
+    from rerun.chunk import Chunk
+
+    for batch in table.to_batches():
+        yield from Chunk.from_record_batch(batch.replace_schema_metadata(metadata))
+
+
+def _rebuilt(batches: list[pa.RecordBatch], rows: np.ndarray) -> Iterator[Chunk]:
+    """The rows in the given order, as new chunks of BLOCK_ROWS rows (fresh row ids, so the row order is the time order)."""
+    table, metadata = _fresh(batches)
     for start in range(0, len(rows), BLOCK_ROWS):  # one iteration per block of rows
-        block = table.take(pa.array(rows[start : start + BLOCK_ROWS])).combine_chunks()
-        for batch in block.to_batches():
-            yield from Chunk.from_record_batch(batch.replace_schema_metadata(metadata))
+        yield from _chunks(table.take(pa.array(rows[start : start + BLOCK_ROWS])).combine_chunks(), metadata)
 
 
 def _first_timeline(batch: pa.RecordBatch) -> str:
@@ -325,14 +334,9 @@ def _in_blocks(chunks: Iterable[Chunk]) -> Iterator[Chunk]:
 
 
 def _joined(batches: list[pa.RecordBatch]) -> Iterator[Chunk]:
-    """The batches' rows, in order, as one chunk (fresh row ids; one batch: that chunk rebuilt as it was)."""
-    from rerun.chunk import Chunk
-
-    metadata = {k: v for k, v in (batches[0].schema.metadata or {}).items() if k != b"rerun:id"}
-    stripped = [b.drop_columns([ROW_ID]) if ROW_ID in b.schema.names else b for b in batches]
-    table = pa.Table.from_batches([b.replace_schema_metadata(metadata) for b in stripped]).combine_chunks()
-    for batch in table.to_batches():
-        yield from Chunk.from_record_batch(batch.replace_schema_metadata(metadata))
+    """The batches' rows, in order, as one chunk (fresh row ids)."""
+    table, metadata = _fresh(batches)
+    yield from _chunks(table.combine_chunks(), metadata)
 
 
 def with_duplicates(plan: Any, spec: dict[str, Any]) -> Any:
