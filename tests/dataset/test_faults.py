@@ -279,3 +279,27 @@ def test_worker_temporary_folders_are_removed_after_success_and_failure(so101_da
     assert process.returncode == 1, err
     assert status_lines(err).get("episode_000002") == "failed", err
     assert not list(scratch.iterdir()), "temporary folders outlived a failed run"
+
+
+@pytest.mark.parametrize(
+    "damage",
+    [
+        {"files": {"data/x.parquet": ["not a size", 1, "ab"]}},
+        {"files": ["a list"]},
+        {"blueprint": "a string"},
+        {"blueprint": {"path": 7}},
+        {"model": ["a list"]},
+        {"segments": ["episode_000000", {"segment": 3, "path": None}]},
+    ],
+)
+def test_a_damaged_manifest_of_ours_is_read_as_stale(so101_dataset: Path, run_cli, damage: dict) -> None:
+    """A manifest with our key whose entries are of the wrong shape (hand-edited, or committed in a pull request):
+    what it says is not trusted, every output is checked again and rewritten; never a crash (exit 70)."""
+    assert run_cli("run", str(so101_dataset)).code == 0
+    manifest = _outputs(so101_dataset) / "so101_dataset.manifest.json"
+    manifest.write_text(json.dumps({**json.loads(manifest.read_text()), **damage}))
+    result = run_cli("run", str(so101_dataset))
+    assert result.code == 0, result.err
+    data = json.loads(manifest.read_text())
+    assert all(isinstance(entry, list) and len(entry) == 3 for entry in data["files"].values())
+    assert isinstance(data["blueprint"], dict)

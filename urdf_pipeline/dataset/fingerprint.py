@@ -26,14 +26,13 @@ _KNOWN: dict[str, tuple[int, int, str]] = {}  # path -> (size, mtime_ns, sha256)
 _USED: dict[str, tuple[int, int, str]] = {}  # the same for every file hashed by this run, for its manifest
 
 
-def remember_file_hashes(known: Mapping[str, Sequence[Any]]) -> None:
+def remember_file_hashes(known: Mapping[str, Sequence[Any]]) -> None:  # [size, mtime_ns, sha256], as Manifest.load checked
     """Hashes an earlier run recorded: a file whose size and mtime are unchanged is not read again (an up-to-date
     re-run of a large dataset would otherwise read every input); `--force` still rewrites every output. Starts a run:
     what the previous run used is forgotten."""
     _USED.clear()
-    for path, entry in known.items():
-        if isinstance(entry, list | tuple) and len(entry) == 3:
-            _KNOWN[path] = (int(entry[0]), int(entry[1]), str(entry[2]))
+    for path, (size, mtime_ns, digest) in known.items():
+        _KNOWN[path] = (size, mtime_ns, digest)
 
 
 def file_hashes_used() -> dict[str, list[Any]]:

@@ -46,11 +46,14 @@ class Manifest:
             return manifest  # unreadable: start afresh, every output is checked again
         if data.get("format") != FORMAT or data.get("application_id") != application_id or data.get("layout") != layout:
             return manifest
-        manifest.model = data.get("model")
-        manifest.blueprint = data.get("blueprint")
+        # Entries of the wrong shape (a hand edit, a pull request) are not trusted: their outputs are checked again.
+        manifest.model = data.get("model") if _is_entry(data.get("model")) else None
+        manifest.blueprint = data.get("blueprint") if _is_entry(data.get("blueprint")) else None
         files = data.get("files")
-        manifest.files = files if isinstance(files, dict) else {}
-        manifest.segments = {entry["segment"]: entry for entry in data.get("segments", []) if "segment" in entry}
+        manifest.files = {path: entry for path, entry in files.items() if _is_file_hash(entry)} if isinstance(files, dict) else {}
+        segments = data.get("segments")
+        entries = segments if isinstance(segments, list) else []
+        manifest.segments = {e["segment"]: e for e in entries if _is_entry(e) and isinstance(e.get("segment"), str)}
         return manifest
 
     def entry(self, label: str) -> dict[str, Any] | None:
@@ -122,3 +125,18 @@ class Manifest:
         }
         text = json.dumps(data, indent=1, sort_keys=True) + "\n"
         write_file_atomically(self.path, lambda partial: partial.write_text(text, encoding="utf-8"), None)  # ours: see load
+
+
+def _is_entry(entry: Any) -> bool:
+    """An output's entry: a mapping with its path."""
+    return isinstance(entry, dict) and isinstance(entry.get("path"), str)
+
+
+def _is_file_hash(entry: Any) -> bool:
+    """An input's [size, mtime_ns, sha256]."""
+    return (
+        isinstance(entry, list)
+        and len(entry) == 3
+        and all(isinstance(n, int) and not isinstance(n, bool) for n in entry[:2])
+        and isinstance(entry[2], str)
+    )
