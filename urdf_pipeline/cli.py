@@ -16,6 +16,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from . import PandasLeftOut
 from .errors import ExitCode, UserError
 
 if TYPE_CHECKING:
@@ -254,7 +255,7 @@ def _main(argv: Sequence[str] | None) -> int:
 
     args = build_parser().parse_args(argv)
     handler: Callable[[argparse.Namespace], int] = args.handler
-    left_out = _PandasLeftOut() if _pandas_unused(args) and "pandas" not in sys.modules else None
+    left_out = PandasLeftOut() if _pandas_unused(args) and "pandas" not in sys.modules else None
     if left_out is not None:
         sys.meta_path.insert(0, left_out)  # type: ignore[arg-type]
     try:
@@ -276,18 +277,6 @@ def _main(argv: Sequence[str] | None) -> int:
     finally:
         if left_out is not None:
             sys.meta_path.remove(left_out)  # type: ignore[arg-type]
-
-
-class _PandasLeftOut:
-    """A finder that says pandas is absent. pyarrow imports pandas, when it is installed (rerun-sdk[catalog], LeRobot),
-    at its first array only to ask whether the input is a pandas object: 0.2-0.3 s of a 1.4 s demo run, for nothing
-    these commands use. Installed by `main` for the commands that never need pandas (not `run --catalog`, whose
-    client may, nor `--executor ray`), and removed when the command returns."""
-
-    @staticmethod
-    def find_spec(name: str, path: object = None, target: object = None) -> None:
-        if name == "pandas" or name.startswith("pandas."):
-            raise ImportError("urdf-pipeline leaves pandas out of this command (nothing in it uses pandas)")
 
 
 def _pandas_unused(args: argparse.Namespace) -> bool:

@@ -16,6 +16,7 @@ import os
 import select
 import shutil
 import signal
+import sys
 import tempfile
 import threading
 import time
@@ -24,6 +25,7 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from concurrent.futures.process import BrokenProcessPool
 from typing import TypeVar
 
+from .. import PandasLeftOut
 from ..execute import process_alive
 from .interrupts import deferred_signals
 
@@ -47,7 +49,9 @@ def _start_fork_server() -> None:
         signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
-def _start_worker(initializer: Callable[..., None] | None, initargs: tuple[object, ...], scratch: str, main: int) -> None:
+def _start_worker(initializer: Callable[..., None] | None, initargs: tuple[object, ...], scratch: str, main: int, no_pandas: bool) -> None:
+    if no_pandas and not PandasLeftOut.installed():  # as in the run's own process: pyarrow's first array would import it
+        sys.meta_path.insert(0, PandasLeftOut())  # type: ignore[arg-type]
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
     threading.Thread(target=_exit_with, args=(main,), name="urdf-pipeline-watch-main", daemon=True).start()
@@ -100,7 +104,10 @@ def _run_in_pool(
     context.set_forkserver_preload(PRELOAD)
     _start_fork_server()
     pool = ProcessPoolExecutor(
-        helpers, mp_context=context, initializer=_start_worker, initargs=(initializer, initargs, scratch, os.getpid())
+        helpers,
+        mp_context=context,
+        initializer=_start_worker,
+        initargs=(initializer, initargs, scratch, os.getpid(), PandasLeftOut.installed()),
     )
     ready = threading.Event()  # the worker processes are up: until then, this process works alone
 
