@@ -90,6 +90,8 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
         reason = "".join(traceback.format_exception(error))
         on_done(job, SegmentResult(job.label, job.output, "bug", job.content_hash, reason=reason))
 
+    if options.jobs != 1:  # the model, then the longest first: parallel workers finish together (no long one left last)
+        to_run.sort(key=lambda job: (job.segment is not None, -(job.frames_expected or 0)))
     work: Callable[[SegmentJob], SegmentResult] = run_segment
     if options.verbose and len(to_run) == 1 and options.executor == "local":
         to_run = [replace(to_run[0], verbose=True)]
