@@ -26,11 +26,16 @@ def schema() -> dict[str, Any]:
     return json.loads(schema_text())
 
 
+@lru_cache(maxsize=8)
+def _validator(subschema: str | None) -> jsonschema.Draft202012Validator:
+    """One validator per schema or $def and process: its references are resolved once, not per document."""
+    root = schema()
+    return jsonschema.Draft202012Validator(root if subschema is None else {"$ref": f"#/$defs/{subschema}", "$defs": root["$defs"]})
+
+
 def validate_document(document: Document, subschema: str | None = None) -> None:
     """Validate against the schema (or one of its $defs); raise all errors at once, each at its line and column."""
-    root = schema()
-    target = root if subschema is None else {"$ref": f"#/$defs/{subschema}", "$defs": root["$defs"]}
-    validator = jsonschema.Draft202012Validator(target)
+    validator = _validator(subschema)
     problems = Problems()
     errors = sorted(validator.iter_errors(document.data), key=lambda e: (_position(document, e), list(map(str, e.absolute_path))))
     for error in errors:
