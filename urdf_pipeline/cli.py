@@ -242,6 +242,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     """SIGTERM is handled as Ctrl-C while a command runs (the caller's handler is given back: tests call this in-process)."""
     from .dataset import handle_sigterm, keep_sigterm_handler, restore_sigterm_handler
 
+    # Rerun's own log lines (a WARN from its writer before our "cannot write" error) would say twice, and differently,
+    # what our one error line says; RUST_LOG=warn (or any value the user sets) brings them back.
+    os.environ.setdefault("RUST_LOG", "error")
     previous = keep_sigterm_handler()
     handle_sigterm()
     try:
