@@ -23,7 +23,6 @@ from functools import lru_cache
 from pathlib import Path
 from typing import BinaryIO
 from urllib.parse import unquote
-from xml.sax.saxutils import escape
 
 from ..confine import Confinement
 from ..errors import UserError, Where
@@ -152,7 +151,7 @@ def rewrite_mesh_uris(urdf_text: str, resolved: Mapping[str, Path]) -> str:
         return (
             match.group(0)
             if target is None
-            else f"{match.group(1)}{match.group(2)}{escape(str(target), {chr(34): '&quot;', chr(39): '&apos;'})}{match.group(2)}"
+            else f"{match.group(1)}{match.group(2)}{_xml_attribute(str(target))}{match.group(2)}"
         )
 
     return _MESH_FILENAME.sub(substitute, urdf_text)
@@ -249,3 +248,9 @@ def _glb(file: BinaryIO, size: int) -> str | None:
 
 
 _CHECKS: dict[str, Callable[[BinaryIO, int], str | None]] = {".stl": _stl, ".dae": _dae, ".obj": _obj, ".gltf": _gltf, ".glb": _glb}
+
+
+def _xml_attribute(text: str) -> str:
+    """`text` escaped for an XML attribute value (xml.sax.saxutils.escape would import urllib.request: 40 ms of
+    every command)."""
+    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;").replace('"', "&quot;").replace("'", "&apos;")
