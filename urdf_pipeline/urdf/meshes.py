@@ -148,11 +148,7 @@ def rewrite_mesh_uris(urdf_text: str, resolved: Mapping[str, Path]) -> str:
     def substitute(match: re.Match[str]) -> str:
         uri = match.group(3)
         target = resolved.get(uri)
-        return (
-            match.group(0)
-            if target is None
-            else f"{match.group(1)}{match.group(2)}{_xml_attribute(str(target))}{match.group(2)}"
-        )
+        return match.group(0) if target is None else f"{match.group(1)}{match.group(2)}{_xml_attribute(str(target))}{match.group(2)}"
 
     return _MESH_FILENAME.sub(substitute, urdf_text)
 
