@@ -3,6 +3,7 @@ collected store's (never confetti)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import pyarrow as pa
@@ -13,16 +14,19 @@ from rerun.chunk import Chunk, LazyChunkStream, OptimizationProfile, RrdReader
 from urdf_pipeline.compile import compile_config
 from urdf_pipeline.execute import execute
 from urdf_pipeline.execute import segment as segment_module
-from urdf_pipeline.execute.stream_writer import write_streams
+from urdf_pipeline.execute.stream_writer import drain_streams
 from urdf_pipeline.sources import CallbackErrors
 
 ROW_ID = "rerun.controls.RowId"
 
 
-def _collected(streams: list, path: Path, application_id: str, recording_id: str, errors: object = None) -> None:
-    """What the pipeline did before it streamed: merge, collect(OBJECT_STORE), write."""
-    store = LazyChunkStream.merge(*streams).collect(optimize=OptimizationProfile.OBJECT_STORE)
-    store.write_rrd(path, application_id=application_id, recording_id=recording_id)
+def _collected(streams: list, sink: Callable[[object], None], errors: object = None) -> None:
+    """What the pipeline did before it streamed: merge, collect(OBJECT_STORE), write (the sink calls `write_rrd`)."""
+    sink(LazyChunkStream.merge(*streams).collect(optimize=OptimizationProfile.OBJECT_STORE))
+
+
+def _to_file(path: Path) -> Callable[[LazyChunkStream], None]:
+    return lambda merged: merged.write_rrd(path, application_id="app", recording_id="rec")
 
 
 def _content(path: Path) -> tuple[dict[str, pa.Table], list[str]]:
@@ -55,7 +59,7 @@ def _chunk_counts(path: Path) -> tuple[int, list[int]]:
 def test_streamed_recording_equals_the_collected_one(examples_dir: Path, config: str, monkeypatch: pytest.MonkeyPatch) -> None:
     plan = compile_config(examples_dir / config)
     streamed = execute(plan, quiet=True).output.rename(examples_dir / "streamed.rrd")
-    monkeypatch.setattr(segment_module, "write_streams", _collected)
+    monkeypatch.setattr(segment_module, "drain_streams", _collected)
     collected = execute(plan, quiet=True).output
 
     assert _content(streamed) == _content(collected)
@@ -75,7 +79,7 @@ def test_an_error_raised_while_reading_is_raised_as_itself(tmp_path: Path) -> No
 
     errors = CallbackErrors()
     with pytest.raises(Refused, match="source said no"):
-        write_streams([errors.wrap_stream(LazyChunkStream.from_iter(failing()))], tmp_path / "x.rrd", "app", "rec", errors)
+        drain_streams([errors.wrap_stream(LazyChunkStream.from_iter(failing()))], _to_file(tmp_path / "x.rrd"), errors)
 
 
 def test_ctrl_c_stops_a_write_that_runs_on_rerun_threads(tmp_path: Path) -> None:
@@ -97,7 +101,7 @@ def test_ctrl_c_stops_a_write_that_runs_on_rerun_threads(tmp_path: Path) -> None
     threading.Timer(0.5, signal.pthread_kill, (main, signal.SIGINT)).start()
     errors = CallbackErrors()
     with pytest.raises(KeyboardInterrupt):
-        write_streams([errors.wrap_stream(LazyChunkStream.from_iter(endless()))], tmp_path / "x.rrd", "app", "rec", errors)
+        drain_streams([errors.wrap_stream(LazyChunkStream.from_iter(endless()))], _to_file(tmp_path / "x.rrd"), errors)
     assert not [t for t in threading.enumerate() if t.name == "urdf-pipeline-writer" and t.is_alive()]
 
 

@@ -12,21 +12,28 @@ from .. import lazy_surface
 
 if TYPE_CHECKING:
     from .blueprint import blueprint_key, blueprint_path, write_blueprint
+    from .edges_stream import CALIBRATION_ENTITY, calibration_stream
+    from .model_stream import cached_tree, robot_model_stream
     from .provenance import stored_content_hash
-    from .segment import Parts, RunResult, execute
+    from .segment import Parts, RunResult, execute, log_segment
     from .segment_run import SegmentJob, SegmentResult, install_run_plan, run_segment
     from .viewer import send_to_viewer
     from .writer import process_alive, remove_stale_partials, require_ours, require_writable, write_file_atomically
 
 __all__ = [
+    "CALIBRATION_ENTITY",
     "Parts",
     "RunResult",
     "SegmentJob",
     "SegmentResult",
     "blueprint_key",
     "blueprint_path",
+    "cached_tree",
+    "calibration_stream",
     "execute",
     "install_run_plan",
+    "log_segment",
+    "robot_model_stream",
     "process_alive",
     "remove_stale_partials",
     "require_ours",
@@ -46,9 +53,14 @@ __getattr__ = lazy_surface(
         "SegmentJob": "segment_run",
         "SegmentResult": "segment_run",
         "blueprint_key": "blueprint",
+        "CALIBRATION_ENTITY": "edges_stream",
         "blueprint_path": "blueprint",
+        "cached_tree": "model_stream",
+        "calibration_stream": "edges_stream",
         "execute": "segment",
         "install_run_plan": "segment_run",
+        "log_segment": "segment",
+        "robot_model_stream": "model_stream",
         "process_alive": "writer",
         "remove_stale_partials": "writer",
         "require_ours": "writer",

@@ -12,7 +12,7 @@ if TYPE_CHECKING:
 CALIBRATION_ENTITY = "/calibration"
 
 
-def edges_stream(edges: tuple[EdgePlan, ...]) -> LazyChunkStream:
+def calibration_stream(edges: tuple[EdgePlan, ...]) -> LazyChunkStream:
     import rerun as rr
     from rerun.chunk import Chunk, LazyChunkStream
 

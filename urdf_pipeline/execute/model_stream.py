@@ -50,7 +50,7 @@ def _tree_directory() -> Path:
     return _TREE_DIRECTORY
 
 
-def model_stream(robot: RobotPlan, tree: UrdfTree) -> LazyChunkStream:
+def robot_model_stream(robot: RobotPlan, tree: UrdfTree) -> LazyChunkStream:
     # include_joint_transforms=True: with False, Rerun logs no fixed-joint edges at all.
     stream = tree.stream(include_joint_transforms=True)
     if robot.keep_collisions:

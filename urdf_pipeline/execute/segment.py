@@ -8,20 +8,24 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 from ..errors import Problems
 from ..plan import Plan
 from ..progress import RowProgress, say
 from ..sources import CallbackErrors, JointValueMapper, module_for, with_sorting_retry
-from .edges_stream import edges_stream
+from .edges_stream import calibration_stream
 from .fk_stream import JointTransformBatches, fk_stream
 from .limits_report import check_joint_statistics
-from .model_stream import cached_tree, model_stream
+from .model_stream import cached_tree, robot_model_stream
 from .provenance import provenance_stream
-from .stream_writer import write_streams
-from .temporal_stream import check_temporal_edges, temporal_edge_streams
+from .stream_writer import drain_streams
+from .temporal_stream import TemporalEdgeValues, check_temporal_edges, temporal_edge_streams
 from .writer import write_file_atomically
+
+if TYPE_CHECKING:
+    from rerun import RecordingStream
+    from rerun.chunk import LazyChunkStream
 
 Parts = Literal["all", "layer", "model"]  # single layout | split layout's per-segment layer | split layout's model asset
 
@@ -65,17 +69,39 @@ def execute(
     return RunResult(written, rows, notes, time.perf_counter() - started)
 
 
-def _write(
-    plan: Plan, parts: Parts, provenance: dict[str, str], on_note: Callable[[str], None], quiet: bool, rows_expected: int | None
-) -> tuple[Path, dict[str, int], tuple[str, ...]]:
-    """One attempt: open the streams, write them to the partial file, check what the pass found, rename."""
+@dataclass
+class _Pass:
+    """One read of a segment's sources: the streams, and what the checks after the pass need."""
+
+    streams: list[LazyChunkStream]
+    errors: CallbackErrors
+    mappers: list[JointValueMapper]
+    temporal_values: list[TemporalEdgeValues]
+
+    def check(self, on_note: Callable[[str], None]) -> tuple[str, ...]:
+        """After the pass: limits, NaN, zero rows, temporal edges. Notes go to `on_note`; problems raise, all at once."""
+        problems = Problems()
+        notes = tuple(note for mapper in self.mappers for note in check_joint_statistics(mapper, problems))
+        check_temporal_edges(self.temporal_values, problems)
+        for note in notes:
+            on_note(note)
+        problems.raise_if_any()
+        return notes
+
+    def rows(self) -> dict[str, int]:
+        return {m.robot.key: m.stats.rows for m in self.mappers}
+
+
+def _open(plan: Plan, parts: Parts, provenance: dict[str, str] | None, quiet: bool, rows_expected: int | None) -> _Pass:
+    """Every stream of one attempt, opened anew (a retry after a source was found out of order reads it again).
+    `provenance` None: no properties entity (a user's own recording, see `log_segment`)."""
     errors = CallbackErrors()
     mappers: list[JointValueMapper] = []
     streams = []
     trees = {robot.key: cached_tree(robot) for robot in plan.robots}
     if parts != "layer":
         for robot in plan.robots:
-            streams.append(model_stream(robot, trees[robot.key]))
+            streams.append(robot_model_stream(robot, trees[robot.key]))
     if parts != "model":
         for source in plan.sources:
             driven = []
@@ -87,22 +113,44 @@ def _write(
                 driven.append((robot.key, robot.fk_entity, batches))
             if driven:  # a source used only by temporal edges is read there
                 streams.append(fk_stream(module_for(source).open_stream(source), driven, errors))
-        streams.append(edges_stream(plan.edges))
-    streams.append(provenance_stream(plan, parts, provenance))
+        streams.append(calibration_stream(plan.edges))
+    if provenance is not None:
+        streams.append(provenance_stream(plan, parts, provenance))
     # Temporal edges (a mobile base, a floating pelvis): their sources are opened again, see temporal_edges.py.
     temporal_streams, temporal_values = temporal_edge_streams(plan, errors) if parts != "model" else ([], [])
-    streams += temporal_streams
+    return _Pass(streams + temporal_streams, errors, mappers, temporal_values)
+
+
+def _write(
+    plan: Plan, parts: Parts, provenance: dict[str, str], on_note: Callable[[str], None], quiet: bool, rows_expected: int | None
+) -> tuple[Path, dict[str, int], tuple[str, ...]]:
+    """One attempt: open the streams, write them to the partial file, check what the pass found, rename."""
+    opened = _open(plan, parts, provenance, quiet, rows_expected)
     notes: list[str] = []
 
     def write(partial: Path) -> None:
         """The streams into the partial file, then the checks of what the pass found: a failed check leaves no file."""
-        write_streams(streams, partial, plan.output.application_id, plan.output.recording_id, errors)
-        problems = Problems()
-        notes.extend(note for mapper in mappers for note in check_joint_statistics(mapper, problems))
-        check_temporal_edges(temporal_values, problems)
-        for note in notes:
-            on_note(note)
-        problems.raise_if_any()
+        application_id, recording_id = plan.output.application_id, plan.output.recording_id
+        drain_streams(
+            opened.streams,
+            lambda merged: merged.write_rrd(partial, application_id=application_id, recording_id=recording_id),
+            opened.errors,
+        )
+        notes.extend(opened.check(on_note))
 
     written = write_file_atomically(plan.output.path, write, "recording", plan.output.where)
-    return written, {m.robot.key: m.stats.rows for m in mappers}, tuple(notes)
+    return written, opened.rows(), tuple(notes)
+
+
+def log_segment(plan: Plan, recording: RecordingStream, on_note: Callable[[str], None] = _note) -> dict[str, int]:
+    """One segment's model, FK and edges sent into the caller's recording as they are read (bounded memory, as a run).
+    The checks of the pass (limits, NaN, zero rows) run after it and raise then: what was read is already sent. A
+    source found out of time order part-way is sent again, whole and sorted (its earlier rows twice, same poses)."""
+
+    def attempt() -> dict[str, int]:
+        opened = _open(plan, "all", None, True, None)
+        drain_streams(opened.streams, recording.send_chunks, opened.errors)
+        opened.check(on_note)
+        return opened.rows()
+
+    return with_sorting_retry(attempt)

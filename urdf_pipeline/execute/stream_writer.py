@@ -1,7 +1,7 @@
 """Write a recording while its streams are read: memory is bounded by the chunks in flight, never by the recording's
 length (a collected store held every chunk until the end).
 
-The merged streams go straight to Rerun's writer, which runs the readers, lenses and writing on its own threads.
+The merged streams go straight to Rerun's writer (or to a user's recording, `urdf_pipeline.log`), which runs the readers, lenses and writing on its own threads.
 The chunks come out as large as the collected store's because the sources are read in blocks of `BLOCK_ROWS` rows
 (`sources/ordering.py`): a robot's FK chunk holds one block's transforms.
 """
@@ -9,7 +9,7 @@ The chunks come out as large as the collected store's because the sources are re
 from __future__ import annotations
 
 import threading
-from pathlib import Path
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -21,9 +21,10 @@ if TYPE_CHECKING:
 POLL_SECONDS = 0.1
 
 
-def write_streams(streams: list[LazyChunkStream], path: Path, application_id: str, recording_id: str, errors: CallbackErrors) -> None:
-    """Every chunk of `streams`, merged, written to `path` as it comes. Rerun's writer reports an exception raised in
-    Python (a lens callback, a source's own checks) only as text: `errors` holds the original, raised here."""
+def drain_streams(streams: list[LazyChunkStream], sink: Callable[[LazyChunkStream], None], errors: CallbackErrors) -> None:
+    """Every chunk of `streams`, merged, handed to `sink` (Rerun's file writer, or a recording's `send_chunks`), which
+    pulls them as it goes. Rerun reports an exception raised in Python (a lens callback, a source's own checks) only
+    as text: `errors` holds the original, raised here."""
     from rerun.chunk import LazyChunkStream
 
     merged = LazyChunkStream.merge(*streams)
@@ -31,7 +32,7 @@ def write_streams(streams: list[LazyChunkStream], path: Path, application_id: st
 
     def write() -> None:
         try:
-            merged.write_rrd(path, application_id=application_id, recording_id=recording_id)
+            sink(merged)
         except BaseException as exc:
             failed.append(exc)
 
