@@ -3,7 +3,7 @@ PYTHON ?= python3.11
 VENV := .venv
 BIN := $(VENV)/bin
 
-.PHONY: demo test clean bytecode
+.PHONY: demo test clean bytecode renderer
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -25,7 +25,20 @@ demo: $(VENV)/.demo-installed bytecode
 	$(BIN)/python -m urdf_pipeline.examples configs
 	$(BIN)/urdf-pipeline run configs/demo.yaml
 
-test: $(VENV)/.test-installed bytecode
+# Pictures (snapshot, plan/diff --render) are drawn by the Rerun viewer, which needs a Vulkan driver: without a GPU's,
+# Mesa's software one. Installed here when no driver is there and we are root with apt; otherwise the renderer tests
+# skip, saying what to install.
+renderer:
+	@if ls /usr/share/vulkan/icd.d/*.json /etc/vulkan/icd.d/*.json 2>/dev/null | grep -q .; then :; \
+	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	  echo "installing mesa-vulkan-drivers (a software Vulkan driver) for the pictures"; \
+	  export DEBIAN_FRONTEND=noninteractive; \
+	  apt-get install -y -qq mesa-vulkan-drivers >/dev/null 2>&1 || \
+	  { apt-get update -qq >/dev/null && apt-get install -y -qq mesa-vulkan-drivers >/dev/null; } || \
+	  echo "note: could not install mesa-vulkan-drivers: the renderer tests will skip"; \
+	else echo "note: no Vulkan driver: the renderer tests will skip; install one: sudo apt-get install mesa-vulkan-drivers"; fi
+
+test: $(VENV)/.test-installed bytecode renderer
 	$(BIN)/python -m pytest
 
 clean:

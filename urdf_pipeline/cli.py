@@ -21,6 +21,7 @@ from .errors import ExitCode, UserError
 
 if TYPE_CHECKING:
     from .execute import SegmentResult
+    from .render import Size
 
 
 def _positive(text: str) -> int:
@@ -28,6 +29,15 @@ def _positive(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError("must be at least 1")
     return value
+
+
+def _size(text: str) -> Size:
+    from .render import Size
+
+    try:
+        return Size.parse(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -130,8 +140,29 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
     if args.rows is not None and not args.sample:
         args.parser.error("--rows needs --sample")
+    if args.size is not None and args.render is None:
+        args.parser.error("--size needs --render DIR")
     rows = (args.rows or 100_000) if args.sample else None
-    sys.stdout.write(plan_command(Path(args.config), args.format, rows))
+    render = Path(args.render) if args.render is not None else None
+    sys.stdout.write(plan_command(Path(args.config), args.format, rows, render, args.size))
+    return ExitCode.OK
+
+
+def cmd_snapshot(args: argparse.Namespace) -> int:
+    """Pictures of a written recording, drawn by the Rerun viewer (headless); their paths on stdout."""
+    import time
+
+    from .compile import compile_config
+    from .render import DEFAULT_SIZE, SnapshotRequest, announce, snapshot
+
+    plan = compile_config(Path(args.config))
+    output = Path(args.output) if args.output else None
+    request = SnapshotRequest(args.segment, args.at, args.view, args.size or DEFAULT_SIZE, output)
+    started = time.perf_counter()
+    pictures = snapshot(plan, request)
+    announce(pictures, time.perf_counter() - started)
+    for picture in pictures:
+        print(picture.path)
     return ExitCode.OK
 
 
@@ -158,7 +189,16 @@ def cmd_diff(args: argparse.Namespace) -> int:
 
     if (args.git is None) == (args.new is None):
         args.parser.error("give OLD NEW, or CONFIG --git REV")
-    report = diff_git(args.old, args.git) if args.git is not None else diff_files(args.old, args.new)
+    if args.size is not None and args.render is None:
+        args.parser.error("--size needs --render DIR")
+    render = Path(args.render) if args.render is not None else None
+    if args.git is not None:
+        report = diff_git(args.old, args.git, render, args.size)
+    else:
+        report = diff_files(args.old, args.new, render, args.size)
+    if args.format == "text":  # stdout keeps one line per change; the pictures are named on stderr
+        for picture in report.pictures:
+            print(f"urdf-pipeline: picture {picture.label}: {picture.path}", file=sys.stderr)
     sys.stdout.write(render_diff(report, args.format))
     return ExitCode.USER_ERROR if args.exit_code and not report.equivalent else ExitCode.OK
 
@@ -209,7 +249,28 @@ def build_parser() -> argparse.ArgumentParser:
     )
     plan.add_argument("--sample", action="store_true", help="read a sample of each source and add the observed range per value")
     plan.add_argument("--rows", type=_positive, help="with --sample: rows read from the start of each source (default 100000)")
+    plan.add_argument("--render", metavar="DIR", help="draw each robot at its rest pose into DIR (PNGs, by the Rerun viewer) and link them")
+    plan.add_argument("--size", type=_size, metavar="WxH", help="with --render: the pictures' size in pixels (default 1024x768)")
     plan.set_defaults(handler=cmd_plan, parser=plan)
+    snapshot = commands.add_parser(
+        "snapshot",
+        help="draw PNGs of a written recording with the Rerun viewer (headless) and print their paths",
+        description="Draw pictures of a segment's recording (written by `run`) at times on its timeline, 3D view only, "
+        "from a three-quarter camera that frames the robots' links over the whole segment. Needs a Vulkan driver "
+        "(apt-get install mesa-vulkan-drivers on a machine without a GPU).",
+    )
+    snapshot.add_argument("config")
+    snapshot.add_argument("--segment", metavar="ID", help="the segment (recording id) to draw (default: the first)")
+    snapshot.add_argument(
+        "--at",
+        metavar="T,...",
+        help="times on the segment's timeline: first, middle, last, a sequence number, or seconds (duration and timestamp "
+        "timelines; an ISO 8601 time also for timestamps). Default: first,middle,last",
+    )
+    snapshot.add_argument("--view", default="scene", metavar="scene|ROBOT", help="the whole scene (default) or one robot's key")
+    snapshot.add_argument("--size", type=_size, default=None, metavar="WxH", help="the pictures' size in pixels (default 1024x768)")
+    snapshot.add_argument("-o", "--output", metavar="DIR", help="where the PNGs go (default: pictures/ beside the recording)")
+    snapshot.set_defaults(handler=cmd_snapshot, parser=snapshot)
     schema = commands.add_parser("schema", help="print the config's JSON Schema")
     schema.set_defaults(handler=cmd_schema, parser=schema)
     init = commands.add_parser("init", help="scaffold a config from a URDF, pre-matched to a source's names when --source is given")
@@ -232,8 +293,16 @@ def build_parser() -> argparse.ArgumentParser:
     diff.add_argument("old", metavar="OLD", help="the old config (with --git: the config)")
     diff.add_argument("new", metavar="NEW", nargs="?", help="the new config (not with --git)")
     diff.add_argument("--git", metavar="REV", help="compare CONFIG at git revision REV (git show REV:./CONFIG) with the working tree's")
-    diff.add_argument("--format", choices=("text", "json"), default="text")
+    diff.add_argument(
+        "--format", choices=("text", "json", "markdown"), default="text", help="markdown: for a PR comment, with links to the pictures"
+    )
     diff.add_argument("--exit-code", action="store_true", help="exit 1 when there are differences (like git diff --exit-code)")
+    diff.add_argument(
+        "--render",
+        metavar="DIR",
+        help="draw the old and the new plan at the same joint values from one camera into DIR (PNGs, and the two side by side)",
+    )
+    diff.add_argument("--size", type=_size, metavar="WxH", help="with --render: the pictures' size in pixels (default 1024x768)")
     diff.set_defaults(handler=cmd_diff, parser=diff)
     return parser
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ast
+import importlib
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[2] / "urdf_pipeline"
@@ -62,6 +63,7 @@ LAYERS = (
     ("urdf_pipeline.compile",),
     ("urdf_pipeline.execute",),
     ("urdf_pipeline.dataset",),
+    ("urdf_pipeline.render",),
     ("urdf_pipeline.review",),
     ("urdf_pipeline.cli", "urdf_pipeline.examples", "urdf_pipeline.__main__"),
 )
@@ -108,7 +110,7 @@ def test_no_module_is_too_long() -> None:
     assert not long, f"modules over {MAX_MODULE_LINES} lines (split them by what they own): " + "; ".join(long)
 
 
-STAGE_PACKAGES = ("config", "urdf", "sources", "compile", "execute", "dataset", "review")
+STAGE_PACKAGES = ("config", "urdf", "sources", "compile", "execute", "dataset", "render", "review")
 
 
 def _absolute_imports(path: Path) -> list[tuple[str, list[str]]]:
@@ -169,6 +171,17 @@ def test_every_surface_name_resolves() -> None:
         module = importlib.import_module(f"urdf_pipeline.{package}")
         missing += [f"urdf_pipeline.{package}.{name}" for name in module.__all__ if not hasattr(module, name)]
     assert not missing, "exported but not defined: " + ", ".join(missing)
+
+
+def test_no_surface_name_is_also_a_module_name() -> None:
+    """Once `pkg.name` is imported as a module, Python sets it on the package, so the lazy surface would hand out the
+    module instead of the function of that name (a bug seen with `execute.model_stream`)."""
+    clashes = []
+    for package in STAGE_PACKAGES:
+        folder = PACKAGE / package
+        module = importlib.import_module(f"urdf_pipeline.{package}")
+        clashes += [f"urdf_pipeline.{package}.{name}" for name in module.__all__ if (folder / f"{name}.py").exists()]
+    assert not clashes, "exported names that are also module names: " + ", ".join(clashes)
 
 
 def test_urdf_knows_nothing_of_configs() -> None:

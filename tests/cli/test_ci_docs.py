@@ -126,3 +126,9 @@ def test_review_script_runs_on_a_pull_request_branch(examples_dir: Path, tmp_pat
     assert "bimanual_pandas.yaml" not in body, "a change on the base branch showed up in the PR's review"
     assert "moved 5.0 mm" in body, body
     assert "### urdf-pipeline plan: `demo.yaml`" in body
+    pictures = work / "review" / "pictures" / "demo"
+    if pictures.is_dir():  # drawn (a renderer is there): linked by the paths the artifact holds them at
+        for name in ("demo.diff.old.png", "demo.diff.new.png", "demo.diff.png", "demo.plan.scene.png"):
+            assert f"(review/pictures/demo/{name})" in body and (pictures / name).is_file(), name
+    else:  # no renderer: one line says what to install, and the text comes without pictures
+        assert "apt-get install mesa-vulkan-drivers" in body

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from ..urdf import Quaternion, Vector, normalized_quaternion, quaternion_multiply
+from .report_model import PictureEntry
 
 TOLERANCE = 1e-9
 
@@ -38,6 +39,7 @@ class DiffReport:
     old: str  # "OLD", or "CONFIG@REV" with --git
     new: str
     changes: tuple[Change, ...]
+    pictures: tuple[PictureEntry, ...] = ()  # with --render only: old, new, side by side
 
     @property
     def equivalent(self) -> bool:

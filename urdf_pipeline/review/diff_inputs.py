@@ -14,11 +14,16 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..errors import UserError, UserErrors, Where, collect_warnings
 from ..plan import Plan
 from .diff import diff_plans
 from .diff_base import DiffReport
+from .pictures import diff_pictures
+
+if TYPE_CHECKING:
+    from ..render import Size
 
 
 def compile_quietly(config: Path) -> Plan:
@@ -29,19 +34,26 @@ def compile_quietly(config: Path) -> Plan:
         return compile_config(config)
 
 
-def diff_files(old: str, new: str) -> DiffReport:
-    """OLD and NEW as the user named them."""
-    return DiffReport(old, new, diff_plans(compile_quietly(Path(old)), compile_quietly(Path(new))))
+def diff_files(old: str, new: str, render: Path | None = None, size: Size | None = None) -> DiffReport:
+    """OLD and NEW as the user named them. With `render`, the viewer draws both into that folder (see _report)."""
+    return _report(old, new, compile_quietly(Path(old)), compile_quietly(Path(new)), render, size)
 
 
-def diff_git(config: str, revision: str) -> DiffReport:
+def diff_git(config: str, revision: str, render: Path | None = None, size: Size | None = None) -> DiffReport:
     """The config at `revision` vs the working tree's. Files the old config refers to are read from the working tree."""
     path = Path(config)
     new_plan = compile_quietly(path)
     with git_revision_copy(path, revision) as old_copy:
         old_plan = _renamed_errors(old_copy, Path(f"{path}@{revision}"))
         old_plan = _as_if_named(old_plan, old_copy, path)
-    return DiffReport(f"{config}@{revision}", config, diff_plans(old_plan, new_plan))
+    return _report(f"{config}@{revision}", config, old_plan, new_plan, render, size)
+
+
+def _report(old: str, new: str, old_plan: Plan, new_plan: Plan, render: Path | None, size: Size | None) -> DiffReport:
+    """The changes; with `render`, the pictures of both plans at the same joint values (named after NEW's file),
+    drawn even when nothing differs: the reviewer sees the robot either way."""
+    pictures = diff_pictures(old_plan, new_plan, render, Path(new).stem, size) if render is not None else ()
+    return DiffReport(old, new, diff_plans(old_plan, new_plan), pictures)
 
 
 def _renamed_errors(copy: Path, shown: Path) -> Plan:

@@ -12,13 +12,14 @@ import math
 import os
 import sys
 from collections.abc import Sequence
-from dataclasses import fields
+from dataclasses import fields, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
 from ..errors import ConfigWarning, collect_warnings
 from ..plan import IndexPlan, Plan, RobotPlan, SourcePlan
 from ..urdf import Joint, UrdfModel, parse_urdf_text
+from .pictures import plan_pictures
 from .report_json import render_json
 from .report_markdown import render_markdown
 from .report_model import (
@@ -45,6 +46,7 @@ from .report_model import (
 from .report_text import render_text
 
 if TYPE_CHECKING:
+    from ..render import Size
     from .check import JointReport
 
 PlanFormat = Literal["text", "markdown", "json"]
@@ -60,8 +62,11 @@ ARROWS = {  # mermaid link per edge origin
 RENDERERS = {"text": render_text, "markdown": render_markdown, "json": render_json}
 
 
-def plan_command(config: Path, output_format: PlanFormat, sample_rows: int | None) -> str:
-    """The bytes `urdf-pipeline plan` prints. Warnings go to stderr as usual, and into the report."""
+def plan_command(
+    config: Path, output_format: PlanFormat, sample_rows: int | None, render: Path | None = None, size: Size | None = None
+) -> str:
+    """The bytes `urdf-pipeline plan` prints. Warnings go to stderr as usual, and into the report. With `render`, the
+    Rerun viewer draws the rest pose into that folder first, and the report links the pictures."""
     from ..compile import compile_config
 
     warnings: list[ConfigWarning] = []
@@ -72,7 +77,10 @@ def plan_command(config: Path, output_format: PlanFormat, sample_rows: int | Non
         for warning in warnings:
             print(warning.line(), file=sys.stderr)
     sample = read_plan_sample(plan, sample_rows) if sample_rows is not None else None
-    return RENDERERS[output_format](build_report(plan, warnings, sample))
+    report = build_report(plan, warnings, sample)
+    if render is not None:
+        report = replace(report, pictures=plan_pictures(plan, render, size))
+    return RENDERERS[output_format](report)
 
 
 def read_plan_sample(plan: Plan, rows: int) -> SampleEntry:

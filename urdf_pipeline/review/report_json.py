@@ -126,6 +126,7 @@ def _output(output: OutputEntry) -> dict[str, Any]:
 def report_data(report: PlanReport) -> dict[str, Any]:
     """The report as plain data: no absolute path, no time."""
     sample = report.sample
+    pictures = {"pictures": [{"label": p.label, "path": p.path} for p in report.pictures]} if report.pictures else {}
     return {
         "report_version": REPORT_VERSION,
         "config": report.config.relative,
@@ -137,6 +138,7 @@ def report_data(report: PlanReport) -> dict[str, Any]:
         "output": _output(report.output),
         "warnings": [{"file": w.file, "line": w.line, "column": w.column, "path": w.path, "message": w.message} for w in report.warnings],
         "sample": None if sample is None else {"rows": sample.rows, "read": dict(sample.read)},
+        **pictures,  # with --render only: the golden reports stay as they are
     }
 
 

@@ -11,6 +11,7 @@ from .report_model import (
     JointRow,
     Observed,
     OutputEntry,
+    PictureEntry,
     PlanReport,
     RobotEntry,
     SampleEntry,
@@ -185,6 +186,17 @@ def _output_markdown(output: OutputEntry) -> list[str]:
     return [*lines, "", *_table(["segment", "input", "frames", "output"], rows), ""]
 
 
+def pictures_markdown(pictures: Sequence[PictureEntry], note: str) -> list[str]:
+    """Links to the pictures `--render` drew (their paths as given: the reader opens them beside the text)."""
+    if not pictures:
+        return []
+    return [f"{note} " + " · ".join(f"[{picture.label}]({picture.path.replace(' ', '%20')})" for picture in pictures), ""]
+
+
+def _pictures_markdown(pictures: Sequence[PictureEntry]) -> list[str]:
+    return pictures_markdown(pictures, "Pictures (the rest pose, drawn by the Rerun viewer):")
+
+
 def render_markdown(report: PlanReport) -> str:
     edges, robots, sources = report.edges, report.robots, report.sources_by_name
     configured = sum(1 for e in edges if not e.origin.kind.startswith("urdf_"))
@@ -197,6 +209,7 @@ def render_markdown(report: PlanReport) -> str:
         f"{_plural(len(edges), 'edge')} ({configured} from the config, {len(edges) - configured} URDF joints), "
         f"{_plural(segments, 'segment')}.",
         "",
+        *_pictures_markdown(report.pictures),
         "#### Sources" + (" (the first segment's)" if segments > 1 else ""),
         "",
         *_table(

@@ -220,6 +220,14 @@ class SampleEntry:
 
 
 @dataclass(frozen=True)
+class PictureEntry:
+    """A picture `--render` drew: what it shows, and its path as the command line gave the folder."""
+
+    label: str
+    path: str
+
+
+@dataclass(frozen=True)
 class PlanReport:
     """What a run of the config would do, read from its plan (and, with --sample, the first rows of its sources)."""
 
@@ -233,6 +241,7 @@ class PlanReport:
     output: OutputEntry
     warnings: tuple[WarningEntry, ...]  # sorted, each once
     sample: SampleEntry | None
+    pictures: tuple[PictureEntry, ...] = ()  # with --render only
 
     @property
     def sources_by_name(self) -> tuple[SourceEntry, ...]:

@@ -107,5 +107,6 @@ def render_text(report: PlanReport) -> str:
     for edge in report.configured_edges:
         lines += _edge_lines(edge)
     lines += _output_lines(report.output)
+    lines += [f"picture {picture.label}: {picture.path}" for picture in report.pictures]
     text = "\n".join(lines)
     return text + ("\n" + _sample_text(report.sample) if report.sample is not None else "") + "\n"

@@ -1,0 +1,141 @@
+"""`urdf-pipeline snapshot`: pictures of a written recording at chosen times on its timeline.
+
+The camera is one for all the pictures of a command: it frames the links of the robots in the view at every time of
+the segment (at most frames.MAX_TIMES of them), read from the recording (see frames.py), so two pictures of a
+segment differ only where the robot moved. The split layout's model (meshes, static joints) is drawn with each
+layer, as `run --spawn` sends it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import UserError, Where, did_you_mean, listing
+from ..plan import Plan, Segment
+from .camera import framing
+from .frames import Timeline, read_transforms, transform_timelines
+from .pictures import DEFAULT_SIZE, Picture, require_picture_path, robot_frames, view_contents
+from .viewer import HeadlessViewer, Shot, Size
+
+SCENE = "scene"
+KEYWORDS = ("first", "middle", "last")
+
+
+@dataclass(frozen=True)
+class SnapshotRequest:
+    segment: str | None = None  # default: the first segment
+    at: str | None = None  # "T,..." on the segment's timeline; default first, middle, last
+    view: str = SCENE  # "scene" or a robot key
+    size: Size = DEFAULT_SIZE
+    folder: Path | None = None  # default: `pictures/` beside the segment's recording
+
+
+def snapshot(plan: Plan, request: SnapshotRequest) -> tuple[Picture, ...]:
+    from rerun.chunk import RrdReader
+
+    segment = _segment(plan, request.segment)
+    robots = plan.robots if request.view == SCENE else tuple(r for r in plan.robots if r.key == request.view)
+    if not robots:
+        keys = [r.key for r in plan.robots]
+        raise UserError(f"--view {request.view}: no such robot (robots: {listing(keys)}; or 'scene'){did_you_mean(request.view, keys)}")
+    files = ([plan.dataset.model] if plan.dataset.layout == "split" and plan.dataset.model is not None else []) + [segment.output]
+    for file in files:
+        if not file.is_file():
+            raise UserError(f"no recording at {file}: write it first (urdf-pipeline run {plan.config_path})", Where(plan.config_path, 0))
+    chunks = [chunk for file in files for chunk in RrdReader(file).stream().to_chunks()]
+    timelines = transform_timelines(chunks, [robot.fk_entity for robot in robots])
+    timeline = timelines[0] if timelines else None
+    transforms = read_transforms(chunks, timeline)
+    times = picture_times(request.at, timeline, transforms.times)
+    points = transforms.positions(plan.root_frame, robot_frames(robots)).reshape(-1, 3)
+    if not np.isfinite(points).all(axis=1).any():
+        raise UserError(f"{segment.output}: no link of {request.view} reaches the root frame {plan.root_frame} in the recording")
+    size = request.size
+    camera = framing(points, size.width, size.height)
+    folder = request.folder if request.folder is not None else segment.output.parent / "pictures"
+    shots = [(time, folder / f"{segment.id}.{request.view}.{_time_label(timeline, time)}.png") for time in times]
+    for _, path in shots:
+        require_picture_path(path)
+    pictures = []
+    contents = view_contents(robots, request.view == SCENE)
+    with HeadlessViewer(size) as viewer:
+        store = viewer.show(plan.output.application_id, segment.id, chunks)
+        for time, path in shots:
+            viewer.picture(store, Shot(camera, contents, timeline, time), path)
+            pictures.append(Picture(_time_label(timeline, time).replace("-", " ", 1), path))
+    return tuple(pictures)
+
+
+def _segment(plan: Plan, wanted: str | None) -> Segment:
+    if wanted is None:
+        return plan.segments[0]
+    for segment in plan.segments:
+        if segment.id == wanted:
+            return segment
+    ids = [s.id for s in plan.segments]
+    raise UserError(f"--segment {wanted}: no such segment (segments: {listing(ids)}){did_you_mean(wanted, ids)}", plan.dataset.where)
+
+
+def picture_times(text: str | None, timeline: Timeline | None, times: np.ndarray) -> list[int | None]:
+    """The times to draw, on the recording's timeline: `first`, `middle`, `last` or values (a sequence number;
+    seconds for a duration timeline; seconds since the epoch or an ISO 8601 date and time for a timestamp one)."""
+    if timeline is None or not len(times):
+        if text:
+            raise UserError("--at: the recording has no temporal transform (nothing moves): leave --at out for its one picture")
+        return [None]
+    tokens = [token.strip() for token in (text or ",".join(KEYWORDS)).split(",") if token.strip()]
+    if not tokens:
+        raise UserError("--at: give one or more times, comma-separated (e.g. first,last or 0,450)")
+    chosen: list[int | None] = []
+    for token in tokens:
+        value = _keyword(token, times) if token in KEYWORDS else _value(token, timeline)
+        if not times[0] <= value <= times[-1]:
+            shown = f"{_shown(timeline, int(times[0]))} .. {_shown(timeline, int(times[-1]))}"
+            raise UserError(f"--at {token}: outside the segment's {timeline.name} range {shown}")
+        if value not in chosen:
+            chosen.append(value)
+    return chosen
+
+
+def _keyword(token: str, times: np.ndarray) -> int:
+    index = {"first": 0, "middle": (len(times) - 1) // 2, "last": len(times) - 1}[token]
+    return int(times[index])
+
+
+def _value(token: str, timeline: Timeline) -> int:
+    try:
+        if timeline.kind == "sequence":
+            return int(token)
+        if timeline.kind == "timestamp" and not _is_number(token):
+            return int(np.datetime64(token.rstrip("Z"), "ns").astype(np.int64))
+        return round(float(token) * 1e9)
+    except ValueError:
+        unit = {"sequence": "an integer", "duration": "seconds", "timestamp": "seconds since the epoch or an ISO 8601 time"}
+        raise UserError(f"--at {token}: not {unit[timeline.kind]} on the {timeline.kind} timeline {timeline.name}") from None
+
+
+def _is_number(token: str) -> bool:
+    try:
+        float(token)
+        return True
+    except ValueError:
+        return False
+
+
+def _shown(timeline: Timeline, value: int) -> str:
+    if timeline.kind == "sequence":
+        return str(value)
+    if timeline.kind == "duration":
+        return f"{value / 1e9:.3f}"
+    return str(np.datetime64(value, "ns").astype("datetime64[ms]")) + "Z"
+
+
+def _time_label(timeline: Timeline | None, value: int | None) -> str:
+    """For file names: `frame_index-450`, `time-1.500s`, `timestamp-2024-01-01T12-00-00.000Z`."""
+    if timeline is None or value is None:
+        return "static"
+    shown = _shown(timeline, value).replace(":", "-")
+    return f"{timeline.name}-{shown}{'s' if timeline.kind == 'duration' else ''}"
