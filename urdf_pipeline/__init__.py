@@ -1,4 +1,14 @@
-"""urdf-pipeline: one schema-validated YAML file per robot setup becomes a validated Rerun recording."""
+"""urdf-pipeline: one schema-validated YAML file per robot setup becomes a validated Rerun recording.
+
+The Python API, for notebooks and scripts (see the README's "Python API"):
+
+    plan = urdf_pipeline.load("configs/demo.yaml")           # compile and validate: a frozen Plan
+    urdf_pipeline.run("configs/demo.yaml", jobs=2)            # what `urdf-pipeline run` does; the written paths
+    urdf_pipeline.log("configs/demo.yaml", recording=rec)     # model, FK and edges into your RecordingStream
+    fk = urdf_pipeline.forward_kinematics(plan)               # {robot: RobotKinematics}: links x rows poses
+
+Every call raises `urdf_pipeline.ConfigError` with the command line's located messages (`error.lines()`).
+"""
 
 from __future__ import annotations
 
@@ -37,3 +47,16 @@ class PandasLeftOut:
     @staticmethod
     def installed() -> bool:
         return any(isinstance(finder, PandasLeftOut) for finder in sys.meta_path)
+
+
+API = {
+    "ConfigError": "api",
+    "Plan": "plan",
+    "RobotKinematics": "execute",
+    "forward_kinematics": "api",
+    "load": "api",
+    "log": "api",
+    "run": "api",
+}
+__all__ = ["PandasLeftOut", "__version__", "lazy_surface", *API]
+__getattr__ = lazy_surface(__name__, API)  # nothing heavy is imported until a name is used

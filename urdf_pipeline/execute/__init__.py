@@ -13,6 +13,7 @@ from .. import lazy_surface
 if TYPE_CHECKING:
     from .blueprint import blueprint_key, blueprint_path, write_blueprint
     from .edges_stream import CALIBRATION_ENTITY, calibration_stream
+    from .kinematics import RobotKinematics, segment_kinematics
     from .model_stream import cached_tree, robot_model_stream
     from .provenance import stored_content_hash
     from .segment import Parts, RunResult, execute, log_segment
@@ -21,6 +22,7 @@ if TYPE_CHECKING:
     from .writer import process_alive, remove_stale_partials, require_ours, require_writable, write_file_atomically
 
 __all__ = [
+    "RobotKinematics",
     "CALIBRATION_ENTITY",
     "Parts",
     "RunResult",
@@ -39,6 +41,7 @@ __all__ = [
     "require_ours",
     "require_writable",
     "run_segment",
+    "segment_kinematics",
     "send_to_viewer",
     "stored_content_hash",
     "write_blueprint",
@@ -66,6 +69,8 @@ __getattr__ = lazy_surface(
         "require_ours": "writer",
         "require_writable": "writer",
         "run_segment": "segment_run",
+        "RobotKinematics": "kinematics",
+        "segment_kinematics": "kinematics",
         "send_to_viewer": "viewer",
         "stored_content_hash": "provenance",
         "write_blueprint": "blueprint",

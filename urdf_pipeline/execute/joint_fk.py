@@ -40,17 +40,19 @@ class ClosedFormJointTransforms:
         self.usable = all(joint is not None and joint.joint_type in _MOVING for joint in joints)
         if not self.usable:
             return
-        origin_q = np.array([_quaternion_from_rpy(*joint.origin_rpy) for joint in joints], dtype=np.float64)  # type: ignore[union-attr]
+        origin_q = np.array([quaternion_from_rpy(*joint.origin_rpy) for joint in joints], dtype=np.float64)  # type: ignore[union-attr]
         axes = np.array([joint.axis for joint in joints], dtype=np.float64)  # type: ignore[union-attr]
         with np.errstate(invalid="ignore", divide="ignore"):  # a zero axis: NaN, then the check below leaves it to Rerun
             axes /= np.linalg.norm(axes, axis=1, keepdims=True)  # unit already (urdf.repair normalises): kept exact
         prismatic = np.array([joint.joint_type == "prismatic" for joint in joints])  # type: ignore[union-attr]
         self.half_turning = 0.5 * (~prismatic).astype(np.float64)
         self.sliding = prismatic.astype(np.float64)
+        self.origin_q = origin_q
         self.origin_q32 = origin_q.astype(np.float32)
         self.origin_t = np.array([joint.origin_xyz for joint in joints], dtype=np.float64)  # type: ignore[union-attr]
-        self.axis_q32 = _multiply(origin_q, np.concatenate([axes, np.zeros((len(names), 1))], axis=1)).astype(np.float32)
-        self.slide_axes = _rotate(origin_q, axes)
+        self.axis_q = multiply_quaternions(origin_q, np.concatenate([axes, np.zeros((len(names), 1))], axis=1))
+        self.axis_q32 = self.axis_q.astype(np.float32)
+        self.slide_axes = rotate(origin_q, axes)
         reference = self._rerun(np.zeros((1, len(names))))
         self.type = reference.type
         self.fields = list(reference.type.value_type)
@@ -80,6 +82,19 @@ class ClosedFormJointTransforms:
         quaternions = pa.FixedSizeListArray.from_arrays(pa.array(quaternion.reshape(-1)), 4).cast(self.fields[1].type)
         structs = pa.StructArray.from_arrays([translation, quaternions, fixed.parents, fixed.children], fields=self.fields)
         return pa.ListArray.from_arrays(fixed.offsets, structs, type=self.type)
+
+    def arrays(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The same transforms as numpy arrays in float64 (rows x joints x 3 translations, x 4 quaternions), for
+        analysis (`kinematics.py`): not rounded to float32 as the recording's are."""
+        rows, count = values.shape
+        if not self.usable:
+            batches = self._rerun(values).values
+            translation = np.asarray(batches.field("translation").flatten(), dtype=np.float64).reshape(rows, count, 3)
+            return translation, np.asarray(batches.field("quaternion").flatten(), dtype=np.float64).reshape(rows, count, 4)
+        half = values * self.half_turning
+        quaternion = np.sin(half)[..., None] * self.axis_q + np.cos(half)[..., None] * self.origin_q
+        translation = self.origin_t + (values * self.sliding)[..., None] * self.slide_axes
+        return translation, quaternion
 
     def _per_size(self, rows: int) -> _SizeConstants:
         """What depends only on the row count (frames, offsets, the translations of a robot without prismatic
@@ -150,13 +165,13 @@ class _Repeated:
         return array if kind == pa.string() else array.cast(pa.string())  # past 2 GiB the cast raises, as Rerun's FK would fail
 
 
-def _quaternion_from_rpy(roll: float, pitch: float, yaw: float) -> list[float]:
+def quaternion_from_rpy(roll: float, pitch: float, yaw: float) -> list[float]:
     """URDF's fixed-axis roll, pitch, yaw (R = Rz·Ry·Rx) as (x, y, z, w)."""
     cr, sr, cp, sp, cy, sy = np.cos(roll / 2), np.sin(roll / 2), np.cos(pitch / 2), np.sin(pitch / 2), np.cos(yaw / 2), np.sin(yaw / 2)
     return [sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy, cr * cp * cy + sr * sp * sy]
 
 
-def _multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def multiply_quaternions(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Hamilton products of (x, y, z, w) quaternions, row by row."""
     ax, ay, az, aw = a.T
     bx, by, bz, bw = b.T
@@ -171,7 +186,7 @@ def _multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     )
 
 
-def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Each vector of `v` rotated by the unit quaternion of its row of `q`."""
     u, w = q[:, :3], q[:, 3:]
     return v + 2.0 * np.cross(u, np.cross(u, v) + w * v)
