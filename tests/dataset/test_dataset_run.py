@@ -154,6 +154,8 @@ def test_episodes_select_segments_and_the_command_line_overrides(so101_dataset: 
     assert sorted(status_lines(result.err)) == ["episode_000002", "episode_000003", "model"]
     manifest = _manifest(so101_dataset)  # entries of earlier runs stay while their files exist
     assert [s["segment"] for s in manifest["segments"]] == ["episode_000000", "episode_000002", "episode_000003"]
+    episode_0 = [path for path in manifest["files"] if path.endswith("episode_000000.parquet")]
+    assert episode_0, "the hash of a file this run did not read is kept for the next full re-run"
     wrong = run_cli("run", str(so101_dataset), "--episodes", "1,9")
     assert wrong.code == 1 and "error: --episodes: episode(s) 9 do not exist (the dataset's episodes: 0..3)" in wrong.err
 

@@ -7,6 +7,7 @@ pipeline wrote, every output folder must take files, and partial files that kill
 
 from __future__ import annotations
 
+import os
 import time
 import traceback
 from collections.abc import Callable
@@ -62,7 +63,10 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
     manifest = Manifest.load(plan.dataset.manifest, plan.output.application_id, plan.dataset.layout, plan.config_path, plan.output.where)
     remember_file_hashes(manifest.files)
     jobs = build_jobs(plan)
-    manifest.files = file_hashes_used()
+    # Hashes of files this run did not read (other episodes: `--episodes`) are kept while the file is there, so that
+    # the next full re-run does not read them again; a changed file is hashed again anyway (size and mtime).
+    kept = {path: entry for path, entry in manifest.files.items() if os.path.exists(path)}
+    manifest.files = {**kept, **file_hashes_used()}
     results: dict[str, SegmentResult] = {}
     to_run: list[SegmentJob] = []
     for job in jobs:
