@@ -17,6 +17,7 @@ from urdf_pipeline.sources.ordering import (
     BLOCK_ROWS,
     ROW_ID,
     NeedsSorting,
+    in_blocks,
     in_time_order,
     needs_sorting,
     sorted_in_memory,
@@ -98,6 +99,17 @@ def test_small_chunks_in_order_are_joined_into_blocks() -> None:
     passed = run(originals)
     assert [c.num_rows for c in passed] == [2100, 2100, 800] if BLOCK_ROWS == 2048 else len(passed) < 50
     assert rows_of(passed) == rows_of(originals)
+
+
+def test_a_large_chunk_is_cut_into_blocks() -> None:
+    """A reader's large chunk (Rerun's HDF5 reader gives ~2 MB ones) is cut into blocks, so the FK's batches, and the
+    memory they take, stay bounded whatever the source's length."""
+    big = [chunk(np.arange(0, 10 * BLOCK_ROWS + 5)), chunk(np.arange(10 * BLOCK_ROWS + 5, 11 * BLOCK_ROWS + 5), 10 * BLOCK_ROWS + 5)]
+    passed = run(big)
+    assert [c.num_rows for c in passed] == [BLOCK_ROWS] * 10 + [5, BLOCK_ROWS]
+    assert rows_of(passed) == rows_of(big)
+    unordered = list(LazyChunkStream.from_iter(in_blocks(LazyChunkStream.from_iter(iter(big)))))  # no index to check
+    assert [c.num_rows for c in unordered] == [BLOCK_ROWS] * 10 + [5, BLOCK_ROWS] and rows_of(unordered) == rows_of(big)
 
 
 def test_keep_last_across_a_chunk_boundary(capsys: pytest.CaptureFixture[str]) -> None:

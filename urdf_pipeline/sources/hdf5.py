@@ -15,7 +15,7 @@ from ..errors import UserError, listing
 from ..plan import Hdf5SourcePlan, IndexPlan
 from .base import EntryField, SourceDescription, file_input, resolve_input
 from .integrity import check_hdf5_datasets
-from .ordering import in_time_order, with_duplicates
+from .ordering import in_blocks, in_time_order, with_duplicates
 from .parquet import compile_index
 from .stream import SourceStream, index_column
 
@@ -138,6 +138,8 @@ def open_stream(plan: Hdf5SourcePlan) -> SourceStream:
         ignore_datasets=ignored or None,
         use_structs=False,
     ).filter(content=entity, is_static=False, components=component)
-    if plan.index is not None:  # without an index, Rerun numbers the rows: nothing to check
+    if plan.index is not None:  # without an index, Rerun numbers the rows: nothing to check, only blocks to make
         stream = in_time_order(stream, plan.index.column, plan, plan.path)
+    else:
+        stream = in_blocks(stream)
     return SourceStream(stream, entity, component, len(plan.names))

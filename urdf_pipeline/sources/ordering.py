@@ -308,15 +308,18 @@ def in_time_order(stream: LazyChunkStream, timeline: str | None, plan: Any, path
 
 def _in_blocks(chunks: Iterable[Chunk]) -> Iterator[Chunk]:
     """Consecutive small chunks of one entity joined into blocks of about `BLOCK_ROWS` rows, in order (fresh row
-    ids); a chunk of a block's size or more goes on untouched. Each block becomes one FK chunk of the recording, so a
+    ids); a chunk of one or two blocks' size goes on untouched, a larger one is cut into blocks. Each block becomes one FK chunk of the recording, so a
     source of small chunks (an .rrd logged row by row, a reader's 1024-row chunks) gives chunks as large as a
     collected store's, and the FK runs on batches of its best size."""
     pending: list[pa.RecordBatch] = []
     rows = 0
     key: tuple[str, tuple[str, ...]] | None = None
     for chunk in chunks:  # one iteration per chunk
-        if not pending and chunk.num_rows >= BLOCK_ROWS:
+        if not pending and BLOCK_ROWS <= chunk.num_rows <= 2 * BLOCK_ROWS:
             yield chunk
+            continue
+        if not pending and chunk.num_rows > 2 * BLOCK_ROWS:  # a reader's large chunk (HDF5: ~2 MB): split, so the
+            yield from _rebuilt([chunk.to_record_batch()], np.arange(chunk.num_rows))  # FK's batches stay bounded
             continue
         batch = chunk.to_record_batch()
         chunk_key = (chunk.entity_path, tuple(batch.schema.names))
@@ -344,3 +347,10 @@ def with_duplicates(plan: Any, spec: dict[str, Any]) -> Any:
     from dataclasses import replace
 
     return replace(plan, duplicates=spec.get("duplicates", "error"))
+
+
+def in_blocks(stream: LazyChunkStream) -> LazyChunkStream:
+    """A source with no time order to check (rows numbered by its reader) in blocks of about `BLOCK_ROWS` rows."""
+    from rerun.chunk import LazyChunkStream
+
+    return LazyChunkStream.from_iter(_in_blocks(stream))
