@@ -1,4 +1,4 @@
-"""Inputs of the MCAP / HDF5 / RRD cases in tests/configs/invalid/ (made by test_invalid_configs.py's fixture)."""
+"""Inputs of the MCAP / HDF5 / RRD / wide-table cases in tests/configs/invalid/ (made by test_invalid_configs.py's fixture)."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ from urdf_pipeline.examples import PANDA_NAMES
 from .sources.test_sources_hdf5 import write_aloha_episode
 from .sources.test_sources_mcap import write_joint_states
 from .sources.test_sources_rrd import write_state_rrd
+from .sources.test_sources_wide import write_wide_inputs
 
 
 def write_source_inputs(data: Path, raw: np.ndarray) -> None:
@@ -28,3 +29,4 @@ def write_source_inputs(data: Path, raw: np.ndarray) -> None:
     write_joint_states(data / "unstamped.mcap", messages[:20], stamps_ns=[0] * 20)
     write_aloha_episode(data / "aloha_26.hdf5", np.concatenate([raw, np.zeros((len(raw), 18))], axis=1))
     write_state_rrd(data / "named_state.rrd", raw, PANDA_NAMES)
+    write_wide_inputs(data, raw)

@@ -278,7 +278,7 @@ def build_parser() -> argparse.ArgumentParser:
     init.add_argument(
         "--source",
         metavar="SOURCE_SPEC",
-        help="KIND:PATH[#PART]: lerobot:DIR[#FEATURE], parquet:FILE[#COLUMN], mcap:FILE[#TOPIC], hdf5:FILE#/DATASET, rrd:FILE#ENTITY",
+        help="KIND:PATH[#PART]: lerobot:DIR[#FEATURE], parquet:FILE[#COLUMN], mcap:FILE[#TOPIC], hdf5:FILE#/DATASET, rrd:FILE#ENTITY, csv:FILE",
     )
     init.add_argument("-o", "--output", metavar="CONFIG", help="write the config here (default: stdout); paths in it are relative to it")
     init.add_argument("--force", action="store_true", help="overwrite an existing output file")

@@ -22,9 +22,11 @@ class IndexPlan:
 
 @dataclass(frozen=True)
 class ParquetSourcePlan:
+    """A parquet file: one list<number> `column` per row, or (column None) a wide table, one column per name."""
+
     name: str
     path: Path
-    column: str
+    column: str | None  # None: a wide table, one numeric column per name
     index: IndexPlan
     names: tuple[str, ...]
     where: Where
@@ -84,7 +86,19 @@ class RrdSourcePlan:
     duplicates: str = "error"  # two rows at one index value: "error" or "keep_last" (the later row wins)
 
 
-SourcePlan = ParquetSourcePlan | LeRobotSourcePlan | McapSourcePlan | Hdf5SourcePlan | RrdSourcePlan
+@dataclass(frozen=True)
+class CsvSourcePlan:
+    """A CSV file with a header, read as a wide table: one numeric column per name and an index column."""
+
+    name: str
+    path: Path
+    index: IndexPlan
+    names: tuple[str, ...]  # the columns holding the values: the config's `names`, else every column but the index
+    where: Where
+    duplicates: str = "error"  # two rows at one index value: "error" or "keep_last" (the later row wins)
+
+
+SourcePlan = ParquetSourcePlan | LeRobotSourcePlan | McapSourcePlan | Hdf5SourcePlan | RrdSourcePlan | CsvSourcePlan
 
 
 @dataclass(frozen=True)

@@ -234,7 +234,7 @@ def test_refusals(erd_share: Path, tmp_path: Path, run_cli) -> None:
     urdf = str(erd_share / "robots" / ROBOTS["so101"])
     missing = run_cli("init", "--urdf", urdf, "--source", "lerobot:" + str(tmp_path / "nope"))
     assert missing.code == 1 and missing.err.startswith("error: --source lerobot:")
-    assert "say which kind" in run_cli("init", "--urdf", urdf, "--source", str(tmp_path / "x.csv")).err
+    assert "say which kind" in run_cli("init", "--urdf", urdf, "--source", str(tmp_path / "x.txt")).err
 
 
 def test_source_spec_syntax(tmp_path: Path) -> None:
@@ -247,9 +247,9 @@ def test_source_spec_syntax(tmp_path: Path) -> None:
     (tmp_path / "ds" / "meta" / "info.json").write_text("{}")
     assert parse_source_spec(str(tmp_path / "ds")) == ("lerobot", str(tmp_path / "ds"), None)
     with pytest.raises(UserError) as caught:
-        parse_source_spec(str(tmp_path / "x.csv"))
+        parse_source_spec(str(tmp_path / "x.txt"))
     assert caught.value.message.endswith(
-        "lerobot:DIR[#FEATURE], parquet:FILE[#COLUMN], mcap:FILE[#TOPIC], hdf5:FILE#/DATASET or rrd:FILE#ENTITY"
+        "lerobot:DIR[#FEATURE], parquet:FILE[#COLUMN], mcap:FILE[#TOPIC], hdf5:FILE#/DATASET, rrd:FILE#ENTITY or csv:FILE"
     )
 
 

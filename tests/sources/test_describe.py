@@ -22,7 +22,7 @@ def describe(kind: str, path: Path | str, part: str | None, tmp_path: Path) -> S
 
 
 def test_every_kind_follows_the_protocol_and_says_its_form(tmp_path: Path) -> None:
-    assert list(KINDS) == ["lerobot", "parquet", "mcap", "hdf5", "rrd"]  # the order init lists them in
+    assert list(KINDS) == ["lerobot", "parquet", "mcap", "hdf5", "rrd", "csv"]  # the order init lists them in
     for kind, module in KINDS.items():
         assert module.SPEC_FORM.startswith(f"{kind}:") and callable(module.describe)
     assert [kind_for_path(p) for p in ("a.parquet", "b.MCAP", "c.h5", "d.hdf5", "e.rrd", "f.csv")] == [
@@ -31,7 +31,7 @@ def test_every_kind_follows_the_protocol_and_says_its_form(tmp_path: Path) -> No
         "hdf5",
         "hdf5",
         "rrd",
-        None,
+        "csv",
     ]
     (tmp_path / "ds" / "meta").mkdir(parents=True)
     assert kind_for_path(str(tmp_path / "ds")) is None

@@ -90,7 +90,7 @@ def _static_edge_changes(report: _Report, subject: str, old: EdgePlan, new: Edge
 
 # ---------------------------------------------------------------------------------------------------------- sources
 
-_KIND_PATHS = {"parquet": "path", "lerobot": "root", "mcap": "path", "hdf5": "path", "rrd": "path"}
+_KIND_PATHS = {"parquet": "path", "lerobot": "root", "mcap": "path", "hdf5": "path", "rrd": "path", "csv": "path"}
 _NOT_COMPARED = {"name", "where", "names", "path", "root", "rows", "per_segment", "episode"}  # rows: the data's, not the config's
 
 

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from ..plan import SourcePlan
-from . import hdf5, lerobot, mcap, parquet, rrd
+from . import csv, hdf5, lerobot, mcap, parquet, rrd
 from .base import GLOB, EntryField, SourceDescription, SourceKind, resolve_input
 from .callbacks import CallbackErrors
 from .joint_values import JointValueMapper, raw_matrix, wrapped
@@ -39,7 +39,7 @@ __all__ = [
     "wrapped",
 ]
 
-KINDS: dict[str, SourceKind] = {"lerobot": lerobot, "parquet": parquet, "mcap": mcap, "hdf5": hdf5, "rrd": rrd}
+KINDS: dict[str, SourceKind] = {"lerobot": lerobot, "parquet": parquet, "mcap": mcap, "hdf5": hdf5, "rrd": rrd, "csv": csv}
 
 
 def kind_of(spec: dict[str, Any]) -> str:

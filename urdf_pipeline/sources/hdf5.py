@@ -16,8 +16,7 @@ from ..plan import Hdf5SourcePlan, IndexPlan
 from .base import EntryField, SourceDescription, file_input, resolve_input
 from .integrity import check_hdf5_datasets
 from .ordering import in_blocks, in_time_order, with_duplicates
-from .parquet import compile_index
-from .stream import SourceStream, index_column
+from .stream import SourceStream, compile_index, index_column
 
 PLAN_TYPE = Hdf5SourcePlan
 SPEC_FORM = "hdf5:FILE#/DATASET"

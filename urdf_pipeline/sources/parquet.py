@@ -1,7 +1,9 @@
-"""A parquet file with one row per frame and a list<float> column of joint values."""
+"""A parquet file with one row per frame: a list<float> column of joint values (read with Rerun's ParquetReader), or a
+wide table, one numeric column per name (no `column` in the config; read with pyarrow batch by batch, see wide.py)."""
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -10,26 +12,17 @@ import pyarrow.parquet as pq
 
 from ..config import Document
 from ..errors import UserError, listing
-from ..plan import IndexPlan, ParquetSourcePlan
+from ..plan import ParquetSourcePlan
 from .base import EntryField, SourceDescription, file_input, resolve_input
 from .integrity import check_parquet_pages, refuse_empty_parquet
 from .ordering import in_time_order, with_duplicates
-from .stream import SourceStream
+from .stream import SourceStream, compile_index
+from .wide import describe_wide, guess_index, index_type_problem, reading_error, wide_columns, wide_stream
 
 PLAN_TYPE = ParquetSourcePlan
 SPEC_FORM = "parquet:FILE[#COLUMN]"
 SUFFIXES = (".parquet",)
-_SEQUENCE_COLUMNS = ("frame_index", "index", "frame", "step", "seq", "sequence")  # what `init` takes for a timeline
-_TIME_COLUMNS = ("timestamp", "time", "t", "stamp")
-
-
-def compile_index(spec: Any) -> IndexPlan:
-    if isinstance(spec, str):
-        return IndexPlan(spec, "sequence", None)
-    if "sequence" in spec:
-        return IndexPlan(spec["sequence"], "sequence", None)
-    kind = "timestamp" if "timestamp" in spec else "duration"
-    return IndexPlan(spec[kind], "timestamp" if kind == "timestamp" else "duration", spec.get("unit", "s"))
+PARQUET_BATCH_ROWS = 65_536  # rows decoded at a time from a wide table (a row group may hold a million)
 
 
 def _numeric_list_width(field_type: pa.DataType) -> int | None | bool:
@@ -49,6 +42,10 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
         schema = pq.read_schema(path)
     except (pa.ArrowInvalid, OSError) as exc:
         raise UserError(f"cannot read parquet schema of {path}: {exc}", document.where(*here, "parquet")) from None
+    if "column" not in spec:  # a wide table: checked from the footer alone; pyarrow reads it (no page check needed)
+        index, names = wide_columns(spec, "parquet", path, schema, document, here)
+        refuse_empty_parquet(path, document.where(*here, "parquet"))
+        return with_duplicates(ParquetSourcePlan(name, path, None, index, names, document.where(*here)), spec)
     column = spec["column"]
     if column not in schema.names:
         raise UserError(f"column '{column}' not in {path.name}; it has: {', '.join(schema.names)}", document.where(*here, "column"))
@@ -66,25 +63,30 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
         raise UserError(
             f"index column '{index.column}' not in {path.name}; it has: {', '.join(schema.names)}", document.where(*here, "index")
         )
-    index_type = schema.field(index.column).type
-    if index.kind == "sequence" and not pa.types.is_integer(index_type):
-        raise UserError(
-            f"index column '{index.column}' is {index_type}; a sequence timeline needs integers (use {{timestamp: {index.column}, unit: s}} for times)",
-            document.where(*here, "index"),
-        )
-    if index.kind != "sequence" and not (
-        pa.types.is_integer(index_type) or pa.types.is_floating(index_type) or pa.types.is_timestamp(index_type)
-    ):
-        raise UserError(f"index column '{index.column}' is {index_type}, not a time", document.where(*here, "index"))
+    problem = index_type_problem(index.column, schema.field(index.column).type, index.kind)
+    if problem is not None:
+        raise UserError(problem, document.where(*here, "index"))
     refuse_empty_parquet(path, document.where(*here, "parquet"))  # from the footer, before any data page
     check_parquet_pages(path, [column, index.column], document.where(*here, "parquet"))  # corrupt pages: a user error here
     return with_duplicates(ParquetSourcePlan(name, path, column, index, names, document.where(*here)), spec)
+
+
+def _batches(plan: ParquetSourcePlan) -> Iterator[pa.RecordBatch]:
+    """A wide table's index and value columns, PARQUET_BATCH_ROWS rows at a time, row group by row group."""
+    columns = [plan.index.column, *plan.names]
+    try:
+        file = pq.ParquetFile(plan.path)
+        yield from file.iter_batches(batch_size=PARQUET_BATCH_ROWS, columns=columns)
+    except (pa.ArrowException, OSError, ValueError) as exc:
+        raise reading_error(plan.path, exc, columns, plan.where) from None
 
 
 def open_stream(plan: ParquetSourcePlan) -> SourceStream:
     from rerun.chunk import IndexColumn
     from rerun.experimental import ParquetReader
 
+    if plan.column is None:
+        return wide_stream(plan, lambda: _batches(plan))
     index = plan.index
     if index.kind == "sequence":
         index_column = IndexColumn.sequence(index.column)
@@ -100,7 +102,8 @@ def open_stream(plan: ParquetSourcePlan) -> SourceStream:
 
 def describe(name: str, path: str, part: str | None, document: Document) -> SourceDescription:
     """For `init`: the column (PART, else `observation.state`, else the only list column) and a guessed timeline,
-    from the schema only. Parquet has no names: the values are matched by position."""
+    from the schema only. Parquet has no names: the values are matched by position. A file without a list column
+    is a wide table: its numeric columns are the names."""
     given = file_input(path)
     file = given.file
     try:
@@ -108,6 +111,8 @@ def describe(name: str, path: str, part: str | None, document: Document) -> Sour
     except (pa.ArrowInvalid, OSError) as exc:
         raise UserError(f"cannot read the parquet schema of {file}: {exc}") from None
     lists = [column for column in schema.names if _numeric_list_width(schema.field(column).type) is not False]
+    if part is None and not lists:  # no list column: a wide table, one column per name
+        return describe_wide("parquet", schema, file, given.segment, given.pattern)
     if part is not None:
         column = part
     elif "observation.state" in lists:
@@ -121,7 +126,7 @@ def describe(name: str, path: str, part: str | None, document: Document) -> Sour
     width = _numeric_list_width(schema.field(column).type)
     if width is False:
         raise UserError(f"column '{column}' is {schema.field(column).type}, not a list of numbers")
-    fields = (EntryField("column", column), _guess_index(schema, file.name))
+    fields = (EntryField("column", column), guess_index(schema, file.name))
     return SourceDescription(
         "parquet",
         fields,
@@ -131,21 +136,3 @@ def describe(name: str, path: str, part: str | None, document: Document) -> Sour
         pattern=given.pattern,
         unnamed="parquet carries no names",
     )
-
-
-def _guess_index(schema: pa.Schema, file_name: str) -> EntryField:
-    """The timeline column: a sequence column by its name, else a time column, else a stub to fill in."""
-    integers = [n for n in schema.names if pa.types.is_integer(schema.field(n).type)]
-    times = [
-        n
-        for n in schema.names
-        if pa.types.is_timestamp(schema.field(n).type) or (pa.types.is_floating(schema.field(n).type) and n.lower() in _TIME_COLUMNS)
-    ]
-    sequence = next((n for n in _SEQUENCE_COLUMNS if n in integers), None)
-    if sequence is not None:
-        return EntryField("index", sequence, "review: the timeline column (a sequence); or {timestamp: COL, unit: s}")
-    if times:
-        return EntryField(
-            "index", {"timestamp": times[0], "unit": "s"}, "review: time since the epoch; {duration: COL, unit: s} if it counts from 0"
-        )
-    return EntryField("index", "frame_index", f"TODO: {file_name} has no frame or time column this could guess; name its timeline column")

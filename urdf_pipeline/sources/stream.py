@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
+
+from ..plan import IndexPlan
 
 if TYPE_CHECKING:
     from rerun.chunk import IndexColumn, LazyChunkStream
-
-    from ..plan import IndexPlan
 
 
 @dataclass(frozen=True)
@@ -36,3 +36,13 @@ def index_column(index: IndexPlan) -> IndexColumn:
     if index.kind == "timestamp":
         return IndexColumn.timestamp(index.column, input_unit=index.unit)  # type: ignore[arg-type]
     return IndexColumn.duration(index.column, input_unit=index.unit)  # type: ignore[arg-type]
+
+
+def compile_index(spec: Any) -> IndexPlan:
+    """A config's `index` (a column name, or {sequence|timestamp|duration: COLUMN, unit: U}) as an IndexPlan."""
+    if isinstance(spec, str):
+        return IndexPlan(spec, "sequence", None)
+    if "sequence" in spec:
+        return IndexPlan(spec["sequence"], "sequence", None)
+    kind = "timestamp" if "timestamp" in spec else "duration"
+    return IndexPlan(spec[kind], "timestamp" if kind == "timestamp" else "duration", spec.get("unit", "s"))

@@ -1,0 +1,87 @@
+"""A CSV file with a header, read as a wide table: one numeric column per name and an index column (see wide.py).
+
+Read with pyarrow's streaming CSV reader, CSV_BLOCK_BYTES at a time, never the whole file. pyarrow infers the
+columns' types from the first block; validation reads that block only (the header, the types, at least one row).
+At run time the value columns are read as float64 whatever the first block suggested (an integer column may hold
+decimals further down); a cell that is not a number, or a row of the wrong width, further down stops the run with
+one error naming the file and the column or row.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pyarrow as pa
+import pyarrow.csv as pa_csv
+
+from ..config import Document
+from ..errors import UserError, Where
+from ..plan import CsvSourcePlan
+from .base import SourceDescription, file_input, resolve_input
+from .ordering import with_duplicates
+from .stream import SourceStream
+from .wide import describe_wide, reading_error, wide_columns, wide_stream
+
+PLAN_TYPE = CsvSourcePlan
+SPEC_FORM = "csv:FILE"
+SUFFIXES = (".csv",)
+CSV_BLOCK_BYTES = 1 << 20  # bytes parsed at a time (pyarrow's default): about 10k rows of a 7-joint log
+
+
+def _open(path: Path, where: Where | None, convert: pa_csv.ConvertOptions | None = None) -> pa_csv.CSVStreamingReader:
+    """The streaming reader; opening it parses the first block (types are inferred from it)."""
+    try:
+        return pa_csv.open_csv(
+            path, read_options=pa_csv.ReadOptions(block_size=CSV_BLOCK_BYTES, use_threads=False), convert_options=convert
+        )
+    except (pa.ArrowException, OSError, ValueError) as exc:
+        if "Empty CSV file" in str(exc):
+            raise UserError(f"CSV file {path} is empty: no header, no rows", where) from None
+        raise reading_error(path, exc, [], where) from None
+
+
+def _header(path: Path, where: Where | None) -> pa.Schema:
+    """The header's columns with the types of the first block, which must hold at least one row."""
+    reader = _open(path, where)
+    try:
+        first = reader.read_next_batch()
+    except StopIteration:
+        first = None
+    except (pa.ArrowException, OSError, ValueError) as exc:
+        raise reading_error(path, exc, [], where) from None
+    if first is None or first.num_rows == 0:
+        raise UserError(f"CSV file {path} has a header but no rows; a source with zero rows moves nothing", where)
+    return reader.schema
+
+
+def compile_source(name: str, spec: dict[str, Any], document: Document, config_dir: Path) -> CsvSourcePlan:
+    here = ("sources", name)
+    path = resolve_input(document, config_dir, spec["csv"], *here, "csv")
+    schema = _header(path, document.where(*here, "csv"))
+    index, names = wide_columns(spec, "csv", path, schema, document, here)
+    return with_duplicates(CsvSourcePlan(name, path, index, names, document.where(*here)), spec)
+
+
+def _batches(plan: CsvSourcePlan) -> Iterator[pa.RecordBatch]:
+    """The index and value columns, block by block; the values as float64 (empty cells and NaN are nulls)."""
+    columns = [plan.index.column, *plan.names]
+    convert = pa_csv.ConvertOptions(include_columns=columns, column_types=dict.fromkeys(plan.names, pa.float64()))
+    reader = _open(plan.path, plan.where, convert)
+    try:
+        yield from reader
+    except (pa.ArrowException, OSError, ValueError) as exc:
+        raise reading_error(plan.path, exc, _open(plan.path, plan.where).schema.names, plan.where) from None
+
+
+def open_stream(plan: CsvSourcePlan) -> SourceStream:
+    return wide_stream(plan, lambda: _batches(plan))
+
+
+def describe(name: str, path: str, part: str | None, document: Document) -> SourceDescription:
+    """For `init`: the header's numeric columns are the names, and a guessed timeline, from the first block only."""
+    given = file_input(path)
+    if part is not None:
+        raise UserError(f"a CSV source takes no #PART: its columns are the names (the form is {SPEC_FORM})")
+    return describe_wide("csv", _header(given.file, None), given.file, given.segment, given.pattern)
