@@ -29,7 +29,8 @@ if TYPE_CHECKING:
 @dataclass(frozen=True)
 class RobotKinematics:
     """One robot's link poses over a segment, in its root link's frame (URDF joints only; calibration edges are in
-    the plan's `edges`). Rows are in time order; `times` holds each of the source's timelines at every row."""
+    the plan's `edges`). Rows are in time order; `times` holds each of the source's timelines at every row. A row
+    the robot's NaN policy leaves out (`joints.nan: drop_row`) has NaN poses, where a run logs no transform."""
 
     robot: str
     root: str  # the root link's frame (with the robot's frame prefix)
