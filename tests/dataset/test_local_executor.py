@@ -36,3 +36,21 @@ def test_workers_leave_pandas_out_as_the_run_does() -> None:
     in_workers = [loaded for pid, loaded in results if pid != os.getpid()]
     assert len(results) == 16 and in_workers
     assert not any(in_workers)
+
+
+def test_the_fork_server_ignores_ctrl_c_and_sigterm_from_its_first_instruction() -> None:
+    """A terminal's Ctrl-C reaches the whole process group, the fork server too, while it imports Rerun: it must
+    ignore SIGINT and SIGTERM from its start (inherited across exec), or it prints a traceback. Linux: /proc."""
+    import subprocess
+
+    code = (
+        "import multiprocessing, re\n"
+        "from urdf_pipeline.dataset.local_executor import PRELOAD, _start_fork_server\n"
+        "multiprocessing.get_context('forkserver').set_forkserver_preload(PRELOAD)\n"
+        "_start_fork_server()\n"
+        "from multiprocessing import forkserver\n"
+        "status = open(f'/proc/{forkserver._forkserver._forkserver_pid}/status').read()\n"
+        "print(int(re.search(r'SigIgn:\\s*([0-9a-f]+)', status).group(1), 16))\n"
+    )
+    ignored = int(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout)
+    assert ignored & (1 << (2 - 1)) and ignored & (1 << (15 - 1)), f"SigIgn {ignored:x}: SIGINT and SIGTERM must be ignored"

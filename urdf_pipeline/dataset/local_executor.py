@@ -36,17 +36,24 @@ R = TypeVar("R")
 
 
 def _start_fork_server() -> None:
-    """The fork server imports Rerun (~0.7 s) before it ignores Ctrl-C itself: it is started with SIGINT and SIGTERM
-    blocked (a signal mask survives exec), so a Ctrl-C in that window cannot make it print a traceback; in this
-    process they are only held for the spawn and delivered right after."""
+    """The fork server imports Rerun (~0.7 s) before it ignores Ctrl-C itself, and a terminal's Ctrl-C reaches the
+    whole process group: it would print a traceback from the middle of an import. So it is started with SIGINT and
+    SIGTERM ignored, a disposition that survives exec (Python keeps an ignored SIGINT ignored; a blocked signal
+    mask did not survive the spawn: measured). Here they are blocked for the few milliseconds of the spawn, and a
+    Ctrl-C in that window is lost (ignored when it comes), not half-handled."""
     from multiprocessing import forkserver
 
-    held = {signal.SIGINT, signal.SIGTERM}
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    held = (signal.SIGINT, signal.SIGTERM)
+    previous_mask = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    handlers = {}
     try:
+        if threading.current_thread() is threading.main_thread():
+            handlers = {number: signal.signal(number, signal.SIG_IGN) for number in held}
         forkserver.ensure_running()
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+        for number, handler in handlers.items():
+            signal.signal(number, handler)
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous_mask)
 
 
 def _start_worker(initializer: Callable[..., None] | None, initargs: tuple[object, ...], scratch: str, main: int, no_pandas: bool) -> None:
