@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import shutil
+import signal
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -14,6 +16,18 @@ from urdf_pipeline.examples import example_robot_data_share, prepare
 REPO = Path(__file__).resolve().parents[1]
 CONFIGS = REPO / "configs"
 SHARED = REPO.parent / "shared"
+
+
+@pytest.fixture(scope="session", autouse=True)
+def ctrl_c_as_a_terminal_gives_it() -> Iterator[None]:
+    """The Ctrl-C and SIGTERM tests need SIGINT to act, in this process and in the commands it starts. A test run
+    started in the background of a non-interactive shell (`make test &` in a script) inherits SIGINT ignored, and so
+    would every command it starts; the suite runs as from a terminal whatever started it."""
+    previous = signal.getsignal(signal.SIGINT)
+    if previous == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)
 
 
 @dataclass(frozen=True)
