@@ -6,13 +6,12 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from rerun.urdf import UrdfTree
 
 from urdf_pipeline.execute.kinematics import RobotKinematics, _compose
-from urdf_pipeline.urdf import text_for_rerun
 
 from ..reference_fk import PinocchioRobot
 from .test_fk_against_pinocchio import assert_poses_match
+from .test_joint_fk import _tree
 
 ARM = """<robot name="a">
   <link name="base"/><link name="l1"/><link name="l2"/><link name="tip"/>
@@ -22,12 +21,6 @@ ARM = """<robot name="a">
     <axis xyz="0 0 2"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
   <joint name="tip" type="fixed"><parent link="l2"/><child link="tip"/><origin xyz="0.05 0 0.1" rpy="0 0.3 0"/></joint>
 </robot>"""
-
-
-def _tree(text: str, folder: Path) -> UrdfTree:
-    path = folder / "robot.urdf"
-    path.write_text(text_for_rerun(text, "robot.urdf")[0], encoding="utf-8")
-    return UrdfTree.from_file_path(path)
 
 
 def test_composed_poses_equal_pinocchio(tmp_path: Path) -> None:

@@ -13,6 +13,7 @@ from .. import lazy_surface
 if TYPE_CHECKING:
     from .blueprint import blueprint_key, blueprint_path, write_blueprint
     from .edges_stream import CALIBRATION_ENTITY, calibration_stream
+    from .joint_fk import rotation_matrices
     from .kinematics import RobotKinematics, segment_kinematics
     from .model_stream import cached_tree, robot_model_stream
     from .provenance import stored_content_hash
@@ -36,6 +37,7 @@ __all__ = [
     "install_run_plan",
     "log_segment",
     "robot_model_stream",
+    "rotation_matrices",
     "process_alive",
     "remove_stale_partials",
     "require_ours",
@@ -64,6 +66,7 @@ __getattr__ = lazy_surface(
         "install_run_plan": "segment_run",
         "log_segment": "segment",
         "robot_model_stream": "model_stream",
+        "rotation_matrices": "joint_fk",
         "process_alive": "writer",
         "remove_stale_partials": "writer",
         "require_ours": "writer",

@@ -190,3 +190,17 @@ def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Each vector of `v` rotated by the unit quaternion of its row of `q`."""
     u, w = q[:, :3], q[:, 3:]
     return v + 2.0 * np.cross(u, np.cross(u, v) + w * v)
+
+
+def rotation_matrices(quaternions: np.ndarray) -> np.ndarray:
+    """(..., 4) (x, y, z, w) quaternions, normalised here, as (..., 3, 3) rotation matrices."""
+    q = quaternions / np.linalg.norm(quaternions, axis=-1, keepdims=True)
+    x, y, z, w = np.moveaxis(q, -1, 0)
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=-1),
+            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=-1),
+            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=-1),
+        ],
+        axis=-2,
+    )

@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import Problems
 from ..plan import Plan, RobotPlan
 from ..sources import JointValueMapper, module_for, raw_matrix, with_sorting_retry
-from .joint_fk import ClosedFormJointTransforms, multiply_quaternions, quaternion_from_rpy, rotate
+from .joint_fk import ClosedFormJointTransforms, multiply_quaternions, quaternion_from_rpy, rotate, rotation_matrices
 from .limits_report import check_joint_statistics
 from .model_stream import cached_tree
 
@@ -41,17 +41,8 @@ class RobotKinematics:
 
     def matrices(self) -> np.ndarray:
         """links x rows x 4 x 4 homogeneous transforms (root from link)."""
-        x, y, z, w = np.moveaxis(self.quaternions, -1, 0)
-        rotation = np.stack(
-            [
-                np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-                np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-                np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
-            ],
-            -2,
-        )
         matrices = np.zeros((*self.translations.shape[:2], 4, 4))
-        matrices[..., :3, :3] = rotation
+        matrices[..., :3, :3] = rotation_matrices(self.quaternions)
         matrices[..., :3, 3] = self.translations
         matrices[..., 3, 3] = 1.0
         return matrices

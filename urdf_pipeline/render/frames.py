@@ -16,6 +16,8 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 
+from ..execute import rotation_matrices
+
 if TYPE_CHECKING:
     from rerun.chunk import Chunk
 
@@ -133,7 +135,7 @@ def _edges(batch: pa.RecordBatch, timeline: str | None, names: dict[str, int]) -
     translation = np.nan_to_num(_instances(batch, TRANSLATION, counts, 3), nan=0.0)
     quaternion = _instances(batch, QUATERNION, counts, 4)
     quaternion[~np.isfinite(quaternion).all(axis=1)] = (0.0, 0.0, 0.0, 1.0)
-    return _Edges(times, child, parent, _rotations(quaternion), translation)
+    return _Edges(times, child, parent, rotation_matrices(quaternion), translation)
 
 
 def _codes(text: pa.Array, names: dict[str, int]) -> np.ndarray:
@@ -161,19 +163,6 @@ def _instances(batch: pa.RecordBatch, name: str, counts: np.ndarray, width: int 
     keep = (own == counts)[row]
     out[position[keep]] = values[keep]
     return out
-
-
-def _rotations(quaternion: np.ndarray) -> np.ndarray:
-    q = quaternion / np.linalg.norm(quaternion, axis=1, keepdims=True)
-    x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=-1),
-            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=-1),
-            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=-1),
-        ],
-        axis=1,
-    )
 
 
 def _concatenate(parts: list[_Edges]) -> _Edges:
