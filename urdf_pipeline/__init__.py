@@ -16,7 +16,7 @@ import importlib
 import sys
 from collections.abc import Callable, Mapping
 
-__version__ = "0.2.0"
+__version__ = "0.3.0"
 
 
 def lazy_surface(package: str, names: Mapping[str, str]) -> Callable[[str], object]:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import difflib
-import sys
+import logging
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -20,6 +20,9 @@ class ExitCode(IntEnum):
     USAGE = 2  # bad command-line usage (argparse's own code)
     DOES_NOT_FIT = 3  # `check` only: sampled values do not fit the limits with the config's corrections
     BUG = 70  # an internal bug, with a traceback (EX_SOFTWARE)
+    # `diff --exit-code`, as diff(1): 0 equal, 1 the plans differ, 2 any error (a user error, a bug; Ctrl-C stays 130)
+    DIFFERENT = 1
+    DIFF_TROUBLE = 2
     INTERRUPTED = 130  # Ctrl-C: 128 + SIGINT
     BROKEN_PIPE = 141  # stdout closed early (`| head`): 128 + SIGPIPE
     TERMINATED = 143  # SIGTERM, handled as Ctrl-C: 128 + SIGTERM
@@ -115,11 +118,12 @@ class ConfigWarning:
 WarningHandler = Callable[[ConfigWarning], None]
 
 
-def _print_warning(warning: ConfigWarning) -> None:
-    print(warning.line(), file=sys.stderr)
+def show_warning(warning: ConfigWarning) -> None:
+    """To the `urdf_pipeline` logger (see progress.py), which the command line prints on stderr."""
+    logging.getLogger("urdf_pipeline").warning(warning.line())
 
 
-_warning_handler: ContextVar[WarningHandler] = ContextVar("warning_handler", default=_print_warning)
+_warning_handler: ContextVar[WarningHandler] = ContextVar("warning_handler", default=show_warning)
 
 
 def warn(message: str, where: Where | None = None) -> None:

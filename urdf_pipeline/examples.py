@@ -2,10 +2,13 @@
 `example-robot-data` package and joint trajectories within each robot's limits.
 
 Run by `make demo` and by the test suite (`python -m urdf_pipeline.examples DIR`), so a fresh clone needs no hand step.
+Installed from a wheel, the same command also writes the example configs into DIR (a wheel carries them as
+`urdf_pipeline/example_configs`; a checkout reads its own `configs/`).
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import shutil
@@ -28,7 +31,7 @@ def example_robot_data_share() -> Path:
         candidate = entry / "cmeel.prefix" / "share" / "example-robot-data"
         if (candidate / "robots").is_dir():
             return candidate
-    raise SystemExit("example-robot-data is not installed: pip install example-robot-data")
+    raise SystemExit('example-robot-data is not installed: pip install "urdf-pipeline[demo]" (or pip install example-robot-data)')
 
 
 def smooth_trajectory(model: UrdfModel, joints: list[str], frames: int, seed: int) -> np.ndarray:
@@ -273,6 +276,56 @@ def prepare(directory: Path, frames: int = 900) -> list[str]:
     return [f"{config}: not prepared, {MISSING_EXTRAS[config][0]} needs pip install {MISSING_EXTRAS[config][1]}" for config in missing]
 
 
-if __name__ == "__main__":
-    for line in prepare(Path(sys.argv[1]) if len(sys.argv) > 1 else Path("configs")):
+def example_configs() -> Path:
+    """The shipped example configs: in a wheel, urdf_pipeline/example_configs; in a checkout, its configs/."""
+    packaged = Path(__file__).parent / "example_configs"
+    return packaged if packaged.is_dir() else Path(__file__).resolve().parent.parent / "configs"
+
+
+def copy_configs(directory: Path) -> list[str]:
+    """Write the example configs into `directory`, their schema line pointing where it resolves from there. A config
+    already there and edited is kept (the lines say which); nothing to do when `directory` is their own folder."""
+    from .review import schema_reference
+
+    source = example_configs()
+    if directory.resolve() == source.resolve():
+        return []
+    directory.mkdir(parents=True, exist_ok=True)
+    schema_line = f"# yaml-language-server: $schema={schema_reference(directory)}"
+    said = []
+    for config in sorted(source.glob("*.yaml")):
+        lines = config.read_text(encoding="utf-8").splitlines(keepends=True)
+        if lines and lines[0].startswith("# yaml-language-server: $schema="):
+            lines[0] = schema_line + "\n"
+        text, target = "".join(lines), directory / config.name
+        if target.exists() and target.read_text(encoding="utf-8") != text:
+            said.append(f"{target}: kept as it is (it differs from the example; delete it to get the example back)")
+        elif not target.exists():
+            target.write_text(text, encoding="utf-8")
+    return said
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m urdf_pipeline.examples",
+        description="Write the example configs (from a wheel; a checkout has them in configs/) and their inputs into "
+        "DIR: robot descriptions linked from example-robot-data and rtb-data, joint data as parquet, LeRobot, HDF5 and "
+        "MCAP. Then: urdf-pipeline run DIR/demo.yaml. The inputs need the [demo] extra: pip install "
+        '"urdf-pipeline[demo]".',
+    )
+    parser.add_argument("directory", nargs="?", default="configs", metavar="DIR", help="where they go (default: configs)")
+    parser.add_argument("--frames", type=int, default=900, help="frames per generated episode (default 900)")
+    args = parser.parse_args(argv)
+    if args.frames < 1:
+        parser.error("--frames must be at least 1")
+    directory = Path(args.directory)
+    if directory.exists() and not directory.is_dir():
+        parser.error(f"{directory} is not a folder")
+    for line in copy_configs(directory) + prepare(directory, args.frames):
         print(f"urdf_pipeline.examples: {line}", file=sys.stderr)
+    print(f"urdf_pipeline.examples: ready; try: urdf-pipeline run {directory / 'demo.yaml'}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,15 +1,90 @@
-"""Progress on stderr for long runs, throttled so a million-row run prints a line every few seconds, not per batch."""
+"""What the tool tells a person while it works, through `logging`, and progress for long runs (throttled, so a
+million-row run prints a line every few seconds, not per batch).
+
+Every such line goes to the `urdf_pipeline` logger: INFO for progress and notes, WARNING for a config's warnings,
+DEBUG for what `--verbose` adds. A program that embeds the package silences or redirects it as any logger
+(`logging.getLogger("urdf_pipeline").setLevel(logging.ERROR)`); with no logging configured, Python shows its
+warnings only. The command line sends it to stderr, line by line as before, at the level of `--quiet`/`--verbose`
+(`command_logging`). Errors are not logged: they are raised, and the command line's one exit point prints them.
+"""
 
 from __future__ import annotations
 
+import logging
+import os
 import sys
 import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Protocol, TextIO
+
+LOGGER = logging.getLogger("urdf_pipeline")
 
 
 def say(message: str) -> None:
-    print(f"urdf-pipeline: {message}", file=sys.stderr, flush=True)
+    LOGGER.info("urdf-pipeline: %s", message)
+
+
+def note(text: str) -> None:
+    """Something the run did that the user may want to know (rows sorted, duplicates kept, values clamped)."""
+    LOGGER.info("note: %s", text)
+
+
+def detail(message: str) -> None:
+    """What `--verbose` adds: timings, per-segment notes of a many-segment run, the workers."""
+    LOGGER.debug("urdf-pipeline: %s", message)
+
+
+class _Stderr(logging.Handler):
+    """Each record as one line on the sys.stderr of the moment (a test's capture, a redirected stream)."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            sys.stderr.write(self.format(record) + "\n")
+            sys.stderr.flush()
+        except RecursionError:
+            raise
+        except Exception:
+            self.handleError(record)
+
+
+def _handler() -> logging.Handler:
+    handler = _Stderr()
+    handler.setFormatter(logging.Formatter("%(message)s"))
+    return handler
+
+
+@contextmanager
+def command_logging(level: int) -> Iterator[None]:
+    """The command line's logging for one command: its lines on stderr at `level` (WARNING with --quiet, DEBUG with
+    --verbose); the logger's state is given back after (tests and programs call `cli.main` in-process)."""
+    handler = _handler()
+    previous = LOGGER.level, LOGGER.propagate
+    LOGGER.addHandler(handler)
+    LOGGER.setLevel(level)
+    LOGGER.propagate = False  # the lines are the command's, not the embedding program's root logger's
+    try:
+        yield
+    finally:
+        LOGGER.removeHandler(handler)
+        LOGGER.setLevel(previous[0])
+        LOGGER.propagate = previous[1]
+
+
+def process_identity() -> str:
+    return f"{os.uname().nodename}:{os.getpid()}"
+
+
+def worker_logging(level: int, driver: str) -> None:
+    """In a worker process (a pool's, a Ray task's), the level the run's own process had; its lines on stderr. Left
+    alone in the run's own process (`driver`), whose logging is its caller's."""
+    if process_identity() == driver:
+        return
+    if not any(isinstance(h, _Stderr) for h in LOGGER.handlers):
+        LOGGER.addHandler(_handler())
+        LOGGER.propagate = False
+    LOGGER.setLevel(level)
 
 
 class RowProgress:
@@ -45,6 +120,7 @@ class SegmentProgress:
     """Segments done, frames/s and ETA: one redrawn bar when stderr is a terminal, else one plain line per segment."""
 
     def __init__(self, stream: TextIO | None = None, width: int = 30) -> None:
+        self.logged = stream is None  # its plain lines go through the logger; the bar is drawn on a terminal only
         self.stream = stream or sys.stderr
         self.tty = self.stream.isatty()
         self.width = width
@@ -98,7 +174,10 @@ class SegmentProgress:
         self.stream.flush()
 
     def _line(self, message: str) -> None:
-        print(f"urdf-pipeline: {message}", file=self.stream, flush=True)
+        if self.logged:
+            say(message)
+        else:
+            print(f"urdf-pipeline: {message}", file=self.stream, flush=True)
 
 
 class SegmentResultLike(Protocol):

@@ -1,4 +1,5 @@
 import json
+from importlib.metadata import version
 from pathlib import Path
 
 import jsonschema
@@ -54,3 +55,26 @@ def test_every_schema_error_is_reported_with_its_line() -> None:
 def test_cli_prints_the_schema(run_cli) -> None:
     result = run_cli("schema")
     assert result.code == 0 and json.loads(result.out)["$id"] == schema()["$id"]
+
+
+def test_id_is_the_released_schema_of_the_installed_version() -> None:
+    """A config keeps the schema of the release it was written for: the URL names the tag of this version."""
+    expected = (
+        f"https://raw.githubusercontent.com/urdf-pipeline/urdf-pipeline/v{version('urdf-pipeline')}/schemas/urdf-pipeline.schema.json"
+    )
+    assert schema()["$id"] == expected
+
+
+def test_cli_writes_the_schema_to_a_file(run_cli, tmp_path: Path) -> None:
+    target = tmp_path / "repo" / "schemas" / "urdf-pipeline.schema.json"
+    result = run_cli("schema", "-o", str(target))
+    assert result.code == 0 and result.out == "" and result.err == ""
+    assert target.read_text(encoding="utf-8") == schema_text()
+    target.write_text("old")
+    assert run_cli("schema", "--output", str(target)).code == 0 and target.read_text(encoding="utf-8") == schema_text()
+    assert sorted(p.name for p in target.parent.iterdir()) == [target.name]  # no temporary file left
+    refused = run_cli("schema", "-o", str(tmp_path / "repo" / "schemas"))  # a folder
+    assert refused.code == 1 and refused.err.startswith(f"error: cannot write the schema to {tmp_path / 'repo' / 'schemas'}")
+    assert sorted(p.name for p in target.parent.iterdir()) == [target.name]
+    (tmp_path / "file").write_text("")
+    assert "cannot write the schema" in run_cli("schema", "-o", str(tmp_path / "file" / "schema.json")).err  # parent is a file

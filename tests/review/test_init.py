@@ -3,6 +3,7 @@ the stub source file; with --source, names are read from metadata and pre-matche
 
 from __future__ import annotations
 
+import json
 import re
 import shutil
 from pathlib import Path
@@ -211,12 +212,12 @@ def test_output_rules(erd_share: Path, tmp_path: Path, run_cli) -> None:
     assert refused.code == 1 and "exists; --force overwrites it" in refused.err
     assert run_cli("init", "--urdf", urdf, "-o", str(config), "--force").code == 0
     assert config.read_text() == first  # deterministic
-    installed = (REPO / "urdf_pipeline" / "data" / "urdf-pipeline.schema.json").resolve()
-    assert first.splitlines()[0] == f"# yaml-language-server: $schema={installed.as_posix()}"
+    schema_id = json.loads((REPO / "urdf_pipeline" / "data" / "urdf-pipeline.schema.json").read_text())["$id"]
+    assert first.splitlines()[0] == f"# yaml-language-server: $schema={schema_id}"  # no schemas/ above: the URL, never a path
+    assert schema_id.startswith("https://raw.githubusercontent.com/urdf-pipeline/urdf-pipeline/v")
 
     inside = tmp_path / "repo" / "configs"  # a repository holding the schema: a relative path to it
-    (tmp_path / "repo" / "schemas").mkdir(parents=True)
-    shutil.copy(REPO / "schemas" / "urdf-pipeline.schema.json", tmp_path / "repo" / "schemas")
+    assert run_cli("schema", "-o", str(tmp_path / "repo" / "schemas" / "urdf-pipeline.schema.json")).code == 0  # vendored
     assert run_cli("init", "--urdf", urdf, "-o", str(inside / "so101.yaml")).code == 0
     assert (inside / "so101.yaml").read_text().startswith("# yaml-language-server: $schema=../schemas/urdf-pipeline.schema.json\n")
 
@@ -227,7 +228,8 @@ def test_output_rules(erd_share: Path, tmp_path: Path, run_cli) -> None:
 def test_refusals(erd_share: Path, tmp_path: Path, run_cli) -> None:
     xacro = tmp_path / "arm.urdf.xacro"
     xacro.write_text("<robot/>")
-    assert "xacro file" in run_cli("init", "--urdf", str(xacro)).err
+    refused = run_cli("init", "--urdf", str(xacro)).err
+    assert "xacro file" in refused and f"use --xacro {xacro}" in refused
     scene = tmp_path / "table.urdf"
     scene.write_text('<robot name="table"><link name="top"/></robot>')
     assert "no joint to drive" in run_cli("init", "--urdf", str(scene)).err

@@ -257,3 +257,41 @@ def test_hostile_configs_do_not_stop_the_others(here: Path, run_cli) -> None:
                 assert any(i["file"] == _config(name) and i["line"] == BY_NAME[name].line and i["severity"] == "error" for i in items), name
             else:
                 assert f"::error file={_config(name)},line={BY_NAME[name].line}," in result.out, name
+
+
+NOT_CONFIGS = {
+    "calib_edges.yaml": "- parent: world\n  child: camera\n  translation: [0, 0, 1]\n  rpy: [0, 0, 0]\n",  # a sidecar
+    "controllers.yaml": "controller_manager:\n  ros__parameters:\n    update_rate: 100\n",  # ROS parameters
+}
+STILL_CONFIGS = {  # validated, and refused: a config with a typo is never skipped
+    "typo_top_key.yaml": "version: 1\nrobot: {}\n",
+    "typo_every_key.yaml": "verison: 1\nsorces: {}\nrobtos: {}\n",
+    "empty.yaml": "",
+    "scalar.yaml": "just text\n",
+    "broken.yaml": "- [unclosed\n",
+}
+
+
+def test_skip_non_configs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, run_cli) -> None:
+    monkeypatch.chdir(tmp_path)
+    for name, text in {**NOT_CONFIGS, **STILL_CONFIGS}.items():
+        Path(name).write_text(text, encoding="utf-8")
+    skipped = {
+        "calib_edges.yaml": "a top-level list, like a sidecar file of calibration edges",
+        "controllers.yaml": "a mapping with none of a config's top-level keys (version, sources, robots, frames, edges, output)",
+    }
+    lines = [f"skipped: {name}: not a urdf-pipeline config ({why})" for name, why in skipped.items()]
+
+    text = run_cli("validate", "--no-data", "--skip-non-configs", *NOT_CONFIGS)
+    assert (text.code, text.out, text.err.splitlines()) == (0, "", lines)
+    report = run_cli("validate", "--skip-non-configs", "--format", "json", *NOT_CONFIGS)
+    assert (report.code, json.loads(report.out), report.err.splitlines()) == (0, [], lines)
+    github = run_cli("validate", "--skip-non-configs", "--format", "github", *NOT_CONFIGS)
+    assert (github.code, github.out, github.err.splitlines()) == (0, "", lines)
+
+    for name in STILL_CONFIGS:
+        result = run_cli("validate", "--no-data", "--skip-non-configs", name)
+        assert result.code == 1 and "skipped" not in result.err and f"error: {name}" in result.err, name
+    for name in NOT_CONFIGS:  # without the option, a file that is not a config is an error as before
+        result = run_cli("validate", name)
+        assert result.code == 1 and f"error: {name}" in result.err, name

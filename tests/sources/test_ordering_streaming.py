@@ -3,6 +3,7 @@ check (`in_memory=True`, the behaviour before streaming) ends: the same rows, th
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -13,6 +14,7 @@ import rerun as rr
 from rerun.chunk import Chunk, LazyChunkStream
 
 from urdf_pipeline.errors import UserError, Where
+from urdf_pipeline.progress import command_logging
 from urdf_pipeline.sources.ordering import (
     BLOCK_ROWS,
     ROW_ID,
@@ -25,6 +27,13 @@ from urdf_pipeline.sources.ordering import (
 )
 
 PATH = Path("/data/run.parquet")
+
+
+@pytest.fixture(autouse=True)
+def notes_on_stderr() -> Iterator[None]:
+    """The notes as the command line prints them (they go to the `urdf_pipeline` logger)."""
+    with command_logging(logging.INFO):
+        yield
 
 
 @dataclass(frozen=True)

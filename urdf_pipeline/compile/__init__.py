@@ -12,10 +12,13 @@ from typing import TYPE_CHECKING
 from .. import lazy_surface
 
 if TYPE_CHECKING:
-    from .compiler import compile_config, compile_document
+    from .compiler import DatalessCheck, DataNote, check_config_without_data, compile_config, compile_document
     from .temporal_edges import describe_temporal_edge
 
 __all__ = [
+    "DataNote",
+    "DatalessCheck",
+    "check_config_without_data",
     "compile_config",
     "compile_document",
     "describe_temporal_edge",
@@ -24,6 +27,9 @@ __all__ = [
 __getattr__ = lazy_surface(
     __name__,
     {
+        "DataNote": "compiler",
+        "DatalessCheck": "compiler",
+        "check_config_without_data": "compiler",
         "compile_config": "compiler",
         "compile_document": "compiler",
         "describe_temporal_edge": "temporal_edges",

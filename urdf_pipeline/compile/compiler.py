@@ -1,17 +1,23 @@
-"""Config file -> frozen plan: parse, validate against the schema, then every check that needs the URDF."""
+"""Config file -> frozen plan: parse, validate against the schema, then every check that needs the URDF.
+
+`check_config_without_data` (`validate --no-data`) makes the same checks except those that need the source files:
+for a repository that keeps its configs in git and its datasets elsewhere."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 from ..config import Document, expand_edge_specs, load_document, require_schema_valid
-from ..plan import OutputPlan, Plan, RobotPlan, SourcePlan
+from ..errors import UserError, UserErrors, Where
+from ..plan import EdgePlan, OutputPlan, Plan, RobotPlan, SourcePlan, TemporalEdgePlan
+from ..sources import kind_of
 from ..urdf import UrdfModel
-from .context import CompileContext
+from .context import CompileContext, SourceNames
 from .edges import assumed_identity_edges, compile_edges, frame_edges, urdf_frames
 from .frame_graph import check_frame_graph
 from .robots import compile_robot
-from .segments import compile_sources, expand_segments
+from .segments import check_segments_without_data, compile_sources, expand_segments
 
 
 def compile_config(config_path: Path, episodes: str | None = None) -> Plan:
@@ -23,12 +29,89 @@ def compile_config(config_path: Path, episodes: str | None = None) -> Plan:
 
 def compile_document(document: Document, episodes: str | None = None) -> Plan:
     ctx = CompileContext.for_document(document)
-    data = ctx.data
-    problems = ctx.problems
-
     compiled_sources = compile_sources(ctx)
     sources: dict[str, SourcePlan] = compiled_sources.plans
+    model = _compile_model(ctx, {name: plan.names for name, plan in sources.items()})
+    dataset = expand_segments(ctx, compiled_sources, episodes) if len(sources) == len(ctx.data["sources"]) else None
+    ctx.problems.raise_if_any()
+    assert model.root is not None and dataset is not None
+    first = dataset.segments[0]
+    output = OutputPlan(first.output, ctx.data["output"]["application_id"], first.id, ctx.where("output"))
+    return Plan(document.file, first.sources, model.robots, model.edges, model.root, output, model.temporal, dataset)
 
+
+@dataclass(frozen=True)
+class DataNote:
+    """What `validate --no-data` could not check because only a source's data holds it."""
+
+    message: str
+    where: Where
+
+
+@dataclass(frozen=True)
+class DatalessCheck:
+    """What checking a config without its data found. It holds no Plan on purpose: a plan made without reading the
+    sources (their files, widths, episodes, segments) must never reach `run`."""
+
+    errors: tuple[UserError, ...]
+    notes: tuple[DataNote, ...]
+
+
+def check_config_without_data(config_path: Path) -> DatalessCheck:
+    """`validate --no-data`: the schema, URDFs, meshes, joint coverage, the frame graph and the output templates,
+    checked from the config alone; no source file is opened, no data path is globbed or even looked at. Source names
+    come from `names:`; a source without them gets a note, and what needs them (map keys, ignore, temporal edge
+    values) is left to the checks that read the data (`validate`, `run`), as are the segments' number and names."""
+    try:
+        document = load_document(config_path)
+        require_schema_valid(document)
+    except UserError as exc:
+        return DatalessCheck(tuple(exc.errors if isinstance(exc, UserErrors) else [exc]), ())
+    ctx = CompileContext.for_document(document)
+    names: dict[str, tuple[str, ...] | None] = {}
+    notes: list[DataNote] = []
+    for name, spec in ctx.data["sources"].items():
+        names[name] = tuple(spec["names"]) if "names" in spec else None
+        if names[name] is None:
+            notes.append(DataNote(_names_unknown(kind_of(spec)), ctx.where("sources", name)))
+    _compile_model(ctx, names)
+    check_segments_without_data(ctx)
+    return DatalessCheck(tuple(ctx.problems.errors), tuple(notes))
+
+
+NAMES_HELD_BY = {  # where a source without `names:` gets them
+    "parquet": "the parquet file's columns",
+    "csv": "the CSV header",
+    "lerobot": "the dataset's meta/info.json",
+    "mcap": "the topic's first message",
+    "hdf5": "the dataset's width, 0 .. K-1",
+    "rrd": "the recording's SeriesLines:names",
+}
+
+
+def _names_unknown(kind: str) -> str:
+    holder = NAMES_HELD_BY.get(kind, "its data")
+    return (
+        f"names unknown without data (they come from {holder}): the map keys, ignore and temporal edge values naming "
+        "them are checked at run (and by validate without --no-data); give names: [...] to check them here"
+    )
+
+
+@dataclass(frozen=True)
+class _Model:
+    """Robots, edges and the root: everything the Plan holds that needs no source file beyond its value names."""
+
+    robots: tuple[RobotPlan, ...]
+    edges: tuple[EdgePlan, ...]
+    temporal: tuple[TemporalEdgePlan, ...]
+    root: str | None
+
+
+def _compile_model(ctx: CompileContext, sources: SourceNames) -> _Model:
+    """Every check between the sources and the segments, problems added to ctx: robots (URDF, meshes, joint
+    coverage), unused sources, edges (sidecars included) and the frame graph. `sources`: the names of each source
+    that compiled."""
+    data, problems = ctx.data, ctx.problems
     robots: list[RobotPlan] = []
     models: dict[str, UrdfModel] = {}  # parsed once, for the edges that walk a URDF (fixed_chain)
     for key, spec in data["robots"].items():
@@ -37,7 +120,7 @@ def compile_document(document: Document, episodes: str | None = None) -> Plan:
             robots.append(compiled.plan)
             models[key] = compiled.model
 
-    edge_specs = expand_edge_specs(data.get("edges", []), document, problems)  # inline edges and sidecar files, in order
+    edge_specs = expand_edge_specs(data.get("edges", []), ctx.document, problems)  # inline edges and sidecar files, in order
     used = {spec["joints"]["source"] for spec in data["robots"].values() if "joints" in spec}
     used |= {edge.spec["source"] for edge in edge_specs if "source" in edge.spec}  # temporal edges read sources too
     for name in data["sources"]:
@@ -60,12 +143,7 @@ def compile_document(document: Document, episodes: str | None = None) -> Plan:
         edges += identity
         graph += frame_edges([], identity, [], models)
         check_frame_graph(ctx, graph, urdf_frames(robots), root, ctx.where("frames", "root"))
-    dataset = expand_segments(ctx, compiled_sources, episodes) if len(sources) == len(data["sources"]) else None
-    problems.raise_if_any()
-    assert root is not None and dataset is not None
-    first = dataset.segments[0]
-    output = OutputPlan(first.output, data["output"]["application_id"], first.id, ctx.where("output"))
-    return Plan(document.file, first.sources, tuple(robots), tuple(edges), root, output, tuple(temporal), dataset)
+    return _Model(tuple(robots), tuple(edges), tuple(temporal), root)
 
 
 def _check_unique_prefixes(ctx: CompileContext) -> bool:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -9,6 +10,10 @@ from typing import Any
 from ..config import Document
 from ..confine import Confinement, confinement_for
 from ..errors import Problems, Where
+
+SourceNames = Mapping[str, tuple[str, ...] | None]
+"""The names of each source's values, by source; None when only its data holds them (`validate --no-data`)."""
+UNKNOWN_INDEX = -1  # a value's position when only the data knows it: `validate --no-data`, which returns no Plan
 
 
 @dataclass(frozen=True)

@@ -10,9 +10,9 @@ from typing import Any
 
 from ..config import EdgeSpec
 from ..errors import warn
-from ..plan import EdgePlan, FixedChain, RobotPlan, SourcePlan, TemporalEdgePlan
+from ..plan import EdgePlan, FixedChain, RobotPlan, TemporalEdgePlan
 from ..urdf import NoFixedChain, UrdfModel, compose_chain, find_fixed_chain, normalized_quaternion, quaternion_from_rpy
-from .context import CompileContext
+from .context import CompileContext, SourceNames
 from .frame_graph import FrameEdge, check_assume_identity
 from .temporal_edges import compile_temporal_edge
 
@@ -32,7 +32,7 @@ def compile_edges(
     specs: list[EdgeSpec],
     robots: list[RobotPlan] | None,
     models: Mapping[str, UrdfModel],
-    sources: dict[str, SourcePlan],
+    sources: SourceNames,
 ) -> CompiledEdges:
     """Static and fixed_chain edges, temporal edges, and the edges that failed. `robots` is None when frame names
     cannot be traced to robots (a robot failed, or prefixes collide): fixed chains are then skipped, already in error."""

@@ -1,6 +1,8 @@
 """Decide, before reading any value, which source value drives which URDF joint and how.
 
 Every moving URDF joint is covered exactly once (map, hold or <mimic>); every source name is mapped or ignored.
+Names None (`validate --no-data`, a source whose names only its data holds): the map's keys and `ignore` are not
+checked against the source, everything about the URDF side is.
 Conversion order: unit conversion, then sign, then offset: urdf = (raw * factor) * sign + offset. The unit of a
 value is its entry's `unit`, else the robot's `joints.unit` for the joint's kind (units.robot_units).
 """
@@ -14,7 +16,7 @@ from ..errors import Where
 from ..errors import did_you_mean as _hint
 from ..plan import HeldJoint, JointChannel, MimicJoint, OnViolation
 from ..urdf import UrdfModel
-from .context import CompileContext
+from .context import UNKNOWN_INDEX, CompileContext
 from .units import ANGULAR_UNITS, FACTORS, RobotUnits, fits, robot_units, urdf_unit
 
 
@@ -49,7 +51,7 @@ class _MapEntry:
 
 
 def compile_joints(
-    ctx: CompileContext, robot_key: str, joints_spec: dict[str, Any], names: tuple[str, ...], model: UrdfModel
+    ctx: CompileContext, robot_key: str, joints_spec: dict[str, Any], names: tuple[str, ...] | None, model: UrdfModel
 ) -> JointMapping:
     problems = ctx.problems
     here = ("robots", robot_key, "joints")
@@ -69,13 +71,13 @@ def compile_joints(
         spec = {"joint": written} if isinstance(written, str) else written
         joint_names = spec["joint"] if isinstance(spec["joint"], list) else [spec["joint"]]
         attempted.update(joint_names)
-        if source_name not in names:
+        if names is not None and source_name not in names:
             problems.add(
                 f"'{source_name}' is not a name of source '{source}'{_hint(source_name, list(names))}; its names are: {', '.join(names)}",
                 where,
             )
             continue
-        entry = _MapEntry(source_name, names.index(source_name), spec, where)
+        entry = _MapEntry(source_name, names.index(source_name) if names is not None else UNKNOWN_INDEX, spec, where)
         if not _corrections_consistent(ctx, entry):
             continue
         for joint_name in joint_names:
@@ -112,14 +114,14 @@ def compile_joints(
     ignored = [str(name) for name in joints_spec.get("ignore", [])]  # 7 and "7": a value named by its index
     for index, name in enumerate(ignored):
         where = ctx.where(*here, "ignore", index)
-        if name not in names:
+        if names is not None and name not in names:
             problems.add(f"ignored name '{name}' is not a name of source '{source}'{_hint(name, list(names))}", where)
         elif name in joints_spec["map"]:
             problems.add(f"'{name}' is both mapped and ignored; keep one", where)
 
     if robot.units.given is not None:
         _check_unit_applies(ctx, robot, joints_spec, ctx.where(*here, "unit"))
-    unused = [n for n in names if n not in joints_spec["map"] and n not in ignored]
+    unused = [n for n in names or () if n not in joints_spec["map"] and n not in ignored]
     if unused:
         problems.add(
             f"source names neither mapped nor ignored: {', '.join(unused)}; map each to a URDF joint or list it under ignore",

@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import UserError, UserErrors, listing, warn
-from ..plan import RobotPlan, SourcePlan
+from ..plan import RobotPlan
 from ..urdf import (
     LoadedUrdf,
     UrdfModel,
@@ -21,7 +21,7 @@ from ..urdf import (
     rewrite_mesh_uris,
     text_for_rerun,
 )
-from .context import CompileContext
+from .context import CompileContext, SourceNames
 from .joint_mapping import JointMapping, compile_joints
 
 
@@ -63,9 +63,9 @@ def load_urdf(ctx: CompileContext, key: str, spec: dict[str, Any], package_paths
     return RobotUrdf(loaded, model, text)
 
 
-def compile_robot(ctx: CompileContext, key: str, spec: dict[str, Any], sources: dict[str, SourcePlan]) -> CompiledRobot | None:
-    """The robot's plan and parsed URDF. `sources` holds the sources that compiled (a source the config defines but
-    that failed is reported once, by itself)."""
+def compile_robot(ctx: CompileContext, key: str, spec: dict[str, Any], sources: SourceNames) -> CompiledRobot | None:
+    """The robot's plan and parsed URDF. `sources` names the values of each source that compiled (a source the config
+    defines but that failed is reported once, by itself); None: only its data knows them (`validate --no-data`)."""
     problems = ctx.problems
     here = ("robots", key)
     package_paths = {name: (ctx.config_dir / folder).resolve() for name, folder in spec.get("package_paths", {}).items()}
@@ -123,17 +123,16 @@ def compile_robot(ctx: CompileContext, key: str, spec: dict[str, Any], sources: 
         source_name: str | None = None
         joints = JointMapping()
     else:
-        source = sources.get(joints_spec["source"])
-        if source is None:
-            if joints_spec["source"] in ctx.source_names:
+        source_name = joints_spec["source"]
+        if source_name not in sources:
+            if source_name in ctx.source_names:
                 return None  # the source itself is broken and already reported
             problems.add(
-                f"no source named '{joints_spec['source']}'; sources are: {', '.join(sources) or 'none'}",
+                f"no source named '{source_name}'; sources are: {', '.join(sources) or 'none'}",
                 ctx.where(*here, "joints", "source"),
             )
             return None
-        source_name = source.name
-        joints = compile_joints(ctx, key, joints_spec, source.names, model)
+        joints = compile_joints(ctx, key, joints_spec, sources[source_name], model)
     prefix = spec.get("entity_path_prefix", key).strip("/")
     plan = RobotPlan(
         key=key,

@@ -128,11 +128,7 @@ def expand_segments(ctx: CompileContext, sources: CompiledSources, episodes_over
         selection = parse_episodes(output.get("episodes", "all"), ctx.where("output", "episodes"))
         where_selection = ctx.where("output", "episodes") if "episodes" in output else where_segment
     if episodic and sources.files:
-        problems.add(
-            f"segments come either from LeRobot episodes ({listing(sorted(episodic))}) or from globbed files "
-            f"({listing(sorted(sources.files))}), not both; pin the LeRobot episode with `episode:` or list one file",
-            ctx.where("sources"),
-        )
+        problems.add(_both_kinds_of_segments(list(episodic), list(sources.files)), ctx.where("sources"))
         return None
 
     keys: list[tuple[int | None, str | None]]  # (episode, stem) per segment
@@ -153,10 +149,7 @@ def expand_segments(ctx: CompileContext, sources: CompiledSources, episodes_over
         keys = [(i, stems[i]) for i in positions]
     else:
         if episodes_override is not None or "episodes" in output:
-            problems.add(
-                "episodes selects LeRobot episodes (a lerobot source without `episode:`) or globbed files; this config has neither",
-                where_selection,
-            )
+            problems.add(NOTHING_TO_SELECT, where_selection)
             return None
         pinned = [p.episode for p in sources.plans.values() if isinstance(p, LeRobotSourcePlan)]
         keys = [(pinned[0] if len(pinned) == 1 else None, None)]
@@ -174,6 +167,48 @@ def expand_segments(ctx: CompileContext, sources: CompiledSources, episodes_over
         rows = frames.get(episode) if episodic and episode is not None else None
         segments.append(Segment(segment_id, episode, stem, own, path, rows, inputs))
     return _dataset_plan(ctx, tuple(segments))
+
+
+NOTHING_TO_SELECT = "episodes selects LeRobot episodes (a lerobot source without `episode:`) or globbed files; this config has neither"
+
+
+def _both_kinds_of_segments(episodic: list[str], globbed: list[str]) -> str:
+    return (
+        f"segments come either from LeRobot episodes ({listing(sorted(episodic))}) or from globbed files "
+        f"({listing(sorted(globbed))}), not both; pin the LeRobot episode with `episode:` or list one file"
+    )
+
+
+def check_segments_without_data(ctx: CompileContext) -> None:
+    """`validate --no-data`: what expand_segments checks from the config alone. Which episodes or files there are is
+    unknown, so one stand-in segment is named (episode 0, file stem `stem`): the templates, the layout and where the
+    outputs go are checked; what depends on the segments' number or names (ids that collide, output.path without
+    {segment} for several segments, the episodes selected) is left to the checks that read the data."""
+    problems, output, specs = ctx.problems, ctx.data["output"], ctx.data["sources"]
+    episodic = [name for name, spec in specs.items() if kind_of(spec) == "lerobot" and "episode" not in spec]
+    globbed = [name for name, spec in specs.items() if kind_of(spec) != "lerobot" and GLOB_CHARACTERS.search(spec[kind_of(spec)])]
+    if "episodes" in output:
+        try:
+            parse_episodes(output["episodes"], ctx.where("output", "episodes"))
+        except UserError as error:
+            problems.extend(error)
+            return
+    if episodic and globbed:
+        problems.add(_both_kinds_of_segments(episodic, globbed), ctx.where("sources"))
+        return
+    key: tuple[int | None, str | None]
+    if episodic or globbed:
+        key = (0, "stem" if globbed else None)
+    elif "episodes" in output:
+        problems.add(NOTHING_TO_SELECT, ctx.where("output", "episodes"))
+        return
+    else:
+        pinned = [spec["episode"] for spec in specs.values() if kind_of(spec) == "lerobot"]
+        key = (pinned[0] if len(pinned) == 1 else None, None)
+    ids = _segment_ids(ctx, output["segment"], [key], ctx.where("output", "segment"))
+    paths = _output_paths(ctx, output["path"], ids) if ids is not None else None
+    if ids is not None and paths is not None:
+        _dataset_plan(ctx, (Segment(ids[0], key[0], key[1], (), paths[0], None, ()),))
 
 
 def _common_stems(ctx: CompileContext, files: dict[str, dict[str, SourcePlan]]) -> list[str] | None:

@@ -11,8 +11,8 @@ import re
 
 from ..config import EdgeSpec
 from ..errors import closest, listing
-from ..plan import SourcePlan, TemporalEdgePlan
-from .context import CompileContext
+from ..plan import TemporalEdgePlan
+from .context import UNKNOWN_INDEX, CompileContext, SourceNames
 
 TEMPORAL_ENTITY = "/calibration/temporal"
 
@@ -24,40 +24,42 @@ def describe_temporal_edge(edge: TemporalEdgePlan) -> str:
 # --- compile ---------------------------------------------------------------------------------------------------
 
 
-def compile_temporal_edge(
-    ctx: CompileContext, edge: EdgeSpec, sources: dict[str, SourcePlan], taken_entities: set[str]
-) -> TemporalEdgePlan | None:
+def compile_temporal_edge(ctx: CompileContext, edge: EdgeSpec, sources: SourceNames, taken_entities: set[str]) -> TemporalEdgePlan | None:
     """Check the source and every value name now (metadata only); values are checked in the data pass. `taken_entities`
-    holds the entity paths earlier temporal edges took; this edge's is added."""
+    holds the entity paths earlier temporal edges took; this edge's is added. A source whose names only its data
+    holds (`validate --no-data`) leaves the value names unchecked and their positions UNKNOWN_INDEX."""
     problems, defined = ctx.problems, ctx.source_names
     spec = edge.spec
     name = spec["source"]
-    source = sources.get(name)
-    if source is None:
+    if name not in sources:
         if name not in defined:
             problems.add(f"no source named '{name}'; sources are: {', '.join(sorted(defined)) or 'none'}", edge.where("source"))
         return None  # else the source itself is broken and already reported
-    position = {value: index for index, value in enumerate(source.names)}
+    names = sources[name]
     missing = False
     for key in ("translation", "quaternion_xyzw"):
         for index, value in enumerate(spec[key]):
-            if value not in position:
-                close = closest(value, source.names)
-                hint = f" (did you mean '{close}'?)" if close is not None else f"; it has: {listing(source.names)}"
+            if names is not None and value not in names:
+                close = closest(value, names)
+                hint = f" (did you mean '{close}'?)" if close is not None else f"; it has: {listing(names)}"
                 problems.add(f"source '{name}' has no value named '{value}'{hint}", edge.where(key, index))
                 missing = True
     if missing:
         return None
     translation = tuple(spec["translation"])
     quaternion = tuple(spec["quaternion_xyzw"])
+
+    def at(value: str) -> int:
+        return names.index(value) if names is not None else UNKNOWN_INDEX
+
     return TemporalEdgePlan(
         parent=spec["parent"],
         child=spec["child"],
         source=name,
         translation_names=translation,  # type: ignore[arg-type]
         quaternion_names=quaternion,  # type: ignore[arg-type]
-        translation_indices=tuple(position[v] for v in translation),  # type: ignore[arg-type]
-        quaternion_indices=tuple(position[v] for v in quaternion),  # type: ignore[arg-type]
+        translation_indices=tuple(at(v) for v in translation),  # type: ignore[arg-type]
+        quaternion_indices=tuple(at(v) for v in quaternion),  # type: ignore[arg-type]
         entity=_entity_for(spec["child"], taken_entities),
         label=edge.label,
         where=edge.where(),

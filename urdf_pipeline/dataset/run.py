@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 from ..errors import Problems, UserError
 from ..execute import Parts, SegmentJob, SegmentResult, remove_stale_partials, require_ours, require_writable, run_segment
 from ..plan import Plan
-from ..progress import SegmentProgress
+from ..progress import LOGGER, SegmentProgress, process_identity
 from .executors import ExecutorName, executor_for
 from .fingerprint import file_hashes_used, model_hash, remember_file_hashes, segment_hashes
 from .interrupts import signal_name, signal_number
@@ -99,6 +99,8 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
     work: Callable[[SegmentJob], SegmentResult] = run_segment
     if options.verbose and len(to_run) == 1 and options.executor == "local":
         to_run = [replace(to_run[0], verbose=True)]
+    level, driver = LOGGER.getEffectiveLevel(), process_identity()  # workers elsewhere log as this process does
+    to_run = [replace(job, log_level=level, driver=driver) for job in to_run]
     interrupted = 0
     try:
         executor_for(options.executor, options.jobs, options.ray_address, plan).run(work, to_run, on_done, on_crash)

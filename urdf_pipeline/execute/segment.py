@@ -3,7 +3,6 @@ before the file is renamed into place."""
 
 from __future__ import annotations
 
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -13,6 +12,7 @@ from typing import TYPE_CHECKING, Literal
 from ..errors import Problems
 from ..plan import Plan
 from ..progress import RowProgress, say
+from ..progress import note as log_note
 from ..sources import CallbackErrors, JointValueMapper, module_for, with_sorting_retry
 from .edges_stream import calibration_stream
 from .fk_stream import JointTransformBatches, fk_stream
@@ -38,10 +38,6 @@ class RunResult:
     seconds: float
 
 
-def _note(note: str) -> None:
-    print(f"note: {note}", file=sys.stderr)
-
-
 def _silent(message: str) -> None:
     """Progress lines of one segment among many are left out: the run's progress bar says it for all of them."""
 
@@ -50,7 +46,7 @@ def execute(
     plan: Plan,
     parts: Parts = "all",
     provenance: dict[str, str] | None = None,
-    on_note: Callable[[str], None] = _note,
+    on_note: Callable[[str], None] = log_note,
     quiet: bool = False,
     rows_expected: int | None = None,
 ) -> RunResult:
@@ -142,7 +138,7 @@ def _write(
     return written, opened.rows(), tuple(notes)
 
 
-def log_segment(plan: Plan, recording: RecordingStream, on_note: Callable[[str], None] = _note) -> dict[str, int]:
+def log_segment(plan: Plan, recording: RecordingStream, on_note: Callable[[str], None] = log_note) -> dict[str, int]:
     """One segment's model, FK and edges sent into the caller's recording as they are read (bounded memory, as a run).
     The checks of the pass (limits, NaN, zero rows) run after it and raise then: what was read is already sent. A
     source found out of time order part-way is sent again, whole and sorted (its earlier rows twice, same poses)."""

@@ -6,9 +6,8 @@ happened instead of raising, so one failing segment does not stop the others.
 
 from __future__ import annotations
 
-import os
+import logging
 import resource
-import sys
 import time
 import traceback
 from dataclasses import dataclass, replace
@@ -17,6 +16,7 @@ from typing import Literal
 
 from ..errors import UserError
 from ..plan import Plan, Segment
+from ..progress import note, process_identity, worker_logging
 from .segment import Parts
 
 Status = Literal["written", "skipped", "failed", "bug", "interrupted"]
@@ -33,6 +33,8 @@ class SegmentJob:
     content_hash: str
     frames_expected: int | None = None
     verbose: bool = False  # the run's only job, in the main process: print progress and notes as they come
+    log_level: int = logging.INFO  # the run's process's level for the `urdf_pipeline` logger (--quiet, --verbose)
+    driver: str = ""  # host:pid of the run's process: a worker elsewhere sets up its own logging at `log_level`
     run_plan: Plan | None = None  # None when the worker was given the run's plan once, at its start (install_run_plan)
 
     def plan(self) -> Plan:
@@ -68,11 +70,13 @@ def run_segment(job: SegmentJob) -> SegmentResult:
 
     started = time.perf_counter()
     notes: list[str] = []
+    if job.driver:
+        worker_logging(job.log_level, job.driver)
 
-    def on_note(note: str) -> None:
-        notes.append(note)
+    def on_note(text: str) -> None:
+        notes.append(text)
         if job.verbose:
-            print(f"note: {note}", file=sys.stderr)
+            note(text)
 
     failed = SegmentResult(job.label, job.output, "failed", job.content_hash)
     try:
@@ -90,5 +94,5 @@ def run_segment(job: SegmentJob) -> SegmentResult:
 def _finished(result: SegmentResult, started: float) -> SegmentResult:
     """With the time it took and the worker's identity and peak memory (KiB on Linux), for the summary and --report."""
     peak_mib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    worker = f"{os.uname().nodename}:{os.getpid()}"
+    worker = process_identity()
     return replace(result, seconds=time.perf_counter() - started, worker=worker, peak_rss_mib=peak_mib)

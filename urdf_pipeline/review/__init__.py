@@ -15,8 +15,9 @@ if TYPE_CHECKING:
     from .check import check_config, check_exit_code, render_check
     from .diff_inputs import diff_files, diff_git
     from .diff_render import render_diff
+    from .init_urdf import urdf_argument
     from .report import plan_command
-    from .scaffold import init_config
+    from .scaffold import init_config, schema_reference, write_schema
 
 __all__ = [
     "check_config",
@@ -30,7 +31,10 @@ __all__ = [
     "render_diff",
     "render_text_errors",
     "render_text_progress",
+    "schema_reference",
+    "urdf_argument",
     "validate_config",
+    "write_schema",
 ]
 
 __getattr__ = lazy_surface(
@@ -47,6 +51,9 @@ __getattr__ = lazy_surface(
         "render_diff": "diff_render",
         "render_text_errors": "annotations",
         "render_text_progress": "annotations",
+        "schema_reference": "scaffold",
+        "urdf_argument": "init_urdf",
         "validate_config": "annotations",
+        "write_schema": "scaffold",
     },
 )

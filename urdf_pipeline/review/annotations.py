@@ -1,10 +1,12 @@
 """`validate`: what validating each config found (ConfigResult), and its text, github and json renderings.
 
-`text` prints each config's warnings (stderr) and `ok: CONFIG` (stdout) as it is validated, then every error of every
-config (stderr). `github` renders each problem as a GitHub Actions workflow command (`::error file=F,line=L,col=C::PATH:
-message`), so the problems show as annotations on the pull request's files; `json` as a list of objects. Both sort
-records by file, line, column, YAML path, severity (errors first) and message, and print identical ones (a sidecar
-shared by two configs) once. Line and column are 1-based, 0 when unknown (a problem with the file as a whole).
+`text` prints each config's warnings and notes (stderr) and `ok: CONFIG` (stdout) as it is validated, then every error
+of every config (stderr). `github` renders each problem as a GitHub Actions workflow command (`::error file=F,line=L,
+col=C::PATH: message`; a note is a `::notice`), so the problems show as annotations on the pull request's files; `json`
+as a list of objects. Both sort records by file, line, column, YAML path, severity (errors, warnings, notes) and
+message, and print identical ones (a sidecar shared by two configs) once. Line and column are 1-based, 0 when unknown
+(a problem with the file as a whole). Notes come from `--no-data` only: what it could not check without the data. A
+file skipped by `--skip-non-configs` is one `skipped: FILE: not a urdf-pipeline config (WHY)` line on stderr.
 """
 
 from __future__ import annotations
@@ -17,14 +19,17 @@ from pathlib import Path
 from typing import Literal
 
 from ..errors import ConfigWarning, UserError, UserErrors, Where, collect_warnings, located
+from .non_config import not_a_config
 
-Severity = Literal["error", "warning"]
+Severity = Literal["error", "warning", "note"]
+SEVERITY_ORDER = {"error": 0, "warning": 1, "note": 2}
+GITHUB_COMMAND = {"error": "error", "warning": "warning", "note": "notice"}
 AnnotationFormat = Literal["github", "json"]
 
 
 @dataclass(frozen=True)
 class Problem:
-    """One error or warning of a config, at its place (None: the config as a whole)."""
+    """One error, warning or note of a config, at its place (None: the config as a whole)."""
 
     severity: Severity
     message: str
@@ -42,13 +47,22 @@ class ConfigResult:
     config: str  # as the user gave it
     warnings: tuple[Problem, ...]  # in the order compiling raised them
     errors: tuple[Problem, ...]
+    notes: tuple[Problem, ...] = ()  # --no-data: what only the data could check
+    skipped: str = ""  # --skip-non-configs: why the file is not a config (then nothing else is set)
 
     @property
     def ok(self) -> bool:
+        """No error: the exit status. A skipped file has none."""
         return not self.errors
 
+    def ok_line(self) -> str:
+        return f"ok: {self.config}\n" if self.ok and not self.skipped else ""
+
     def annotations(self) -> list[Annotation]:
-        return [Annotation.at(p.severity, p.message, p.where, self.config) for p in (*self.warnings, *self.errors)]
+        return [Annotation.at(p.severity, p.message, p.where, self.config) for p in (*self.warnings, *self.errors, *self.notes)]
+
+    def skipped_line(self) -> str:
+        return f"skipped: {self.config}: not a urdf-pipeline config ({self.skipped})\n" if self.skipped else ""
 
 
 @dataclass(frozen=True)
@@ -70,7 +84,7 @@ class Annotation:
         return Annotation(os.path.normpath(where.file), where.line, where.column if where.line else 0, where.path, severity, message)
 
     def sort_key(self) -> tuple[str, int, int, str, int, str]:
-        return self.file, self.line, self.column, self.path, 0 if self.severity == "error" else 1, self.message
+        return self.file, self.line, self.column, self.path, SEVERITY_ORDER[self.severity], self.message
 
     def github(self) -> str:
         """The workflow command: `::error file=F,line=L,col=C::PATH: message` (line and col only when known)."""
@@ -80,24 +94,37 @@ class Annotation:
             if self.column:
                 properties.append(f"col={self.column}")
         text = f"{self.path}: {self.message}" if self.path else self.message
-        return f"::{self.severity} {','.join(properties)}::{_escape_data(text)}"
+        return f"::{GITHUB_COMMAND[self.severity]} {','.join(properties)}::{_escape_data(text)}"
 
 
-def validate_config(config: str) -> ConfigResult:
-    """Compile the config as `validate` does, collecting its errors and warnings instead of printing them."""
-    from ..compile import compile_config
+def validate_config(config: str, *, data: bool = True, skip_non_configs: bool = False) -> ConfigResult:
+    """Compile the config as `validate` does, collecting its errors and warnings instead of printing them. `data`
+    False (`--no-data`): every check that opens no source file, and a note per source whose names only its data
+    holds. `skip_non_configs`: a YAML file that is no config (non_config.py) is skipped rather than refused."""
+    from ..compile import check_config_without_data, compile_config
 
+    if skip_non_configs:
+        reason = not_a_config(Path(config))
+        if reason is not None:
+            return ConfigResult(config, (), (), skipped=reason)
     errors: list[UserError] = []
+    notes: tuple[Problem, ...] = ()
     warnings: list[ConfigWarning]
     with collect_warnings() as warnings:
-        try:
-            compile_config(Path(config))
-        except UserError as exc:
-            errors = exc.errors if isinstance(exc, UserErrors) else [exc]
+        if data:
+            try:
+                compile_config(Path(config))
+            except UserError as exc:
+                errors = exc.errors if isinstance(exc, UserErrors) else [exc]
+        else:
+            found = check_config_without_data(Path(config))
+            errors = list(found.errors)
+            notes = tuple(Problem("note", note.message, note.where) for note in found.notes)
     return ConfigResult(
         config,
         tuple(Problem("warning", w.message, w.where) for w in warnings),
         tuple(Problem("error", e.message, e.where) for e in errors),
+        notes,
     )
 
 
@@ -110,8 +137,10 @@ class Shown:
 
 
 def render_text_progress(result: ConfigResult) -> Shown:
-    """text, as each config is done: its warnings, and `ok: CONFIG` when it has no error."""
-    return Shown(f"ok: {result.config}\n" if result.ok else "", "".join(p.line() + "\n" for p in result.warnings))
+    """text, as each config is done: its warnings and notes (or why it was skipped), and `ok: CONFIG` when it has no
+    error."""
+    said = result.skipped_line() + "".join(p.line() + "\n" for p in (*result.warnings, *result.notes))
+    return Shown(result.ok_line(), said)
 
 
 def render_text_errors(results: Iterable[ConfigResult]) -> str:
@@ -121,13 +150,13 @@ def render_text_errors(results: Iterable[ConfigResult]) -> str:
 
 def render_annotations(results: Sequence[ConfigResult], format: AnnotationFormat) -> Shown:
     """github / json: the annotations on stdout (one workflow command a line, or a JSON list, `[]` when there is
-    nothing to say), `ok: CONFIG` on stderr."""
+    nothing to say), `ok: CONFIG` and the skipped files on stderr."""
     annotations = sorted(dict.fromkeys(a for result in results for a in result.annotations()), key=Annotation.sort_key)
     if format == "github":
         stdout = "".join(annotation.github() + "\n" for annotation in annotations)
     else:
         stdout = json.dumps([asdict(annotation) for annotation in annotations], indent=2) + "\n"
-    return Shown(stdout, "".join(f"ok: {result.config}\n" for result in results if result.ok))
+    return Shown(stdout, "".join(result.ok_line() + result.skipped_line() for result in results))
 
 
 def _escape_data(text: str) -> str:

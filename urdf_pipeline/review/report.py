@@ -10,13 +10,12 @@ from __future__ import annotations
 
 import math
 import os
-import sys
 from collections.abc import Sequence
 from dataclasses import fields, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
-from ..errors import ConfigWarning, collect_warnings
+from ..errors import ConfigWarning, collect_warnings, show_warning
 from ..plan import IndexPlan, Plan, RobotPlan, SourcePlan
 from ..urdf import Joint, UrdfModel, parse_urdf_text
 from .pictures import plan_pictures
@@ -75,7 +74,7 @@ def plan_command(
             plan = compile_config(config)
     finally:
         for warning in warnings:
-            print(warning.line(), file=sys.stderr)
+            show_warning(warning)
     sample = read_plan_sample(plan, sample_rows) if sample_rows is not None else None
     report = build_report(plan, warnings, sample)
     if render is not None:

@@ -1,5 +1,8 @@
 """`urdf-pipeline init`: scaffold a config from a URDF, optionally pre-matched to a source's names.
 
+The URDF comes in any form `run` accepts (`--urdf PATH`, `--xacro FILE --arg NAME=VALUE`, `--robot-descriptions
+NAME`), loaded as `run` loads it and written in the matching form: see `init_urdf.py`.
+
 The result is YAML text with comments, generated here (not dumped) so that every guess carries its reason:
 `# TODO: ...` marks what init could not know (a stub to fill in, a decision to make: an ignored name, a held joint,
 the calibration edge), `# review: ...` a guess to check (a name match and its score, a unit). `validate` refuses
@@ -13,31 +16,36 @@ kinds' `SUFFIXES`, a directory holding meta/info.json). A glob in a file path (`
 source, one segment per file. `source_probe.py` turns the description into the config entry.
 
 Sources with names are matched to the URDF's joints by name similarity (see `match_names`); sources without names
-(parquet, HDF5, a LeRobot feature without names) are matched by position and get the URDF joint names as `names`.
+(parquet, HDF5, a LeRobot feature without names) are matched by position and get the URDF joint names as `names`;
+when their width differs from the URDF's joints to drive, that guess is surely wrong in part: the names carry a TODO
+and init says what differs instead of "the config validates".
 
 The `# yaml-language-server: $schema=...` line points at the nearest `schemas/urdf-pipeline.schema.json` found in the
-output's folder or one of its parents (this repository's, or a copy vendored in the user's repository), as a relative
-path; otherwise at the schema installed with the package, as an absolute path.
+output's folder or one of its parents (this repository's, or a copy vendored in the user's repository with
+`urdf-pipeline schema -o schemas/urdf-pipeline.schema.json`), as a relative path; otherwise at the schema's `$id`, the
+URL of the released schema of this version. Either works on another machine; a path into the installing virtualenv
+would not.
 """
 
 from __future__ import annotations
 
+import contextlib
+import json
 import os
 import re
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 from typing import Any
-from urllib.parse import unquote
 
 import yaml
 
-from ..config import SCHEMA_RESOURCE, Document, parse_document
+from ..config import SCHEMA_RESOURCE, Document, parse_document, schema_text
 from ..errors import UserError
 from ..sources import SourceDescription
-from ..urdf import Joint, UrdfModel, UrdfParseError, package_roots, read_urdf
+from ..urdf import Joint, UrdfModel
+from .init_urdf import UrdfArgument, load_robot, package_paths
 from .name_match import Match, match_names
-from .source_probe import SourceInfo, _relative, read_source, stub_source
+from .source_probe import SourceInfo, read_source, stub_source
 from .yaml_writer import Block, Item, Seq, number, render_block, to_data
 
 IDENTIFIER = re.compile(r"^[A-Za-z_][A-Za-z0-9_-]*$")
@@ -45,54 +53,7 @@ SCHEMA_IN_REPO = Path("schemas") / SCHEMA_RESOURCE
 
 
 # ---------------------------------------------------------------------------------------------------------------
-# The URDF side: package paths, joint descriptions
-
-
-def _package_uris(model: UrdfModel) -> dict[str, list[str]]:
-    """package NAME -> the rest of each of its mesh URIs, in URDF order."""
-    found: dict[str, list[str]] = {}
-    for mesh in model.meshes:
-        if mesh.uri.startswith("package://"):
-            package, _, rest = mesh.uri[len("package://") :].partition("/")
-            rests = found.setdefault(package, [])
-            if rest not in rests:
-                rests.append(rest)
-    return found
-
-
-def _package_candidates(package: str, urdf: Path) -> list[tuple[Path, str]]:
-    """Where package NAME may be: an ancestor named NAME, NAME (or share/NAME, NAME/share/NAME) beside an ancestor,
-    then ROS_PACKAGE_PATH / AMENT_PREFIX_PATH."""
-    chains = []
-    for folder in (Path(os.path.abspath(urdf)).parent, Path(os.path.realpath(urdf)).parent):
-        chains.append([folder, *folder.parents])
-    found: list[tuple[Path, str]] = []
-    for chain in chains:
-        found += [(a, "an ancestor folder of the URDF") for a in chain if a.name == package]
-    for chain in chains:
-        for ancestor in chain:
-            for candidate in (ancestor / package, ancestor / "share" / package, ancestor / package / "share" / package):
-                found.append((candidate, "found beside the URDF"))
-    found += [(root, "from ROS_PACKAGE_PATH / AMENT_PREFIX_PATH") for root in package_roots(package)]
-    seen: set[str] = set()
-    unique = []
-    for path, why in found:
-        if str(path) not in seen and path.is_dir():
-            seen.add(str(path))
-            unique.append((path, why))
-    return unique
-
-
-def resolve_package(package: str, rests: list[str], urdf: Path) -> tuple[Path, str, int] | None:
-    """The folder holding most of the package's meshes (all, ideally): (folder, why, meshes found there)."""
-    best: tuple[Path, str, int] | None = None
-    for folder, why in _package_candidates(package, urdf):
-        count = sum((folder / unquote(rest)).is_file() for rest in rests)
-        if count and (best is None or count > best[2]):
-            best = (folder, why, count)
-        if count == len(rests):
-            break
-    return best
+# Joint descriptions
 
 
 def joint_summary(joint: Joint) -> str:
@@ -125,13 +86,27 @@ def _identifier(text: str, fallback: str) -> str:
 
 
 def schema_reference(out_dir: Path) -> str:
-    """Relative path to the nearest schemas/urdf-pipeline.schema.json above the output, else the installed schema."""
+    """Relative path to the nearest schemas/urdf-pipeline.schema.json above the output, else the schema's `$id` URL
+    (never a path into this installation: the config must work on another machine)."""
     real = Path(os.path.realpath(out_dir))
     for folder in (real, *real.parents):
         if (folder / SCHEMA_IN_REPO).is_file():
             return Path(os.path.relpath(folder / SCHEMA_IN_REPO, real)).as_posix()
-    installed = resources.files("urdf_pipeline").joinpath("data", SCHEMA_RESOURCE)
-    return Path(str(installed)).resolve().as_posix()
+    return str(json.loads(schema_text())["$id"])
+
+
+def write_schema(target: Path) -> None:
+    """`urdf-pipeline schema -o FILE`: the schema vendored where `schema_reference` finds it, written whole or not at
+    all (a temporary file beside it, then renamed); its folders are created."""
+    partial = target.with_name(f".{target.name}.{os.getpid()}.partial")
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        partial.write_text(schema_text(), encoding="utf-8")
+        partial.replace(target)
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            partial.unlink(missing_ok=True)
+        raise UserError(f"cannot write the schema to {target}: {exc.strerror or exc}") from None
 
 
 @dataclass(frozen=True)
@@ -146,25 +121,7 @@ class Scaffold:
     held: int
     ignored: int
     todos: int
-
-
-def _load(urdf: Path) -> UrdfModel:
-    if urdf.name.endswith(".xacro"):
-        raise UserError(
-            f"{urdf} is a xacro file: init reads a plain URDF (expand it with xacro first, then use the xacro form in the config)"
-        )
-    if not urdf.is_file():
-        raise UserError(f"URDF file not found: {urdf}")
-    try:
-        _, model = read_urdf(urdf)
-    except (UrdfParseError, OSError, UnicodeDecodeError) as exc:
-        raise UserError(f"{urdf}: {exc}") from None
-    if not any(j.moving and j.mimic is None for j in model.joints):
-        raise UserError(
-            f"URDF '{model.name}' has no joint to drive (no revolute, continuous or prismatic joint without <mimic>); "
-            "a scene URDF goes beside a robot in that robot's config, as a robot without joints"
-        )
-    return model
+    mismatch: str = ""  # a positional source whose width is not the URDF's joints to drive: what differs, what to edit
 
 
 def _pair(source: SourceDescription, joint_names: list[str]) -> tuple[list[str], list[Match]]:
@@ -183,7 +140,26 @@ def _pair(source: SourceDescription, joint_names: list[str]) -> tuple[list[str],
     return names, matches
 
 
-def _source_entry(info: SourceInfo, names: list[str], stub: bool) -> Block:
+def _width_mismatch(source: SourceDescription, joint_names: list[str], source_key: str, robot_key: str, model: str) -> str:
+    """What differs when a source without names is not as wide as the URDF has joints to drive ("" when it is): the
+    names init gave by position are then surely wrong in part."""
+    width, count = source.width, len(joint_names)
+    if source.names is not None or width is None or width == count:
+        return ""
+    if width > count:
+        extra = f"value_{count}" if width == count + 1 else f"value_{count} .. value_{width - 1}"
+        guess = f"named the first {count} after the URDF's joints, in its order, and ignores the other {width - count} ({extra})"
+    else:
+        held = ", ".join(joint_names[width:])
+        guess = f"named them after the URDF's first {width} joints, in its order, and holds the other {count - width} ({held})"
+    return (
+        f"sources.{source_key}: {width} values per row, but URDF '{model}' has {count} joints to drive; init {guess}: "
+        f"edit sources.{source_key}.names to say what each value is, in order, then robots.{robot_key}.joints (map, "
+        "ignore, hold) to match"
+    )
+
+
+def _source_entry(info: SourceInfo, names: list[str], stub: bool, mismatch: bool) -> Block:
     """The config entry: the kind's key and path, the keys its description proposes, the names when it has none."""
     source = info.description
     entry = Block()
@@ -196,28 +172,14 @@ def _source_entry(info: SourceInfo, names: list[str], stub: bool) -> Block:
             comment = "the URDF's joints; TODO: the names of your values, in their order (then map each below)"
         elif source.width is None:
             comment = f"review: {why} and the column's width is not fixed: assumed one value per URDF joint, in URDF order"
+        elif mismatch:
+            comment = f"TODO: {why}, and its {source.width} values are not one per URDF joint: named by position, say what each is"
         else:
             comment = f"review: {why}: assumed the values come in the URDF's joint order"
         entry.add("names", names, comment)
     for note in source.notes:
         entry.note(note)
     return entry
-
-
-def _package_paths(model: UrdfModel, urdf: Path, out_dir: Path) -> Block | None:
-    packages = _package_uris(model)
-    if not packages:
-        return None
-    paths = Block()
-    for package, rests in sorted(packages.items()):
-        resolved = resolve_package(package, rests, urdf)
-        if resolved is None:
-            paths.add(package, f"TODO/{package}", f"TODO: the folder package://{package}/... refers to ({len(rests)} mesh files)")
-        else:
-            folder, why, count = resolved
-            comment = why if count == len(rests) else f"review: only {count} of its {len(rests)} mesh files are there"
-            paths.add(package, _relative(folder, out_dir), comment)
-    return paths
 
 
 def _joints(model: UrdfModel, source_key: str, source: SourceDescription, names: list[str], matches: list[Match], stub: bool) -> Block:
@@ -270,11 +232,13 @@ def _joints(model: UrdfModel, source_key: str, source: SourceDescription, names:
     return joints
 
 
-def scaffold(urdf: Path, source: str | None, out_file: Path) -> Scaffold:
-    """The config text for URDF `urdf` (and source spec `source`), to be written at `out_file` (paths relative to it)."""
-    model = _load(urdf)
+def scaffold(urdf: UrdfArgument, source: str | None, out_file: Path) -> Scaffold:
+    """The config text for the robot `urdf` names (and source spec `source`), to be written at `out_file` (paths
+    relative to it)."""
+    description = load_robot(urdf, out_file)
+    model = description.model
     out_dir = out_file.parent
-    key = _identifier(model.name, _identifier(urdf.stem.split(".")[0], "robot"))
+    key = _identifier(model.name, _identifier(description.file.stem.split(".")[0], "robot"))
     source_key = f"{key}_state"
     joint_names = [j.name for j in model.joints if j.moving and j.mimic is None]
     stub = source is None
@@ -282,14 +246,14 @@ def scaffold(urdf: Path, source: str | None, out_file: Path) -> Scaffold:
     names, matches = _pair(info.description, joint_names)
     if not matches:
         raise UserError(f"--source {source}: it holds no values")
+    mismatch = _width_mismatch(info.description, joint_names, source_key, key, model.name)
 
     sources = Block()
-    sources.add(
-        source_key, _source_entry(info, names, stub), "TODO: where the joint values come from" if stub else f"from --source {source}"
-    )
+    entry = _source_entry(info, names, stub, bool(mismatch))
+    sources.add(source_key, entry, "TODO: where the joint values come from" if stub else f"from --source {source}")
     robot = Block()
-    robot.add("urdf", _relative(urdf, out_dir), f"{model.name}: {len(joint_names)} joints to drive, {len(model.links)} links")
-    paths = _package_paths(model, urdf, out_dir)
+    robot.add("urdf", description.entry, f"{model.name}: {len(joint_names)} joints to drive, {len(model.links)} links")
+    paths = package_paths(description, out_dir)
     if paths is not None:
         stubbed = any("TODO" in i.comment for i in paths.items if isinstance(i, Item))
         robot.add("package_paths", paths, "TODO: meshes that do not resolve until the stubs below are filled in" if stubbed else "")
@@ -323,7 +287,7 @@ def scaffold(urdf: Path, source: str | None, out_file: Path) -> Scaffold:
 
     header = [
         f"# yaml-language-server: $schema={schema_reference(out_dir)}",
-        f"# Generated by `urdf-pipeline init` from {_relative(urdf, out_dir)}" + (f" and {source}." if source else "."),
+        f"# Generated by `urdf-pipeline init` from {description.shown}" + (f" and {source}." if source else "."),
         "# `TODO:` marks what init could not know (a stub to fill in, a decision to make); `review:` a guess to check.",
         "# Then `urdf-pipeline check` compares the data with the URDF limits and suggests unit and sign corrections.",
     ]
@@ -338,6 +302,7 @@ def scaffold(urdf: Path, source: str | None, out_file: Path) -> Scaffold:
         held=len(data["robots"][key]["joints"].get("hold", {})),
         ignored=len(data["robots"][key]["joints"].get("ignore", [])),
         todos=sum("# TODO" in line for line in body),
+        mismatch=mismatch,
     )
 
 
@@ -376,15 +341,20 @@ def summary_lines(result: Scaffold, problems: list[str], output: Path | None) ->
         f"init: {result.mapped} joint(s) mapped ({how}), {result.held} held, {result.ignored} source name(s) ignored; "
         f"{result.todos} TODO(s) to settle" + (f" in {output}" if output is not None else "")
     ]
+    if result.mismatch:
+        said.append("init: the source's width differs from the URDF's joints to drive, so its names are a guess to settle:")
+        said.append(f"  {result.mismatch}")
     if problems:
         said.append(f"init: validate would still refuse {len(problems)} thing(s), the stubs marked TODO:")
         said += [f"  {problem}" for problem in problems]
+    elif result.mismatch:
+        said.append("init: validate accepts it as written, but its names stay a guess by position until that is settled")
     else:
         said.append("init: the config validates; review the guesses marked `review:` and `TODO:`")
     return said
 
 
-def init_config(urdf: Path, source: str | None, output: Path | None, force: bool) -> tuple[Scaffold, list[str]]:
+def init_config(urdf: UrdfArgument, source: str | None, output: Path | None, force: bool) -> tuple[Scaffold, list[str]]:
     """Scaffold, check and write (to `output`, or return it for stdout); the lines to say on stderr."""
     out_file = (output if output is not None else Path.cwd() / "urdf-pipeline.yaml").absolute()
     if output is not None and out_file.exists() and not force:

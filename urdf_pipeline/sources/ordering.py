@@ -15,7 +15,6 @@ Everything is done on whole columns, chunk by chunk.
 
 from __future__ import annotations
 
-import sys
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -27,6 +26,7 @@ import numpy as np
 import pyarrow as pa
 
 from ..errors import UserError, Where
+from ..progress import note
 
 if TYPE_CHECKING:
     from rerun.chunk import Chunk, LazyChunkStream
@@ -262,7 +262,7 @@ def _kept(chunk: Chunk, batch: pa.RecordBatch, keep: np.ndarray) -> Iterator[Chu
 
 
 def _note(text: str) -> None:
-    print(f"note: {text}", file=sys.stderr)
+    note(text)
 
 
 def _reading(stream: LazyChunkStream, path: Path, where: Where | None) -> Iterator[Chunk]:

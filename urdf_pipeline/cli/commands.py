@@ -1,0 +1,194 @@
+"""One function per subcommand: each takes the parsed arguments and returns an exit status; errors are raised (the
+one exit point, `entry._handle`, prints them). The work is in the stage packages, imported when a command runs."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from ..errors import ExitCode, UserError
+
+if TYPE_CHECKING:
+    from ..execute import SegmentResult
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from ..compile import compile_config
+    from ..dataset import RunOptions, register_outputs, run_dataset, summary_table, totals_line, write_report
+    from ..progress import LOGGER, SegmentProgress, detail, say
+
+    if args.catalog and not args.dataset:
+        raise UserError("--catalog needs --dataset NAME: the catalog dataset to register the outputs in")
+    started = time.perf_counter()
+    plan = compile_config(Path(args.config), args.episodes)
+    detail(f"{args.config} compiled in {time.perf_counter() - started:.2f} s")
+    for robot in plan.robots:
+        say(f"robot {robot.key}: URDF sha256 {robot.urdf_sha256} from {robot.urdf_origin}")
+    if args.base:
+        from ..dataset import check_base
+
+        say(f"all {check_base(plan, args.base)} segment id(s) found among the base recordings in {args.base}")
+    segments = len(plan.segments)
+    many = segments > 1 or plan.dataset.layout == "split"
+    if many:
+        say(f"{segments} segment(s), layout {plan.dataset.layout}, {args.jobs} job(s) on the {args.executor} executor")
+    options = RunOptions(args.jobs, args.executor, args.ray_address, args.force, verbose=not many)
+    run = run_dataset(plan, options, SegmentProgress() if many and LOGGER.isEnabledFor(logging.INFO) else None)
+    for result in run.results if many else ():
+        detail(f"{result.label}: {result.status} by {result.worker or 'no worker'}, peak {result.peak_rss_mib:.0f} MiB")
+        for text in result.notes:
+            detail(f"{result.label}: note: {text}")
+    if args.report:
+        write_report(Path(args.report), plan, run, options)
+    if run.blueprint is not None:
+        say(f"blueprint (a 3D view of the scene and one per robot): {run.blueprint}")
+    if many or run.interrupted:
+        LOGGER.info(summary_table(run.results))
+        say(totals_line(run.results, run.seconds) + f"; manifest {run.manifest}")
+    else:
+        _print_single(run.results[0])
+    for result in run.results:
+        if result.status in ("written", "skipped"):
+            print(result.output)
+    bugs = [r for r in run.results if r.status == "bug"]
+    for result in bugs:
+        print(f"{result.label}: {result.reason}", file=sys.stderr)
+    if run.interrupted:
+        from ..dataset import exit_status, signal_name
+
+        print(f"interrupted ({signal_name(run.signal)}): only complete outputs were kept", file=sys.stderr)
+        return exit_status(run.signal)
+    if args.catalog:  # what was written (or is up to date) is registered even when other segments failed
+        say(register_outputs(run, args.catalog, args.dataset, args.layer).summary())
+    if args.spawn or args.connect:
+        from ..execute import send_to_viewer
+
+        say(f"sent {send_to_viewer(plan, run.results, args.connect, args.spawn)} segment(s) to the viewer")
+    if bugs:
+        print("urdf-pipeline: internal error (a bug, not your config); please report it with the traceback above", file=sys.stderr)
+        return ExitCode.BUG
+    return ExitCode.USER_ERROR if any(r.status == "failed" for r in run.results) else ExitCode.OK
+
+
+def _print_single(result: SegmentResult) -> None:
+    """One recording: as a plain run always printed it (its error lines, or what was written)."""
+    from ..progress import say
+
+    if result.status == "failed":
+        print(result.reason, file=sys.stderr)
+    elif result.status == "skipped":
+        say(f"{result.output} is up to date (same content hash); --force writes it again")
+    elif result.status == "written":
+        say(f"{result.label}: {result.frames} rows in {result.seconds:.1f} s")
+
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    """text: `ok: CONFIG` on stdout, `error:` / `warning: FILE:LINE:COL: ...` lines on stderr. github / json: stdout
+    holds only the annotations (workflow commands, or one JSON list), `ok: CONFIG` goes to stderr. Exit 1 if any
+    config has an error (warnings and notes alone: 0). `--no-data` opens no source file; `--skip-non-configs` skips
+    (with a `skipped:` line on stderr) a YAML file that is not a config, for the pre-commit hook."""
+    from ..review import render_annotations, render_text_errors, render_text_progress, validate_config
+
+    results = []
+    for config in args.configs:
+        result = validate_config(config, data=not args.no_data, skip_non_configs=args.skip_non_configs)
+        results.append(result)
+        if args.format == "text":  # each config as it is done; its errors with every other's at the end
+            progress = render_text_progress(result)
+            sys.stderr.write(progress.stderr)
+            sys.stdout.write(progress.stdout)
+    if args.format == "text":
+        sys.stderr.write(render_text_errors(results))
+    else:
+        shown = render_annotations(results, args.format)
+        sys.stdout.write(shown.stdout)
+        sys.stderr.write(shown.stderr)
+    return ExitCode.OK if all(result.ok for result in results) else ExitCode.USER_ERROR
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    from ..review import check_config, check_exit_code, render_check
+
+    reports = check_config(Path(args.config), args.rows)
+    sys.stdout.write(render_check(reports, args.format))
+    return check_exit_code(reports)
+
+
+def cmd_plan(args: argparse.Namespace) -> int:
+    """text (default): the free-form account; markdown / json: the deterministic report for PR comments. Joint values
+    are read only with --sample (then Rerun is imported)."""
+    from ..review import plan_command
+
+    if args.rows is not None and not args.sample:
+        args.parser.error("--rows needs --sample")
+    if args.size is not None and args.render is None:
+        args.parser.error("--size needs --render DIR")
+    rows = (args.rows or 100_000) if args.sample else None
+    render = Path(args.render) if args.render is not None else None
+    sys.stdout.write(plan_command(Path(args.config), args.format, rows, render, args.size))
+    return ExitCode.OK
+
+
+def cmd_snapshot(args: argparse.Namespace) -> int:
+    """Pictures of a written recording, drawn by the Rerun viewer (headless); their paths on stdout."""
+    from ..compile import compile_config
+    from ..render import DEFAULT_SIZE, SnapshotRequest, announce, snapshot
+
+    plan = compile_config(Path(args.config))
+    output = Path(args.output) if args.output else None
+    request = SnapshotRequest(args.segment, args.at, args.view, args.size or DEFAULT_SIZE, output)
+    started = time.perf_counter()
+    pictures = snapshot(plan, request)
+    announce(pictures, time.perf_counter() - started)
+    for picture in pictures:
+        print(picture.path)
+    return ExitCode.OK
+
+
+def cmd_schema(args: argparse.Namespace) -> int:
+    from ..config import schema_text
+    from ..review import write_schema
+
+    if args.output:
+        write_schema(Path(args.output))
+    else:
+        sys.stdout.write(schema_text())
+    return ExitCode.OK
+
+
+def cmd_init(args: argparse.Namespace) -> int:
+    from ..review import init_config, urdf_argument
+
+    try:
+        urdf = urdf_argument(args.urdf, args.xacro, args.arg, args.robot_descriptions)
+    except ValueError as exc:  # --arg malformed, or without --xacro
+        args.parser.error(str(exc))
+    result, said = init_config(urdf, args.source, Path(args.output) if args.output else None, args.force)
+    if not args.output:
+        sys.stdout.write(result.text)
+    for line in said:
+        print(line, file=sys.stderr)
+    return ExitCode.OK
+
+
+def cmd_diff(args: argparse.Namespace) -> int:
+    from ..review import diff_files, diff_git, render_diff
+
+    if (args.git is None) == (args.new is None):
+        args.parser.error("give OLD NEW, or CONFIG --git REV")
+    if args.size is not None and args.render is None:
+        args.parser.error("--size needs --render DIR")
+    render = Path(args.render) if args.render is not None else None
+    if args.git is not None:
+        report = diff_git(args.old, args.git, render, args.size)
+    else:
+        report = diff_files(args.old, args.new, render, args.size)
+    if args.format == "text":  # stdout keeps one line per change; the pictures are named on stderr
+        for picture in report.pictures:
+            print(f"urdf-pipeline: picture {picture.label}: {picture.path}", file=sys.stderr)
+    sys.stdout.write(render_diff(report, args.format))
+    return ExitCode.DIFFERENT if args.exit_code and not report.equivalent else ExitCode.OK

@@ -1,0 +1,186 @@
+"""The argument parser: every subcommand with -q / -v, and the types that make bad values usage errors (exit 2)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from typing import TYPE_CHECKING, Any
+
+from .commands import cmd_check, cmd_diff, cmd_init, cmd_plan, cmd_run, cmd_schema, cmd_snapshot, cmd_validate
+
+if TYPE_CHECKING:
+    from ..render import Size
+
+
+def _positive(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError("must be at least 1")
+    return value
+
+
+def _size(text: str) -> Size:
+    from ..render import Size
+
+    try:
+        return Size.parse(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _version() -> str:
+    """Ours and the Rerun SDK's (the one a recording's format depends on), from the installed metadata: no import."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    from .. import __version__
+
+    try:
+        rerun = version("rerun-sdk")
+    except PackageNotFoundError:
+        rerun = "not installed"
+    return f"urdf-pipeline {__version__} (rerun-sdk {rerun}, Python {sys.version.split()[0]})"
+
+
+def _verbosity(parser: argparse.ArgumentParser, default: object) -> None:
+    """-q / -v, on the main parser and on every subcommand (`urdf-pipeline run -q CONFIG` and `urdf-pipeline -q run`)."""
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("-q", "--quiet", action="store_true", default=default, help="print only warnings and errors on stderr")
+    group.add_argument("-v", "--verbose", action="store_true", default=default, help="also print timings and per-segment notes")
+
+
+class _Commands:
+    """Subparsers that all take -q / -v (their defaults suppressed, so the main parser's value stays when not given)."""
+
+    def __init__(self, parser: argparse.ArgumentParser) -> None:
+        self.actions = parser.add_subparsers(dest="command", required=True)
+
+    def add_parser(self, name: str, **kwargs: Any) -> argparse.ArgumentParser:
+        sub = self.actions.add_parser(name, **kwargs)
+        _verbosity(sub, argparse.SUPPRESS)
+        return sub
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="urdf-pipeline", description="A robot config file becomes one validated Rerun recording.")
+    parser.add_argument("--version", action="version", version=_version())
+    _verbosity(parser, False)
+    commands = _Commands(parser)
+    run = commands.add_parser("run", help="validate CONFIG, compute forward kinematics and write the .rrd of every segment")
+    run.add_argument("config")
+    run.add_argument("--episodes", metavar="SPEC", help="override output.episodes: all, 0,3,7 or 10:20")
+    run.add_argument("--jobs", type=_positive, default=os.cpu_count() or 1, help="segments written in parallel (default: number of cores)")
+    run.add_argument("--executor", choices=("local", "ray"), default="local", help="local worker processes (default) or Ray tasks")
+    run.add_argument("--ray-address", metavar="ADDR", help="the Ray cluster to run on (default: a local Ray instance)")
+    run.add_argument("--force", action="store_true", help="write every segment, even those whose output is up to date")
+    run.add_argument("--base", metavar="DIR_OR_GLOB", help="fail unless every segment id is the recording_id of a base .rrd there")
+    run.add_argument("--catalog", metavar="URL", help="register the outputs in this Rerun catalog server (needs --dataset)")
+    run.add_argument("--dataset", metavar="NAME", help="the catalog dataset (created when missing)")
+    run.add_argument("--layer", default="urdf", help="the catalog layer name of the segments' outputs (default: urdf)")
+    run.add_argument("--spawn", action="store_true", help="start a Rerun viewer and send it every segment (with the model)")
+    run.add_argument("--connect", metavar="URL", help="send every segment to the viewer at URL (rerun+http://HOST:9876/proxy)")
+    run.add_argument(
+        "--report", metavar="FILE.json", help="write what the run did per segment (status, frames, seconds, worker, peak memory)"
+    )
+    run.set_defaults(handler=cmd_run, parser=run)
+    validate = commands.add_parser("validate", help="check configs against the schema, URDFs and source metadata (no joint values read)")
+    validate.add_argument("configs", nargs="+", metavar="CONFIG")
+    validate.add_argument(
+        "--format",
+        choices=("text", "github", "json"),
+        default="text",
+        help="text: error: FILE:LINE:COL lines (default); github: workflow annotations; json: a list of problems",
+    )
+    validate.add_argument(
+        "--no-data",
+        action="store_true",
+        help="open no source file (configs in git, datasets elsewhere): schema, URDFs, meshes, joint coverage and frame "
+        "graph only; names that only the data holds are checked by validate with the data, and by run",
+    )
+    validate.add_argument(
+        "--skip-non-configs",
+        action="store_true",
+        help="skip a YAML file that is not a config (a top-level list such as a sidecar edges file, or a mapping with "
+        "none of a config's top-level keys), with a `skipped:` line on stderr; for the pre-commit hook",
+    )
+    validate.set_defaults(handler=cmd_validate, parser=validate)
+    check = commands.add_parser(
+        "check", help="read a sample of each source and say which corrections put every mapped joint inside its URDF limits"
+    )
+    check.add_argument("config")
+    check.add_argument("--format", choices=("text", "json"), default="text")
+    check.add_argument("--rows", type=_positive, default=100_000, help="rows to sample from the start of each source (default 100000)")
+    check.set_defaults(handler=cmd_check, parser=check)
+    plan = commands.add_parser("plan", help="validate CONFIG and print what a run would do")
+    plan.add_argument("config")
+    plan.add_argument(
+        "--format",
+        choices=("text", "markdown", "json"),
+        default="text",
+        help="text: the free-form account (default); markdown: a deterministic report for a PR comment; json: the same as data",
+    )
+    plan.add_argument("--sample", action="store_true", help="read a sample of each source and add the observed range per value")
+    plan.add_argument("--rows", type=_positive, help="with --sample: rows read from the start of each source (default 100000)")
+    plan.add_argument("--render", metavar="DIR", help="draw each robot at its rest pose into DIR (PNGs, by the Rerun viewer) and link them")
+    plan.add_argument("--size", type=_size, metavar="WxH", help="with --render: the pictures' size in pixels (default 1024x768)")
+    plan.set_defaults(handler=cmd_plan, parser=plan)
+    snapshot = commands.add_parser(
+        "snapshot",
+        help="draw PNGs of a written recording with the Rerun viewer (headless) and print their paths",
+        description="Draw pictures of a segment's recording (written by `run`) at times on its timeline, 3D view only, "
+        "from a three-quarter camera that frames the robots' links over the whole segment. Needs a Vulkan driver "
+        "(apt-get install mesa-vulkan-drivers on a machine without a GPU).",
+    )
+    snapshot.add_argument("config")
+    snapshot.add_argument("--segment", metavar="ID", help="the segment (recording id) to draw (default: the first)")
+    snapshot.add_argument(
+        "--at",
+        metavar="T,...",
+        help="times on the segment's timeline: first, middle, last, a sequence number, or seconds (duration and timestamp "
+        "timelines; an ISO 8601 time also for timestamps). Default: first,middle,last",
+    )
+    snapshot.add_argument("--view", default="scene", metavar="scene|ROBOT", help="the whole scene (default) or one robot's key")
+    snapshot.add_argument("--size", type=_size, default=None, metavar="WxH", help="the pictures' size in pixels (default 1024x768)")
+    snapshot.add_argument("-o", "--output", metavar="DIR", help="where the PNGs go (default: pictures/ beside the recording)")
+    snapshot.set_defaults(handler=cmd_snapshot, parser=snapshot)
+    schema = commands.add_parser("schema", help="print the config's JSON Schema")
+    schema.add_argument("-o", "--output", metavar="FILE", help="write it to FILE (schemas/urdf-pipeline.schema.json: init finds it)")
+    schema.set_defaults(handler=cmd_schema, parser=schema)
+    init = commands.add_parser("init", help="scaffold a config from a URDF, pre-matched to a source's names when --source is given")
+    robot = init.add_mutually_exclusive_group(required=True)
+    robot.add_argument("--urdf", metavar="PATH", help="a plain URDF file")
+    robot.add_argument("--xacro", metavar="FILE", help="a xacro file, expanded as run expands it, with each --arg NAME=VALUE")
+    robot.add_argument("--robot-descriptions", metavar="NAME", help="a robot_descriptions module (so_arm101_description)")
+    init.add_argument("--arg", action="append", default=[], metavar="NAME=VALUE", help="with --xacro: a xacro argument; repeatable")
+    init.add_argument(
+        "--source",
+        metavar="SOURCE_SPEC",
+        help="KIND:PATH[#PART]: lerobot:DIR[#FEATURE], parquet:FILE[#COLUMN], mcap:FILE[#TOPIC], hdf5:FILE#/DATASET, rrd:FILE#ENTITY, csv:FILE",
+    )
+    init.add_argument("-o", "--output", metavar="CONFIG", help="write the config here (default: stdout); paths in it are relative to it")
+    init.add_argument("--force", action="store_true", help="overwrite an existing output file")
+    init.set_defaults(handler=cmd_init, parser=init)
+    diff = commands.add_parser(
+        "diff",
+        help="print the semantic difference of two configs' compiled plans (OLD NEW, or CONFIG --git REV)",
+        description="Compile both configs and print what differs in their plans, one line per change (nothing when they are "
+        "equivalent: key order, comments and equal spellings do not count). With --git REV, CONFIG's text at REV is compared "
+        "with the working tree's; the files the old config refers to (URDF, data, sidecar edge files) are read from the working tree.",
+    )
+    diff.add_argument("old", metavar="OLD", help="the old config (with --git: the config)")
+    diff.add_argument("new", metavar="NEW", nargs="?", help="the new config (not with --git)")
+    diff.add_argument("--git", metavar="REV", help="compare CONFIG at git revision REV (git show REV:./CONFIG) with the working tree's")
+    diff.add_argument(
+        "--format", choices=("text", "json", "markdown"), default="text", help="markdown: for a PR comment, with links to the pictures"
+    )
+    diff.add_argument(
+        "--exit-code", action="store_true", help="exit 0 when the plans are equal, 1 when they differ, 2 on any error (as diff(1) does)"
+    )
+    diff.add_argument(
+        "--render",
+        metavar="DIR",
+        help="draw the old and the new plan at the same joint values from one camera into DIR (PNGs, and the two side by side)",
+    )
+    diff.add_argument("--size", type=_size, metavar="WxH", help="with --render: the pictures' size in pixels (default 1024x768)")
+    diff.set_defaults(handler=cmd_diff, parser=diff)
+    return parser
