@@ -17,7 +17,7 @@ from urdf_pipeline.examples import write_joint_parquet, write_lerobot_dataset
 from urdf_pipeline.review.init_urdf import parse_xacro_args
 from urdf_pipeline.urdf.model import read_urdf
 
-from ..urdf.test_urdf_sources import SO101_JOINTS, _so101_repository, offline_git  # noqa: F401 (a fixture)
+from ..urdf.test_urdf_sources import SO101_JOINTS, offline_git, so101_description_cache  # noqa: F401 (a fixture)
 
 RTB_XACRO = Path(rtbdata.__file__).parent / "xacro"
 VX300S = RTB_XACRO / "trossen_descriptions" / "urdf" / "vx300s.urdf.xacro"
@@ -126,12 +126,7 @@ def test_usage_errors(tmp_path: Path, run_cli) -> None:
 
 @pytest.mark.usefixtures("offline_git")
 def test_robot_descriptions_from_a_local_cache(tmp_path: Path, run_cli, monkeypatch: pytest.MonkeyPatch, erd_share: Path) -> None:
-    cache = tmp_path / "cache"
-    staging = tmp_path / "staging" / "SO-ARM100"
-    commit = _so101_repository(staging, erd_share)
-    shutil.move(str(staging), str(cache / f"SO-ARM100-{commit}" / "SO-ARM100"))
-    monkeypatch.setenv("ROBOT_DESCRIPTIONS_CACHE", str(cache))
-    monkeypatch.setenv("ROBOT_DESCRIPTION_COMMIT", commit)
+    commit = so101_description_cache(tmp_path, monkeypatch, erd_share)
     config = tmp_path / "configs" / "so101.yaml"
     result = run_cli("init", "--robot-descriptions", "so_arm101_description", "-o", str(config))
     assert result.code == 0, result.err

@@ -157,13 +157,20 @@ def so101_robot() -> dict:
     return {"urdf": {"robot_descriptions": "so_arm101_description"}, "joints": {"source": "state", "map": {j: j for j in SO101_JOINTS}}}
 
 
-def test_robot_descriptions_from_a_local_cache(tmp_path: Path, run_cli, monkeypatch, offline_git, erd_share: Path) -> None:
+def so101_description_cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, erd_share: Path) -> str:
+    """robot_descriptions' so_arm101_description answered from a local cache (no network): its git repository made
+    from example-robot-data's SO-101 files, at the commit the environment names."""
     cache = tmp_path / "cache"
     staging = tmp_path / "staging" / "SO-ARM100"
     commit = _so101_repository(staging, erd_share)
     shutil.move(str(staging), str(cache / f"SO-ARM100-{commit}" / "SO-ARM100"))
     monkeypatch.setenv("ROBOT_DESCRIPTIONS_CACHE", str(cache))
     monkeypatch.setenv("ROBOT_DESCRIPTION_COMMIT", commit)
+    return commit
+
+
+def test_robot_descriptions_from_a_local_cache(tmp_path: Path, run_cli, monkeypatch, offline_git, erd_share: Path) -> None:
+    commit = so101_description_cache(tmp_path, monkeypatch, erd_share)
     write_joint_parquet(tmp_path / "d.parquet", np.zeros((5, 6)))
     result = run_cli("run", str(write_config(tmp_path, "so101_rd", so101_robot(), SO101_JOINTS, "d.parquet")))
     assert result.code == 0, result.err
