@@ -172,6 +172,21 @@ def _parents() -> dict[int, int]:
     return found
 
 
+def _session(sid: int) -> set[int]:
+    """The living processes of session `sid`: a run started in a session of its own, every process it ever forked
+    (a worker forked after the test looked at the run's children included), wherever they were reparented."""
+    found = set()
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue  # gone meanwhile
+            if fields[0] != "Z" and int(fields[3]) == sid:
+                found.add(int(entry.name))
+    return found
+
+
 def _descendants(pid: int) -> set[int]:
     parents = _parents()
     found: set[int] = set()
@@ -238,6 +253,9 @@ def test_after_sigkill_no_worker_survives_and_the_next_run_cleans_up(so101_datas
     process.kill()  # the main process only: its workers must not keep writing without it
     process.communicate(timeout=WAIT)
     _wait_for(lambda: not _living(children), f"the orphaned processes {sorted(_living(children))} to end")
+    # and any worker forked after `children` was read (seen once: its partial file, written until it ended, was still
+    # there when the next run cleaned up, so that run had to keep it as a live process's)
+    _wait_for(lambda: not _session(process.pid), f"the run's session {sorted(_session(process.pid))} to end")
     # What a kill in the middle of a write leaves: a hidden partial file named after a process that is gone.
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()
