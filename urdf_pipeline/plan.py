@@ -6,7 +6,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Literal
 
-from .errors import Where
+from .errors import UserError, Where, did_you_mean, listing
 
 OnViolation = Literal["error", "clamp", "ignore"]
 NanPolicy = Literal["error", "drop_row", "hold_last"]
@@ -310,6 +310,19 @@ class Plan:
     @property
     def segments(self) -> tuple[Segment, ...]:
         return self.dataset.segments
+
+    def segment_named(self, wanted: str | None, option: str, first_by_default: bool) -> Segment:
+        """The segment whose id is `wanted`; without one, the first (`first_by_default`) or the only one. `option` is
+        how the user names it (`--segment`, `segment=`), for the error that lists the ids."""
+        ids = [segment.id for segment in self.segments]
+        if wanted is None:
+            if first_by_default or len(ids) == 1:
+                return self.segments[0]
+            raise UserError(f"{len(ids)} segments; say which with {option} one of: {listing(ids)}", self.dataset.where)
+        for segment in self.segments:
+            if segment.id == wanted:
+                return segment
+        raise UserError(f"{option} {wanted}: no such segment (segments: {listing(ids)}){did_you_mean(wanted, ids)}", self.dataset.where)
 
     def for_segment(self, segment: Segment) -> Plan:
         """The plan of one recording: the segment's own sources and output."""

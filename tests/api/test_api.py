@@ -89,7 +89,7 @@ def test_log_sends_the_segment_into_the_callers_recording(random_demo: tuple[Pat
 def test_a_config_of_several_segments_needs_the_segment_named(examples_dir: Path) -> None:
     plan = urdf_pipeline.load(examples_dir / "so101_dataset.yaml")
     assert len(plan.dataset.segments) > 1
-    with pytest.raises(urdf_pipeline.ConfigError, match="say which: segment="):
+    with pytest.raises(urdf_pipeline.ConfigError, match="say which with segment= one of"):
         urdf_pipeline.forward_kinematics(plan)
     first = plan.dataset.segments[0].id
     assert set(urdf_pipeline.forward_kinematics(plan, segment=first)) == {r.key for r in plan.robots}

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..errors import UserError, UserErrors
-from ..plan import Plan, Segment
+from ..plan import Plan
 
 if TYPE_CHECKING:
     from rerun import RecordingStream
@@ -65,7 +65,7 @@ def log(path: str | os.PathLike[str] | Plan, recording: RecordingStream | None =
     target = recording if recording is not None else rr.get_global_data_recording()
     if target is None:
         raise UserError("urdf_pipeline.log: no recording given and no current Rerun recording (call rr.init first)")
-    return log_segment(plan.for_segment(_segment(plan, segment)), target)
+    return log_segment(plan.for_segment(plan.segment_named(segment, "segment=", first_by_default=False)), target)
 
 
 def forward_kinematics(plan: Plan | str | os.PathLike[str], segment: str | None = None) -> dict[str, RobotKinematics]:
@@ -75,20 +75,7 @@ def forward_kinematics(plan: Plan | str | os.PathLike[str], segment: str | None 
     from ..execute import segment_kinematics
 
     compiled = plan if isinstance(plan, Plan) else load(plan)
-    return segment_kinematics(compiled.for_segment(_segment(compiled, segment)))
-
-
-def _segment(plan: Plan, wanted: str | None) -> Segment:
-    segments = plan.dataset.segments
-    ids = [s.id for s in segments]
-    if wanted is None:
-        if len(segments) != 1:
-            raise UserError(f"{plan.config_path}: {len(segments)} segments; say which: segment= one of {', '.join(ids[:12])}")
-        return segments[0]
-    for candidate in segments:
-        if candidate.id == wanted:
-            return candidate
-    raise UserError(f"{plan.config_path}: no segment '{wanted}'; the segments are {', '.join(ids[:12])}")
+    return segment_kinematics(compiled.for_segment(compiled.segment_named(segment, "segment=", first_by_default=False)))
 
 
 def _episodes(episodes: str | Iterable[int] | None) -> str | None:

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError, Where, did_you_mean, listing
-from ..plan import Plan, Segment
+from ..plan import Plan
 from .camera import framing
 from .frames import Timeline, read_transforms, transform_timelines
 from .pictures import DEFAULT_SIZE, Picture, require_picture_path, robot_frames, view_contents
@@ -36,7 +36,7 @@ class SnapshotRequest:
 def snapshot(plan: Plan, request: SnapshotRequest) -> tuple[Picture, ...]:
     from rerun.chunk import RrdReader
 
-    segment = _segment(plan, request.segment)
+    segment = plan.segment_named(request.segment, "--segment", first_by_default=True)
     robots = plan.robots if request.view == SCENE else tuple(r for r in plan.robots if r.key == request.view)
     if not robots:
         keys = [r.key for r in plan.robots]
@@ -67,16 +67,6 @@ def snapshot(plan: Plan, request: SnapshotRequest) -> tuple[Picture, ...]:
             viewer.picture(store, Shot(camera, contents, timeline, time), path)
             pictures.append(Picture(_time_label(timeline, time).replace("-", " ", 1), path))
     return tuple(pictures)
-
-
-def _segment(plan: Plan, wanted: str | None) -> Segment:
-    if wanted is None:
-        return plan.segments[0]
-    for segment in plan.segments:
-        if segment.id == wanted:
-            return segment
-    ids = [s.id for s in plan.segments]
-    raise UserError(f"--segment {wanted}: no such segment (segments: {listing(ids)}){did_you_mean(wanted, ids)}", plan.dataset.where)
 
 
 def picture_times(text: str | None, timeline: Timeline | None, times: np.ndarray) -> list[int | None]:
