@@ -11,7 +11,7 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -159,8 +159,8 @@ def _start(config: Path, scratch: Path) -> subprocess.Popen[str]:
     return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, start_new_session=True)
 
 
-def _parents() -> dict[int, int]:
-    found = {}
+def _living_stats() -> Iterator[tuple[int, list[str]]]:
+    """Each living (not zombie) process and the fields of its /proc stat after the name: state, ppid, pgrp, session."""
     for entry in Path("/proc").iterdir():
         if entry.name.isdigit():
             try:
@@ -168,23 +168,17 @@ def _parents() -> dict[int, int]:
             except OSError:
                 continue  # gone meanwhile
             if fields[0] != "Z":
-                found[int(entry.name)] = int(fields[1])
-    return found
+                yield int(entry.name), fields
+
+
+def _parents() -> dict[int, int]:
+    return {pid: int(fields[1]) for pid, fields in _living_stats()}
 
 
 def _session(sid: int) -> set[int]:
     """The living processes of session `sid`: a run started in a session of its own, every process it ever forked
     (a worker forked after the test looked at the run's children included), wherever they were reparented."""
-    found = set()
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
-            except OSError:
-                continue  # gone meanwhile
-            if fields[0] != "Z" and int(fields[3]) == sid:
-                found.add(int(entry.name))
-    return found
+    return {pid for pid, fields in _living_stats() if int(fields[3]) == sid}
 
 
 def _descendants(pid: int) -> set[int]:
