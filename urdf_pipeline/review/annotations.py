@@ -111,15 +111,15 @@ def validate_config(config: str, *, data: bool = True, skip_non_configs: bool = 
     notes: tuple[Problem, ...] = ()
     warnings: list[ConfigWarning]
     with collect_warnings() as warnings:
-        if data:
-            try:
+        try:  # one catch for both paths: a check that raises instead of collecting is a problem of this config too
+            if data:
                 compile_config(Path(config))
-            except UserError as exc:
-                errors = exc.errors if isinstance(exc, UserErrors) else [exc]
-        else:
-            found = check_config_without_data(Path(config))
-            errors = list(found.errors)
-            notes = tuple(Problem("note", note.message, note.where) for note in found.notes)
+            else:
+                found = check_config_without_data(Path(config))
+                errors = list(found.errors)
+                notes = tuple(Problem("note", note.message, note.where) for note in found.notes)
+        except UserError as exc:
+            errors = exc.errors if isinstance(exc, UserErrors) else [exc]
     return ConfigResult(
         config,
         tuple(Problem("warning", w.message, w.where) for w in warnings),
