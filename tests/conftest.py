@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import shutil
 import signal
+import subprocess
+import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,6 +30,18 @@ def ctrl_c_as_a_terminal_gives_it() -> Iterator[None]:
         signal.signal(signal.SIGINT, signal.default_int_handler)
     yield
     signal.signal(signal.SIGINT, previous)
+
+
+def assert_commands_leave_out(module: str, *commands: list[str]) -> None:
+    """The command lines, run by cli.main one after the other in a fresh interpreter, all exit 0 and never import
+    `module` (validate and plan must not import Rerun: a second of start-up for nothing)."""
+    code = (
+        "import sys; from urdf_pipeline import cli; "
+        f"failed = [c for c in {list(commands)!r} if cli.main(c) != 0]; "
+        f"assert not failed, failed; assert {module!r} not in sys.modules, {module + ' imported'!r}"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
 
 
 @dataclass(frozen=True)

@@ -8,6 +8,8 @@ from pathlib import Path
 
 from urdf_pipeline.errors import ExitCode
 
+from ..conftest import assert_commands_leave_out
+
 
 def test_user_error_is_one_line_without_traceback(tmp_path: Path, run_cli) -> None:
     config = tmp_path / "c.yaml"
@@ -44,14 +46,8 @@ def test_validate_reports_every_config(run_cli, examples_dir: Path, tmp_path: Pa
 
 
 def test_validate_and_plan_do_not_import_rerun(examples_dir: Path) -> None:
-    code = (
-        "import sys; from urdf_pipeline import cli; "
-        f"rc = cli.main(['validate', {str(examples_dir / 'demo.yaml')!r}]); "
-        f"rc |= cli.main(['plan', {str(examples_dir / 'demo.yaml')!r}]); "
-        "assert rc == 0; assert 'rerun' not in sys.modules, 'rerun imported'"
-    )
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-    assert result.returncode == 0, result.stderr
+    demo = str(examples_dir / "demo.yaml")
+    assert_commands_leave_out("rerun", ["validate", demo], ["plan", demo])
 
 
 def test_run_and_validate_leave_pandas_out_and_give_it_back(examples_dir: Path) -> None:

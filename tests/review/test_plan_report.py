@@ -21,6 +21,7 @@ import yaml
 
 from urdf_pipeline.examples import write_joint_parquet
 
+from ..conftest import assert_commands_leave_out
 from ..edge_helpers import write_config
 
 GOLDEN = Path(__file__).resolve().parents[1] / "golden"
@@ -255,13 +256,7 @@ def test_rows_without_sample_is_a_usage_error(examples_dir: Path, run_cli) -> No
 
 @pytest.mark.parametrize("output_format", sorted(FORMATS))
 def test_plan_reads_no_joint_data_and_imports_no_rerun(output_format: str, examples_dir: Path) -> None:
-    code = (
-        "import sys; from urdf_pipeline import cli; "
-        f"rc = cli.main(['plan', {str(examples_dir / 'so101_dataset.yaml')!r}, '--format', {output_format!r}]); "
-        "assert rc == 0; assert 'rerun' not in sys.modules, 'rerun imported'"
-    )
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-    assert result.returncode == 0, result.stderr
+    assert_commands_leave_out("rerun", ["plan", str(examples_dir / "so101_dataset.yaml"), "--format", output_format])
 
 
 def test_invalid_config_still_fails_with_its_errors(examples_dir: Path, run_cli, tmp_path: Path) -> None:

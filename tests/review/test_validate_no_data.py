@@ -7,8 +7,6 @@ import builtins
 import glob
 import io
 import json
-import subprocess
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -21,7 +19,7 @@ from urdf_pipeline.sources import KINDS, lerobot
 
 from ..compile import test_invalid_configs
 from ..compile.test_invalid_configs import CASES, COMPILE_CASES, Case
-from ..conftest import CONFIGS
+from ..conftest import CONFIGS, assert_commands_leave_out
 
 invalid_dir = test_invalid_configs.invalid_dir  # the fixture: the examples plus every case and the inputs they need
 BY_NAME = {case.name: case for case in CASES}
@@ -247,11 +245,4 @@ def test_the_check_returns_no_plan(examples_dir: Path) -> None:
 
 
 def test_validate_no_data_does_not_import_rerun(examples_dir: Path) -> None:
-    configs = [str(examples_dir / name) for name in SHIPPED]
-    code = (
-        "import sys; from urdf_pipeline import cli; "
-        f"rc = cli.main(['validate', '--no-data', *{configs!r}]); "
-        "assert rc == 0; assert 'rerun' not in sys.modules, 'rerun imported'"
-    )
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-    assert result.returncode == 0, result.stderr
+    assert_commands_leave_out("rerun", ["validate", "--no-data", *(str(examples_dir / name) for name in SHIPPED)])
