@@ -21,9 +21,12 @@ $(VENV)/.test-installed: pyproject.toml | $(BIN)/python
 bytecode:
 	$(BIN)/python -m compileall -q urdf_pipeline > /dev/null
 
+# The last line says how to open the recording, as it can be typed here with no venv activated (.venv/bin/rerun is
+# the viewer of the installed rerun-sdk; it needs a screen).
 demo: $(VENV)/.demo-installed bytecode
 	$(BIN)/python -m urdf_pipeline.examples configs
 	$(BIN)/urdf-pipeline run configs/demo.yaml
+	@echo "open it: $(BIN)/rerun configs/out/episode_000.rrd"
 
 # Pictures (snapshot, plan/diff --render) are drawn by the Rerun viewer, which needs a Vulkan driver: without a GPU's,
 # Mesa's software one. Installed here when no driver is there and we are root with apt; otherwise the renderer tests

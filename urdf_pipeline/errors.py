@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import difflib
 import logging
+import re
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -48,18 +49,89 @@ class Where:
         return f"{self.file}:{self.line}:{self.column}" if self.column else f"{self.file}:{self.line}"
 
 
+# Text from input (a pull request's file names, YAML keys and values, URDF names, a child's stderr) shown to a person
+# or to CI: one line, every control character visible, bounded, never a GitHub workflow command. `shown`/`quoted` for a
+# name inside a message; `neutral_line`/`neutral_text` at the places where lines leave the tool (`located`, the
+# logger's formatter, the renderers).
+NAME_LIMIT = 200  # characters of one name in a message; a longer one is shortened, with its length
+LINE_LIMIT = 2000  # characters of one output line; a longer one is shortened, with its length
+# C0, DEL, C1, bidi embeddings/overrides/isolates and marks, line/paragraph separators, BOM, lone surrogates (an
+# undecodable file name: printing one raw would fail on a strict stdout)
+_CONTROL = re.compile("[\x00-\x1f\x7f-\x9f\u061c\u200e\u200f\u2028\u2029\u202a-\u202e\u2066-\u2069\ufeff\ud800-\udfff]")
+_NAMED_ESCAPES = {"\n": "\\n", "\r": "\\r", "\t": "\\t"}
+# Lines a GitHub Actions runner reads as a workflow command (`::error ...`, the older `##[error]...`), after it trims
+# leading whitespace. A line of ours that would start so gets COMMAND_GUARD in front.
+_COMMAND_START = ("::", "##[")
+COMMAND_GUARD = "\\"
+
+
+def _escape(match: re.Match[str]) -> str:
+    char = match.group()
+    return _NAMED_ESCAPES.get(char) or (f"\\x{ord(char):02x}" if ord(char) < 0x100 else f"\\u{ord(char):04x}")
+
+
+def escaped(text: str) -> str:
+    """Control characters made visible (`\\n`, `\\x1b`, `\\u202e`): text from input never moves the cursor, colours a
+    terminal, reorders what a reviewer reads or splits one line in two. Backslashes stay as they are."""
+    return _CONTROL.sub(_escape, text)
+
+
+def _keep(limit: int) -> int:
+    """Characters kept at each end of a shortened text: with `…` and ` (1,234,567 characters)`, within `limit`."""
+    return max((limit - 30) // 2, 1)
+
+
+def shortened(text: str, limit: int) -> str:
+    """`head…tail (5,000 characters)` for a text longer than `limit`; as it is otherwise."""
+    if len(text) <= limit:
+        return text
+    keep = _keep(limit)
+    return f"{text[:keep]}…{text[-keep:]} ({len(text):,} characters)"
+
+
+def shown(text: object, limit: int = NAME_LIMIT) -> str:
+    """A name (or any value from input) as a message shows it: one line, control characters visible, and shortened
+    with its length when longer than `limit` characters (`aaaa…aaaa (5,000 characters)`)."""
+    return escaped(shortened(str(text), limit))
+
+
+def quoted(text: object, limit: int = NAME_LIMIT) -> str:
+    """`'name'`, as messages quote names; a long one as `'aaaa…aaaa' (5,000 characters)`."""
+    text = str(text)
+    if len(text) <= limit:
+        return f"'{escaped(text)}'"
+    keep = _keep(limit)
+    return f"'{escaped(text[:keep])}…{escaped(text[-keep:])}' ({len(text):,} characters)"
+
+
+def neutral_line(line: str, limit: int = LINE_LIMIT) -> str:
+    """One line as the tool prints it: control characters visible (a newline inside becomes `\\n`), shortened past
+    `limit` (as escaped), and never read by GitHub Actions as a workflow command (`::error::...`, `::add-mask::...`):
+    such a line gets a backslash in front."""
+    line = shortened(escaped(line), limit)
+    return COMMAND_GUARD + line if line.lstrip().startswith(_COMMAND_START) else line
+
+
+def neutral_text(text: str, limit: int = LINE_LIMIT) -> str:
+    """Every line of a text the tool prints (split at newlines only: a CR or any other control character inside a
+    line is made visible), each through `neutral_line`. A final newline stays."""
+    body, end = (text[:-1], "\n") if text.endswith("\n") else (text, "")
+    return "\n".join(neutral_line(line, limit) for line in body.split("\n")) + end if text else text
+
+
 def listing(items: Sequence[str], limit: int = 12, separator: str = ", ", empty: str = "") -> str:
-    """`a, b, c and 4 more`: names in a message, shortened so one error stays one readable line."""
+    """`a, b, c and 4 more`: names in a message, shortened so one error stays one readable line (each name too)."""
     if not items:
         return empty
-    return separator.join(items[:limit]) + (f" and {len(items) - limit} more" if len(items) > limit else "")
+    return separator.join(shown(item) for item in items[:limit]) + (f" and {len(items) - limit:,} more" if len(items) > limit else "")
 
 
 def located(severity: str, message: str, where: Where | None) -> str:
-    """The one-line form of a problem: `SEVERITY: FILE:LINE:COL: YAML.PATH: message`."""
-    place = f"{where.prefix()}: " if where else ""
-    path = f"{where.path}: " if where and where.path else ""
-    return f"{severity}: {place}{path}{message}"
+    """The one-line form of a problem: `SEVERITY: FILE:LINE:COL: YAML.PATH: message`, neutral (one line, bounded,
+    control characters visible, never a workflow command) whatever the file name, YAML keys and message hold."""
+    place = f"{shown(where.prefix(), LINE_LIMIT // 4)}: " if where else ""
+    path = f"{shown(where.path, LINE_LIMIT // 4)}: " if where and where.path else ""
+    return neutral_line(f"{severity}: {place}{path}{message}")
 
 
 class UserError(Exception):
@@ -156,4 +228,4 @@ def closest(name: str, choices: Iterable[str]) -> str | None:
 def did_you_mean(name: str, choices: Iterable[str]) -> str:
     """` (did you mean 'x'?)` to append to a message, or nothing."""
     close = closest(name, choices)
-    return f" (did you mean '{close}'?)" if close is not None else ""
+    return f" (did you mean {quoted(close)}?)" if close is not None else ""

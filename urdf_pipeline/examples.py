@@ -3,7 +3,8 @@
 
 Run by `make demo` and by the test suite (`python -m urdf_pipeline.examples DIR`), so a fresh clone needs no hand step.
 Installed from a wheel, the same command also writes the example configs into DIR (a wheel carries them as
-`urdf_pipeline/example_configs`; a checkout reads its own `configs/`).
+`urdf_pipeline/example_configs`; a checkout, installed editable, reads its own `configs/`). Either way it writes
+exactly `EXAMPLE_CONFIGS`: not a config of the user's own that sits in a checkout's `configs/`, nor anything a run wrote.
 """
 
 from __future__ import annotations
@@ -11,6 +12,8 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
+import shlex
 import shutil
 import sys
 from pathlib import Path
@@ -276,15 +279,30 @@ def prepare(directory: Path, frames: int = 900) -> list[str]:
     return [f"{config}: not prepared, {MISSING_EXTRAS[config][0]} needs pip install {MISSING_EXTRAS[config][1]}" for config in missing]
 
 
+# The shipped example configs, by name: the folder they come from may hold more (a checkout's configs/ holds what its
+# user added there; a wheel built from such a checkout carries it too). tests/cli/test_examples.py checks this list
+# against the configs git tracks and the wheel's package data.
+EXAMPLE_CONFIGS = (
+    "aloha_bimanual.yaml",
+    "bimanual_pandas.yaml",
+    "demo.yaml",
+    "g1_held_joints.yaml",
+    "so101_dataset.yaml",
+    "so101_lerobot.yaml",
+    "ur5_ros2_bag.yaml",
+)
+
+
 def example_configs() -> Path:
-    """The shipped example configs: in a wheel, urdf_pipeline/example_configs; in a checkout, its configs/."""
+    """The folder of the shipped example configs: in a wheel, urdf_pipeline/example_configs; in a checkout, its configs/."""
     packaged = Path(__file__).parent / "example_configs"
     return packaged if packaged.is_dir() else Path(__file__).resolve().parent.parent / "configs"
 
 
 def copy_configs(directory: Path) -> list[str]:
-    """Write the example configs into `directory`, their schema line pointing where it resolves from there. A config
-    already there and edited is kept (the lines say which); nothing to do when `directory` is their own folder."""
+    """Write the example configs (`EXAMPLE_CONFIGS`, nothing else) into `directory`, their schema line pointing where
+    it resolves from there. A config already there and edited is kept (the lines say which); nothing to do when
+    `directory` is their own folder."""
     from .review import schema_reference
 
     source = example_configs()
@@ -293,7 +311,10 @@ def copy_configs(directory: Path) -> list[str]:
     directory.mkdir(parents=True, exist_ok=True)
     schema_line = f"# yaml-language-server: $schema={schema_reference(directory)}"
     said = []
-    for config in sorted(source.glob("*.yaml")):
+    for config in (source / name for name in EXAMPLE_CONFIGS):
+        if not config.is_file():  # a checkout whose user deleted one: the others are still written
+            said.append(f"{config}: missing from the installed examples; not written")
+            continue
         lines = config.read_text(encoding="utf-8").splitlines(keepends=True)
         if lines and lines[0].startswith("# yaml-language-server: $schema="):
             lines[0] = schema_line + "\n"
@@ -310,7 +331,7 @@ def main(argv: list[str] | None = None) -> int:
         prog="python -m urdf_pipeline.examples",
         description="Write the example configs (from a wheel; a checkout has them in configs/) and their inputs into "
         "DIR: robot descriptions linked from example-robot-data and rtb-data, joint data as parquet, LeRobot, HDF5 and "
-        "MCAP. Then: urdf-pipeline run DIR/demo.yaml. The inputs need the [demo] extra: pip install "
+        "MCAP. Then: urdf-pipeline run DIR/demo.yaml (the command's last line says how to call it here). The inputs need the [demo] extra: pip install "
         '"urdf-pipeline[demo]".',
     )
     parser.add_argument("directory", nargs="?", default="configs", metavar="DIR", help="where they go (default: configs)")
@@ -323,8 +344,31 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"{directory} is not a folder")
     for line in copy_configs(directory) + prepare(directory, args.frames):
         print(f"urdf_pipeline.examples: {line}", file=sys.stderr)
-    print(f"urdf_pipeline.examples: ready; try: urdf-pipeline run {directory / 'demo.yaml'}", file=sys.stderr)
+    print(f"urdf_pipeline.examples: ready; try: {cli_command()} run {shlex.quote(str(directory / 'demo.yaml'))}", file=sys.stderr)
     return 0
+
+
+def cli_command() -> str:
+    """How to call the CLI of this interpreter's environment, as the user can type it here: `urdf-pipeline` when that
+    is what PATH finds, else the script beside the interpreter (`.venv/bin/urdf-pipeline`: `make demo` runs with no
+    venv activated), else `PYTHON -m urdf_pipeline`."""
+    bin_dir = Path(sys.executable).parent  # not resolved: a venv's python is a link to the base interpreter
+    script = bin_dir / "urdf-pipeline"
+    if not (script.is_file() and os.access(script, os.X_OK)):
+        return f"{shlex.quote(_shown_path(Path(sys.executable)))} -m urdf_pipeline"
+    found = shutil.which("urdf-pipeline")
+    if found is not None and Path(found).resolve() == script.resolve():
+        return "urdf-pipeline"
+    return shlex.quote(_shown_path(script))
+
+
+def _shown_path(path: Path) -> str:
+    """Relative to the current folder when it is inside it (`.venv/bin/...`), else absolute."""
+    absolute = Path(os.path.abspath(path))
+    try:
+        return str(absolute.relative_to(Path.cwd()))
+    except ValueError:
+        return str(absolute)
 
 
 if __name__ == "__main__":

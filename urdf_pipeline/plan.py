@@ -119,13 +119,14 @@ class JointChannel:
     offset: float
     lower: float | None  # URDF units; None when the joint has no limits
     upper: float | None
-    slack: float  # URDF units
+    slack: float  # URDF units: limits.slack for this joint's kind (compile/units.py)
     where: Where
     scale: float = 1.0
     wrap: float | None = None  # period in source units, e.g. 360 for a servo reporting 0..360 deg
     wrap_center: float = 0.0  # wrapped values land in [center - wrap/2, center + wrap/2), source units
     source_range: tuple[float, float] | None = None
     target_range: tuple[float, float] | None = None  # URDF units; the joint's limits unless joint_range is given
+    slack_written: tuple[float, str] = (0.0, "")  # limits.slack as the config wrote it for this joint's kind: (2.0, "deg")
 
     @property
     def gain(self) -> float:
@@ -155,8 +156,16 @@ class JointChannel:
 
     @property
     def slack_in_source_unit(self) -> float | None:
-        """limits.slack as the config gives it: the plan holds it in URDF units."""
+        """The slack as a span of raw source values (what check and the limits report compare raw values with)."""
         return self.slack / abs(self.gain) if self.gain else None
+
+    @property
+    def slack_text(self) -> str:
+        """The slack for people: "2 deg", "0" (units.number_text's form; the unit of a zero slack says nothing)."""
+        value, unit = self.slack_written
+        if not unit:  # a channel built by hand, not compiled: its slack in URDF units
+            value, unit = self.slack, "rad" if self.source_unit in ("rad", "deg") else "m"
+        return f"{value:g} {unit}" if value else "0"
 
 
 @dataclass(frozen=True)
@@ -208,6 +217,17 @@ class RobotPlan:
     @property
     def collision_filter(self) -> str:
         return f"{self.entity_path_prefix}/{self.robot_name}/collision_geometries/**"
+
+    @property
+    def slack_text(self) -> str:
+        """limits.slack in the config's own form: "0", "2 deg", "{angle: 2 deg, length: 2 mm}" (the kinds its channels have)."""
+        by_kind: dict[bool, str] = {}
+        for channel in self.channels:
+            by_kind.setdefault(channel.slack_written[1] in ("rad", "deg"), channel.slack_text)
+        given = {angular: text for angular, text in by_kind.items() if text != "0"}
+        if len(given) == 2:
+            return f"{{angle: {given[True]}, length: {given[False]}}}"
+        return next(iter(given.values()), "0")
 
 
 EdgeKind = Literal["static", "fixed_chain", "assume_identity"]

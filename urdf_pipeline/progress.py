@@ -13,11 +13,12 @@ from __future__ import annotations
 import logging
 import os
 import sys
-import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Protocol, TextIO
+
+from .errors import neutral_line, neutral_text
 
 LOGGER = logging.getLogger("urdf_pipeline")
 
@@ -49,9 +50,17 @@ class _Stderr(logging.Handler):
             self.handleError(record)
 
 
+class _Neutral(logging.Formatter):
+    """`%(message)s`, each of its lines neutral (errors.neutral_text): names from input in a message (a joint named
+    `::error::x`, a file name holding ESC or a newline) never forge a CI workflow command or reach the terminal raw."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        return neutral_text(super().format(record))
+
+
 def _handler() -> logging.Handler:
     handler = _Stderr()
-    handler.setFormatter(logging.Formatter("%(message)s"))
+    handler.setFormatter(_Neutral("%(message)s"))
     return handler
 
 
@@ -85,35 +94,6 @@ def worker_logging(level: int, driver: str) -> None:
         LOGGER.addHandler(_handler())
         LOGGER.propagate = False
     LOGGER.setLevel(level)
-
-
-class RowProgress:
-    """Rows through the FK of one robot: a line every few seconds, with the share done and an ETA when the row count
-    is known from the source's metadata."""
-
-    def __init__(self, label: str, every_seconds: float = 5.0, total: int | None = None) -> None:
-        self.label = label
-        self.every = every_seconds
-        self.total = total
-        self.rows = 0
-        self._started = self._last = time.monotonic()
-        self._lock = threading.Lock()
-
-    def add(self, rows: int) -> None:
-        with self._lock:
-            self.rows += rows
-            now = time.monotonic()
-            if now - self._last >= self.every:
-                self._last = now
-                say(self.line(now - self._started))
-
-    def line(self, elapsed: float) -> str:
-        rate = self.rows / max(elapsed, 1e-9)
-        if not self.total:
-            return f"{self.label}: {self.rows:,} rows ({rate:,.0f} rows/s)"
-        done = min(self.rows, self.total)
-        eta = time.strftime("%H:%M:%S", time.gmtime((self.total - done) / max(rate, 1e-9)))
-        return f"{self.label}: {done:,} of {self.total:,} rows ({100 * done / self.total:.0f}%, {rate:,.0f} rows/s, ETA {eta})"
 
 
 class SegmentProgress:
@@ -177,7 +157,7 @@ class SegmentProgress:
         if self.logged:
             say(message)
         else:
-            print(f"urdf-pipeline: {message}", file=self.stream, flush=True)
+            print(neutral_line(f"urdf-pipeline: {message}"), file=self.stream, flush=True)
 
 
 class SegmentResultLike(Protocol):

@@ -1,23 +1,18 @@
-"""Progress lines of one long segment: the share done and an ETA when the source's metadata gives the row count."""
+"""The run's per-segment progress lines (one long segment's meter: tests/execute/test_progress_meter.py)."""
 
 from __future__ import annotations
 
-from urdf_pipeline.progress import RowProgress
+import io
+from types import SimpleNamespace
+
+from urdf_pipeline.progress import SegmentProgress
 
 
-def test_a_known_row_count_gives_a_share_and_an_eta() -> None:
-    progress = RowProgress("robot arm", total=1_000_000)
-    progress.rows = 400_000
-    assert progress.line(2.0) == "robot arm: 400,000 of 1,000,000 rows (40%, 200,000 rows/s, ETA 00:00:03)"
-
-
-def test_more_rows_than_the_metadata_said_stop_at_100_percent() -> None:
-    progress = RowProgress("robot arm", total=1_000)
-    progress.rows = 1_500
-    assert "1,000 of 1,000 rows (100%" in progress.line(1.0)
-
-
-def test_an_unknown_row_count_gives_the_rate_only() -> None:
-    progress = RowProgress("robot arm")
-    progress.rows = 400_000
-    assert progress.line(2.0) == "robot arm: 400,000 rows (200,000 rows/s)"
+def test_a_segment_line_shows_a_hostile_label_and_reason_escaped() -> None:
+    """The plain per-segment line (stderr not a terminal): a segment id from a file name, a reason quoting a joint name."""
+    stream = io.StringIO()
+    progress = SegmentProgress(stream)
+    progress.start(total=1, frames_expected=0, skipped=0)
+    result = SimpleNamespace(label="::error::ep\x1b[2J", status="failed", frames=0, seconds=0.5, reason="joint 'a\r::warning::b'\nmore")
+    progress.done(result, None)
+    assert stream.getvalue() == "urdf-pipeline: [1/1] ::error::ep\\x1b[2J failed (0 frames, 0.5 s): joint 'a\n"  # its first line only

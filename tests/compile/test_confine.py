@@ -164,3 +164,57 @@ def test_a_source_inside_git_is_refused(tmp_path: Path, run_cli) -> None:
     result = run_cli("validate", str(config))
     assert result.code == 1
     assert "sources.s.parquet: parquet file" in result.err and "is inside a .git folder" in result.err
+
+
+def test_the_prefix_share_folder_is_a_package_root(tmp_path: Path, clean_env: pytest.MonkeyPatch) -> None:
+    """Where data-files, ament and cmeel wheels put robots and meshes: `sys.prefix/share` (cmeel's own
+    `cmeel.prefix/share` is inside site-packages already). Read only: a config never writes there."""
+    import sys
+
+    share = Path(sys.prefix) / "share" / "some_description" / "robot.urdf"
+    rule = confinement_for(tmp_path / "c.yaml")
+    assert rule.may_read(share) and not rule.may_write(share)
+    clean_env.setattr(sys, "prefix", str(tmp_path / "prefix"))
+    rule = confinement_for(tmp_path / "pr" / "c.yaml")
+    assert rule.may_read(tmp_path / "prefix" / "share" / "x" / "r.urdf")
+    assert not rule.may_read(tmp_path / "prefix" / "lib" / "secret")  # the share folder only, not the whole prefix
+    assert not rule.may_write(tmp_path / "prefix" / "share" / "x.rrd")
+
+
+MESHED_ARM = """<robot name="arm"><link name="base_link"/>
+<link name="link1"><visual><geometry><mesh filename="package://arm_description/meshes/link1.stl"/></geometry></visual></link>
+<joint name="joint1" type="revolute"><parent link="base_link"/><child link="link1"/><axis xyz="0 0 1"/>
+<limit lower="-3" upper="3" effort="1" velocity="1"/></joint></robot>"""
+
+
+def test_init_from_a_urdf_under_the_prefix_share_writes_a_config_that_validates(
+    tmp_path: Path, clean_env: pytest.MonkeyPatch, run_cli
+) -> None:
+    """A description package installed under `sys.prefix/share`: `init` finds its package folder there and the config
+    it writes validates without URDF_PIPELINE_ALLOW_PATHS (the read rule and init agree)."""
+    import struct
+    import sys
+
+    clean_env.setattr(sys, "prefix", str(tmp_path / "venv"))
+    package = tmp_path / "venv" / "share" / "arm_description"
+    (package / "urdf").mkdir(parents=True)
+    (package / "meshes").mkdir()
+    (package / "urdf" / "arm.urdf").write_text(MESHED_ARM, encoding="utf-8")
+    triangle = b"\0" * 80 + struct.pack("<I", 1) + struct.pack("<12f", 0, 0, 1, 0, 0, 0, 0.1, 0, 0, 0, 0.1, 0) + b"\0\0"
+    (package / "meshes" / "link1.stl").write_bytes(triangle)
+    repo = tmp_path / "repo"
+    (repo / ".git").mkdir(parents=True)  # configs/ beside data/ in one work tree
+    write_joint_parquet(repo / "data" / "episode.parquet", np.zeros((5, 1)))
+    config = repo / "configs" / "arm.yaml"
+
+    result = run_cli(
+        "init", "--urdf", str(package / "urdf" / "arm.urdf"), "--source", f"parquet:{repo / 'data' / 'episode.parquet'}", "-o", str(config)
+    )
+    assert result.code == 0, result.err
+    assert "outside" not in result.err, result.err
+    written = yaml.safe_load(config.read_text(encoding="utf-8"))
+    assert "arm_description" in written["robots"]["arm"]["package_paths"]
+
+    result = run_cli("validate", str(config))
+    assert result.code == 0, result.err
+    assert f"ok: {config}" in result.out

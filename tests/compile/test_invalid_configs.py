@@ -25,6 +25,7 @@ import pytest
 from urdf_pipeline.examples import panda_raw_values, write_joint_parquet
 from urdf_pipeline.urdf.model import read_urdf
 
+from ..hostile_inputs import write_hostile_inputs
 from ..source_inputs import write_source_inputs
 
 CASES_DIR = Path(__file__).resolve().parents[1] / "configs" / "invalid"
@@ -139,12 +140,21 @@ def invalid_dir(examples_dir: Path) -> Path:
     write_joint_parquet(data / "nan_values.parquet", nan)
     # MCAP, HDF5 and RRD inputs of the mcap_*, hdf5_* and rrd_* cases.
     write_source_inputs(data, panda_raw_values(FRAMES, panda))
+    # Symlink loops, a file in an output folder's place, a newline in a file name, hostile HDF5 and index values.
+    write_hostile_inputs(examples_dir, panda_raw_values(FRAMES, panda))
 
     text = panda_urdf.read_text(encoding="utf-8")
     original = "package://example-robot-data/robots/panda_description/meshes/visual/link3.dae"
     assert text.count(original) == 1
     (robots / "panda_missing_mesh.urdf").write_text(text.replace(original, MISSING_MESH_URI), encoding="utf-8")
     shutil.copyfile(panda_urdf, robots / "panda.urdf.xacro")
+    # The urdf_* cases: xacro content in a .urdf (line 7), a <link> inside panda_link3 (line 77).
+    robot_tag = '<robot name="panda" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+    assert text.count(robot_tag) == 1 and text.count('    <link name="panda_link3">\n') == 1
+    xacro_content = text.replace(robot_tag, robot_tag + '\n  <xacro:include filename="panda_hand.xacro"/>')
+    (robots / "panda_xacro_content.urdf").write_text(xacro_content, encoding="utf-8")
+    nested = text.replace('    <link name="panda_link3">\n', '    <link name="panda_link3">\n<link name="wrist_camera"/>\n')
+    (robots / "panda_nested_link.urdf").write_text(nested, encoding="utf-8")
     # The path_* and mesh_* cases: link3's visual mesh replaced (see tests/urdf/test_meshes.py for every form).
     for variant, uri in MESH_VARIANTS.items():
         (robots / f"panda_{variant}.urdf").write_text(text.replace(original, uri), encoding="utf-8")

@@ -37,7 +37,9 @@ TWO_KINDS_URDF = """<?xml version="1.0"?>
 DEG = math.pi / 180
 
 
-def two_kinds_config(directory: Path, unit: Any = None, elbow: Any = "elbow", slider: Any = "slider", values: Any = None) -> Path:
+def two_kinds_config(
+    directory: Path, unit: Any = None, elbow: Any = "elbow", slider: Any = "slider", values: Any = None, limits: Any = None
+) -> Path:
     """A config of the two-joint robot in `directory` (robot.urdf and data.parquet are written beside it)."""
     (directory / "robot.urdf").write_text(TWO_KINDS_URDF)
     raw = np.array(values if values is not None else [[0.0, 0.0]] * 10, dtype=np.float64)
@@ -45,6 +47,8 @@ def two_kinds_config(directory: Path, unit: Any = None, elbow: Any = "elbow", sl
     joints: dict[str, Any] = {"source": "state", "map": {"e": elbow, "s": slider}}
     if unit is not None:
         joints["unit"] = unit
+    if limits is not None:
+        joints["limits"] = limits
     config = {
         "version": 1,
         "sources": {"state": {"parquet": "data.parquet", "column": "observation.state", "index": "frame_index", "names": ["e", "s"]}},
@@ -183,6 +187,88 @@ def test_the_demo_j3_limits_agree(run_cli, examples_dir: Path, tmp_path: Path, m
     assert run.code == 1
     match = re.search(rf"joint 'panda_joint3' .* beyond the URDF limits \[{NUMBER}, {NUMBER}\] deg", run.err)
     assert _pair(match, run.err) == pytest.approx(expected, rel=1e-5)
+
+
+# --- limits.slack carries its own unit ---------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("unit", ["deg", "rad", {"angle": "deg", "length": "mm"}, {"angle": "rad", "length": "cm"}])
+def test_slack_keeps_its_meaning_when_the_unit_changes(run_cli, tmp_path: Path, unit: Any) -> None:
+    """Switching deg to rad once turned `slack: 2` from 2 deg into 2 rad (115 deg); now 2 deg stays 2 deg."""
+    rows = plan_rows(run_cli, two_kinds_config(tmp_path, unit, limits={"slack": {"angle": "2 deg", "length": "5 mm"}}))
+    assert rows["elbow"]["slack"] == {"value": 2.0, "unit": "deg"} and rows["slider"]["slack"] == {"value": 5.0, "unit": "mm"}
+    angle_unit = rows["elbow"]["unit"]
+    assert rows["elbow"]["slack_source_units"] == pytest.approx(2.0 if angle_unit == "deg" else 2 * DEG)
+    length_factor = {"m": 1.0, "cm": 1e-2, "mm": 1e-3}[rows["slider"]["unit"]]
+    assert rows["slider"]["slack_source_units"] == pytest.approx(0.005 / length_factor)
+
+
+@pytest.mark.parametrize(
+    ("slack", "elbow", "slider"),
+    [
+        ("2 deg", {"value": 2.0, "unit": "deg"}, {"value": 0.0, "unit": "m"}),  # one kind: the other gets none
+        ("5 mm", {"value": 0.0, "unit": "rad"}, {"value": 5.0, "unit": "mm"}),
+        ("0.01 rad", {"value": 0.01, "unit": "rad"}, {"value": 0.0, "unit": "m"}),
+        (0, {"value": 0.0, "unit": "rad"}, {"value": 0.0, "unit": "m"}),  # a bare zero needs no unit
+        ({"length": "1 cm"}, {"value": 0.0, "unit": "rad"}, {"value": 1.0, "unit": "cm"}),
+    ],
+)
+def test_slack_applies_to_the_joints_of_its_kind(run_cli, tmp_path: Path, slack: Any, elbow: dict, slider: dict) -> None:
+    rows = plan_rows(run_cli, two_kinds_config(tmp_path, "deg", limits={"slack": slack}))
+    assert rows["elbow"]["slack"] == elbow and rows["slider"]["slack"] == slider
+
+
+def test_diff_shows_no_slack_change_when_only_the_unit_changes(run_cli, tmp_path: Path) -> None:
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    old = two_kinds_config(tmp_path / "a", "deg", limits={"slack": "2 deg"})
+    new = two_kinds_config(tmp_path / "b", "rad", limits={"slack": "2 deg"})
+    result = run_cli("diff", str(old), str(new))
+    assert result.code == 0 and "unit deg -> rad" in result.out and "slack" not in result.out, result.out
+    newer = two_kinds_config(tmp_path / "b", "rad", limits={"slack": "1 deg"})
+    assert "robot r: limits slack 2 deg -> 1 deg" in run_cli("diff", str(old), str(newer)).out
+
+
+def test_plan_text_shows_the_slack_with_its_unit(run_cli, tmp_path: Path) -> None:
+    config = two_kinds_config(tmp_path, "rad", limits={"slack": {"angle": "2 deg", "length": "5 mm"}})
+    text = run_cli("plan", str(config)).out
+    assert re.search(r"e\[0\] -> elbow: .*limits -1 \.\. 2 rad, slack 2 deg$", text, re.M), text
+    assert re.search(r"s\[1\] -> slider: .*limits 0 \.\. 0\.05 m, slack 5 mm$", text, re.M), text
+
+
+def test_a_bare_slack_names_what_it_meant_with_the_configs_units(run_cli, tmp_path: Path) -> None:
+    config = two_kinds_config(tmp_path, {"angle": "deg", "length": "mm"}, limits={"slack": 1.5})
+    result = run_cli("validate", "--no-data", str(config))
+    assert result.code == 1 and len(result.err.splitlines()) == 1
+    assert re.match(r"error: .*config\.yaml:\d+:\d+: robots\.r\.joints\.limits\.slack: 1\.5 has no unit", result.err)
+    assert "write slack: {angle: 1.5 deg, length: 1.5 mm} (what 1.5 meant with angles in deg and lengths in mm)" in result.err
+
+
+def test_a_run_refused_for_degrees_configured_as_radians_names_the_unit(run_cli, tmp_path: Path) -> None:
+    """LeRobot SO-100/SO-101 data is in degrees: a config left at rad is refused with the unit that fits, one located
+    line, nothing written."""
+    config = two_kinds_config(tmp_path, "rad", values=[[float(v), 0.01] for v in np.linspace(-50, 100, 20)])
+    result = run_cli("run", str(config))
+    assert result.code == 1 and not result.out.strip()
+    errors = [line for line in result.err.splitlines() if line.startswith("error")]
+    assert len(errors) == 1, result.err
+    assert re.match(rf"error: {re.escape(str(config))}:\d+:\d+: robots\.r\.joints\.map\.e: ", errors[0]), errors[0]
+    assert "the values fit the limits if they are degrees: `unit: deg` on this entry" in errors[0]
+    assert not [p for p in (tmp_path / "out").rglob("*") if p.is_file()]  # nothing written, not even a partial file
+
+
+def test_a_run_refused_for_mm_configured_as_metres_names_the_unit(run_cli, tmp_path: Path) -> None:
+    config = two_kinds_config(tmp_path, values=[[0.0, float(v)] for v in np.linspace(0, 40, 20)])
+    result = run_cli("run", str(config))
+    assert result.code == 1
+    assert "joint 'slider'" in result.err and "the values fit the limits if they are millimetres: `unit: mm`" in result.err
+    assert not [p for p in (tmp_path / "out").rglob("*") if p.is_file()]  # nothing written, not even a partial file
+
+
+def test_a_run_refused_with_values_no_unit_explains_says_nothing_of_units(run_cli, tmp_path: Path) -> None:
+    config = two_kinds_config(tmp_path, "deg", values=[[v, 0.0] for v in (-5000.0, 5000.0)])  # no unit puts +-5000 within -1..2 rad
+    result = run_cli("run", str(config))
+    assert result.code == 1 and "Check this entry's joint, unit, sign and offset" in result.err and "fit the limits if" not in result.err
 
 
 # --- did you mean ------------------------------------------------------------------------------------------------------

@@ -243,7 +243,7 @@ def test_a_file_beyond_the_size_bound_is_refused_before_parsing(tmp_path: Path, 
 def test_a_config_that_cannot_be_read_is_a_user_error(tmp_path: Path) -> None:
     with pytest.raises(UserError) as error:
         load_document(tmp_path)  # a directory
-    assert error.value.where == Where(tmp_path, 0) and error.value.message.startswith("cannot read the config file: ")
+    assert error.value.where == Where(tmp_path, 0) and error.value.message == "the config file is a folder, not a file"
 
 
 HOSTILE_SIDECARS = {  # name -> (file name, content, line, column, message): edges files go through the same parser
@@ -275,3 +275,18 @@ def test_a_hostile_edges_file_is_a_user_error_at_its_line(case: str, examples_di
     assert "Traceback" not in result.err and "internal error" not in result.err
     where = f"{sidecar}:{line}:{column}" if line else str(sidecar)
     assert f"error: {where}: " in result.err and message in result.err, result.err
+
+
+def test_a_config_that_is_a_fifo_is_refused_without_waiting(tmp_path: Path) -> None:
+    """Opening a FIFO waits for a writer that never comes: `validate A FIFO C` would hang on B. It is refused by its
+    kind before it is opened (in a child process, so that a regression fails here instead of hanging the suite)."""
+    import os
+    import subprocess
+    import sys
+
+    fifo = tmp_path / "c.yaml"
+    os.mkfifo(fifo)
+    code = "import sys; from urdf_pipeline import cli; sys.exit(cli.main(['validate', sys.argv[1]]))"
+    result = subprocess.run([sys.executable, "-c", code, str(fifo)], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 1, result.stderr
+    assert result.stderr.splitlines() == [f"error: {fifo}: the config file {fifo} is a FIFO, not a regular file or folder; name a file"]

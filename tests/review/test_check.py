@@ -19,9 +19,13 @@ from urdf_pipeline.review.check import check_channel
 HERE = Where(Path("c.yaml"), 1)
 
 
-def revolute(lower_deg: float, upper_deg: float, slack_deg: float = 0.0, sign: float = 1.0) -> JointChannel:
+def revolute(lower_deg: float, upper_deg: float, slack_deg: float = 0.0, sign: float = 1.0, unit: str = "deg") -> JointChannel:
     f = math.pi / 180
-    return JointChannel("j", "s", 0, "deg", f, sign, 0.0, lower_deg * f, upper_deg * f, slack_deg * f, HERE)
+    return JointChannel("j", "s", 0, unit, f if unit == "deg" else 1.0, sign, 0.0, lower_deg * f, upper_deg * f, slack_deg * f, HERE)
+
+
+def prismatic(unit: str, lower: float = 0.0, upper: float = 0.04) -> JointChannel:
+    return JointChannel("finger", "f", 0, unit, {"m": 1.0, "cm": 1e-2, "mm": 1e-3}[unit], 1.0, 0.0, lower, upper, 0.0, HERE)
 
 
 def report(channel: JointChannel, values) -> object:
@@ -34,10 +38,16 @@ def test_a_single_fitting_correction_gives_the_yaml_to_paste() -> None:
     assert r.paste == "s: {joint: j, unit: deg, sign: -1}"
 
 
-def test_several_fitting_corrections_are_ambiguous() -> None:
-    r = report(revolute(-166, 166), np.linspace(-30, 30, 50))
-    assert r.verdict == "ambiguous" and "settle against a known pose" in r.message and r.current_fits
+def test_the_configs_own_corrections_that_fit_say_fits_as_configured() -> None:
+    r = report(revolute(-166, 166), np.linspace(-30, 30, 50))  # negated fits too: not "ambiguous" for a config that fits
+    assert r.verdict == "fits" and r.message == "fits as configured" and r.current_fits and r.paste is None
     assert r.fitting[0] == "identity (the config's)" and "negate" in r.fitting
+
+
+def test_several_equally_simple_corrections_are_ambiguous() -> None:
+    r = report(revolute(-166, 166), np.linspace(200, 300, 50))  # wrapped by a turn, or offset by -180 deg: one change each
+    assert r.verdict == "ambiguous" and not r.current_fits and r.paste is None
+    assert "wrap a full turn" in r.message and "offset -180 deg" in r.message and "settle against a known pose" in r.message
 
 
 def test_a_servo_reporting_a_full_turn_needs_wrap() -> None:
@@ -56,9 +66,66 @@ def test_overshoot_within_slack_is_reported_as_calibration_slack() -> None:
 
 
 def test_prismatic_values_in_mm_declared_as_metres() -> None:
-    channel = JointChannel("finger", "f", 0, "m", 1.0, 1.0, 0.0, 0.0, 0.04, 0.0, HERE)
-    r = report(channel, np.linspace(1, 39, 20))
-    assert r.verdict == "fits" and r.paste == "f: {joint: finger, unit: mm}"
+    r = report(prismatic("m"), np.linspace(1, 39, 20))
+    assert r.verdict == "fits" and r.paste == "f: {joint: finger, unit: mm}" and r.unit_fits == "mm"
+    assert r.message == "the values fit if they are millimetres: `unit: mm`"
+
+
+def test_prismatic_values_in_metres_declared_as_mm_fit_but_are_clearly_ambiguous() -> None:
+    r = report(prismatic("mm"), np.linspace(0.001, 0.039, 20))  # as mm they barely leave zero; as metres they fill the range
+    assert r.current_fits and r.verdict == "ambiguous"
+    assert "fits as configured, but the values also fit if they are metres (`unit: m`)" in r.message
+
+
+def test_prismatic_values_in_cm_declared_as_metres() -> None:
+    r = report(prismatic("m"), np.linspace(0.5, 3.9, 20))  # cm fills the range, mm fits too (a tenth of it): cm first
+    assert not r.current_fits and r.verdict == "ambiguous" and r.message.index("unit cm") < r.message.index("unit mm")
+
+
+@pytest.mark.parametrize(("lower", "upper"), [(-166, 166), (-180, 180), (-110, 110)])
+def test_degrees_configured_as_radians_get_the_unit_not_a_wrap_or_another_joint(lower: float, upper: float) -> None:
+    """LeRobot SO-100/SO-101 data is in degrees; a config left at rad must hear so, also for limits of a full turn
+    (where "wrap a full turn" would fit anything)."""
+    r = report(revolute(lower, upper, unit="rad"), np.linspace(-87, 88, 200))
+    assert not r.current_fits and r.verdict == "fits" and r.unit_fits == "deg"
+    assert r.message.startswith("the values fit if they are degrees: `unit: deg`")
+    assert r.paste == "s: {joint: j, unit: deg}"
+    assert "wrap" not in r.message and "another joint" not in r.message
+
+
+def test_degrees_configured_as_radians_with_a_sign_get_both() -> None:
+    r = report(revolute(-1, 215, unit="rad"), np.linspace(-200, -10, 50))
+    assert r.verdict == "fits" and r.paste == "s: {joint: j, unit: deg, sign: -1}" and "degrees" in r.message
+
+
+def test_radians_configured_as_degrees_fit_but_are_clearly_ambiguous() -> None:
+    r = report(revolute(-166, 166), np.linspace(-1.5, 2.0, 50))  # 2 deg of a 332 deg joint, or 115 deg: say so
+    assert r.current_fits and r.verdict == "ambiguous"
+    assert "fits as configured, but the values also fit if they are radians (`unit: rad`)" in r.message
+    assert "within 2 deg of zero" in r.message and "332 deg" in r.message
+
+
+def test_small_degrees_far_from_zero_are_not_suspected_of_being_radians() -> None:
+    r = report(revolute(-166, 166), np.linspace(10, 40, 50))  # as radians far beyond the limits
+    assert r.verdict == "fits" and r.message == "fits as configured"
+
+
+def test_radians_configured_as_degrees_that_do_not_fit_name_the_unit_first() -> None:
+    r = report(revolute(-176, -4), np.linspace(-2.5, -1.0, 50))  # panda_joint4: radians, or degrees offset by -90
+    assert not r.current_fits and r.verdict == "ambiguous" and r.message.index("unit rad") < r.message.index("offset")
+
+
+def test_a_real_joint_swap_is_still_probably_another_joint() -> None:
+    swapped = np.linspace(-100, 100, 60)  # panda_joint1's values in panda_joint4's column (degrees, as configured)
+    r = report(revolute(-176, -4), swapped)
+    assert r.verdict == "none" and "probably another joint" in r.message
+    in_rad = report(revolute(-176, -4, unit="rad"), np.radians(swapped))  # the same in radians: degrees + offset is no way out
+    assert in_rad.verdict == "none" and "probably another joint" in in_rad.message
+
+
+def test_the_simplest_fitting_correction_is_the_advice() -> None:
+    r = report(revolute(-1, 215), np.linspace(-200, -10, 50))  # negate (1 change) beats e.g. negate and wrap
+    assert r.verdict == "fits" and r.message.startswith("one correction fits: negate")
 
 
 def test_cli_json_and_exit_status(examples_dir: Path, run_cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -99,3 +166,22 @@ def test_source_range_values_are_checked_against_the_range() -> None:
     assert report(channel, [0.1, 0.9]).verdict == "fits"
     outside = report(channel, [0.1, 1.5])
     assert outside.verdict == "none" and not outside.current_fits and "source_range" in outside.message
+
+
+def test_lerobot_degrees_configured_as_radians_get_the_robot_unit(examples_dir: Path, run_cli, tmp_path: Path) -> None:
+    """The SO-101 example (LeRobot, degrees) with `unit: rad`: every joint hears "degrees", never a wrap or another
+    joint, and the robot hears the one line to change."""
+    text = (examples_dir / "so101_lerobot.yaml").read_text()
+    assert "      unit: deg\n" in text
+    config = examples_dir / "so101_lerobot_in_rad.yaml"
+    config.write_text(text.replace("      unit: deg\n", "      unit: rad\n"))
+    result = run_cli("check", str(config))
+    assert result.code == 3
+    verdicts = [line.strip() for line in result.out.splitlines() if line.startswith("    fits:") or line.startswith("    ambiguous:")]
+    assert len(verdicts) == 6 and all(v.startswith("fits: the values fit if they are degrees: `unit: deg`") for v in verdicts), verdicts
+    assert "wrap" not in result.out and "another joint" not in result.out
+    assert "  whole robot: every revolute and continuous joint of robot so101 fits if its values are degrees: " in result.out
+    assert "write `unit: deg` under robots.so101.joints" in result.out
+    reports = json.loads(run_cli("check", str(config), "--format", "json").out)
+    assert {r["unit_fits"] for r in reports} == {"deg"} and all("unit: deg" in r["robot_advice"] for r in reports)
+    assert run_cli("check", str(examples_dir / "so101_lerobot.yaml")).out.count("fits: fits as configured") == 6

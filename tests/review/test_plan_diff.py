@@ -27,7 +27,7 @@ robots:
     joints:
       limits:
         on_violation: error
-        slack: 2
+        slack: {length: 2 mm, angle: "2 deg"}
       hold: {}
       map:
         finger:
@@ -195,7 +195,10 @@ def test_joints_remapped(run_cli, workspace: Path) -> None:
 def test_robot_limits_sources_and_output_changes(run_cli, workspace: Path) -> None:
     text = (workspace / "demo.yaml").read_text()
     for old, new in [
-        ("limits: {slack: 2.0, on_violation: error}", "limits: {slack: 1.0, on_violation: clamp}\n      nan: hold_last"),
+        (
+            "limits: {slack: {angle: 2 deg, length: 2 mm}, on_violation: error}",
+            "limits: {slack: {angle: 1 deg, length: 2 mm}, on_violation: clamp}\n      nan: hold_last",
+        ),
         ("j3: {joint: panda_joint3, offset: 0.1}", "j3: {joint: panda_joint3, offset: 0.2, scale: 2}"),
         ("j6: panda_joint6", "j6: {joint: panda_joint6, wrap: 360}"),
         ("finger: {joint: panda_finger_joint1, unit: mm}", "finger: {joint: panda_finger_joint1, unit: m}"),
@@ -216,7 +219,7 @@ def test_robot_limits_sources_and_output_changes(run_cli, workspace: Path) -> No
     assert result.out.splitlines() == [
         'robot arm: frame_prefix "" -> robot_',
         "robot arm: NaN policy error -> hold_last",
-        "robot arm: limits slack (source units) 2 -> 1",
+        "robot arm: limits slack {angle: 2 deg, length: 2 mm} -> {angle: 1 deg, length: 2 mm}",
         "robot arm: limits on_violation error -> clamp",
         "robot arm: j3 -> panda_joint3: scale 1 -> 2",
         "robot arm: j3 -> panda_joint3: offset 0.1 -> 0.2",
@@ -325,7 +328,7 @@ def test_git_revision_against_the_working_tree(run_cli, workspace: Path) -> None
 def test_git_errors_name_the_revision(run_cli, workspace: Path) -> None:
     config = workspace / "demo.yaml"
     result = run_cli("diff", str(config), "--git", "HEAD")
-    assert result.code == 1 and "cannot read demo.yaml at git revision 'HEAD'" in result.err and "not a git repository" in result.err
+    assert result.code == 1 and "--git 'HEAD' names no commit in" in result.err and "not a git repository" in result.err
 
     _git(workspace, "init", "-q")
     broken = config.read_text().replace("j2: {joint: panda_joint2, sign: -1}", "j2: {joint: panda_joint22, sign: -1}")
@@ -336,3 +339,37 @@ def test_git_errors_name_the_revision(run_cli, workspace: Path) -> None:
     result = run_cli("diff", str(workspace / "broken.yaml"), "--git", "HEAD")
     assert result.code == 1 and result.err.startswith(f"error: {workspace / 'broken.yaml'}@HEAD:")
     assert not [p for p in workspace.iterdir() if p.name.startswith(".broken")]
+
+
+@pytest.mark.parametrize(
+    "revision", ["--output={pwned}", "-n", "-c core.pager=touch {pwned}", "--no-such-rev", "HEAD~5", "nope", "HEAD:demo.yaml"]
+)
+def test_a_revision_never_reaches_git_as_an_option(run_cli, workspace: Path, revision: str) -> None:
+    """`--git REV` is verified as a commit (`rev-parse --verify --end-of-options REV^{commit}`) before any other git call:
+    what a workflow passes from a pull request is a revision or a user error naming it, never an option."""
+    _git(workspace, "init", "-q")
+    _git(workspace, "add", "demo.yaml")
+    _git(workspace, "commit", "-q", "-m", "demo")
+    pwned = workspace.parent / "pwned"
+    revision = revision.format(pwned=pwned)
+    result = run_cli("diff", str(workspace / "demo.yaml"), f"--git={revision}")
+    assert result.code == 1 and result.out == "" and not pwned.exists()
+    assert f"--git '{revision}' names no commit in " in result.err and len(result.err.splitlines()) == 1
+
+
+def test_a_revision_with_control_characters_is_shown_escaped(run_cli, workspace: Path) -> None:
+    _git(workspace, "init", "-q")
+    result = run_cli("diff", str(workspace / "demo.yaml"), "--git", "x\n::error::forged\x1b[2J")
+    assert result.code == 1 and "--git 'x\\n::error::forged\\x1b[2J' names no commit" in result.err and len(result.err.splitlines()) == 1
+
+
+def test_the_config_at_a_revision_is_read_by_its_commit(run_cli, workspace: Path) -> None:
+    """A tag named like an option resolves as a revision; the config's text at it is compared."""
+    _git(workspace, "init", "-q")
+    _git(workspace, "add", "demo.yaml", "robots", "data")
+    _git(workspace, "commit", "-q", "-m", "demo")
+    _git(workspace, "tag", "v1")
+    config = workspace / "demo.yaml"
+    config.write_text(config.read_text().replace("j2: {joint: panda_joint2, sign: -1}", "j2: panda_joint2"))
+    result = run_cli("diff", str(config), "--git", "v1^{commit}")
+    assert (result.code, result.out) == (0, "robot arm: j2 -> panda_joint2: sign -1 -> 1\n")

@@ -89,7 +89,8 @@ def test_json_has_the_markdown_content(examples_dir: Path, run_cli) -> None:
     assert rows["panda_joint2"]["sign"] == -1 and rows["panda_joint3"]["offset"] == 0.1
     limit = round(math.degrees(2.8973), 9)  # the URDF's limit in degrees: check's "limits in the source unit"
     assert rows["panda_joint1"]["limits_source_units"] == [-limit, limit]
-    assert rows["panda_joint1"]["slack_source_units"] == 2.0
+    assert rows["panda_joint1"]["slack_source_units"] == 2.0 and rows["panda_joint1"]["slack"] == {"value": 2.0, "unit": "deg"}
+    assert rows["panda_finger_joint1"]["slack"] == {"value": 2.0, "unit": "mm"}
     assert rows["panda_finger_joint1"]["unit"] == "mm" and rows["panda_finger_joint1"]["limits_source_units"] == [0.0, 40.0]
     assert rows["panda_finger_joint2"]["kind"] == "mimic"
     assert rows["panda_finger_joint2"]["mimic"] == {"driver": "panda_finger_joint1", "multiplier": 1.0, "offset": 0.0}
@@ -122,7 +123,7 @@ def test_text_and_markdown_show_the_same_limits_in_source_units(name: str, examp
         (m["name"], m["joint"]): (m["low"], m["high"], m["slack"])
         for m in re.finditer(
             rf"^    (?P<name>\S+)\[\d+\] -> (?P<joint>\S+): .*; limits (?P<low>{number}) \.\. (?P<high>{number}) "
-            rf"(?P<unit>deg|rad|mm|cm|m|source units), slack (?P<slack>{number}) (?P=unit)$",
+            rf"(?:deg|rad|mm|cm|m|source units), slack (?P<slack>0|{number} (?:deg|rad|mm|cm|m))$",
             text,
             re.MULTILINE,
         )
@@ -130,7 +131,7 @@ def test_text_and_markdown_show_the_same_limits_in_source_units(name: str, examp
     in_markdown = {
         (m["name"], m["joint"]): (m["low"], m["high"], m["slack"] or "0")
         for m in re.finditer(
-            rf"^\| `(?P<name>[^`]+)` \| `(?P<joint>[^`]+)` \|.* \| (?P<low>{number}) \.\. (?P<high>{number})(?: ± (?P<slack>{number}))? \|",
+            rf"^\| `(?P<name>[^`]+)` \| `(?P<joint>[^`]+)` \|.* \| (?P<low>{number}) \.\. (?P<high>{number})(?: ± (?P<slack>{number} (?:deg|rad|mm|cm|m)))? \|",
             markdown,
             re.MULTILINE,
         )
@@ -138,9 +139,9 @@ def test_text_and_markdown_show_the_same_limits_in_source_units(name: str, examp
     assert in_text and in_text == in_markdown
     assert "URDF [" not in text
     if name == "demo":  # degrees (and mm) in the data, radians (and m) in the URDF
-        assert in_text[("j1", "panda_joint1")] == ("-166.003", "166.003", "2")
+        assert in_text[("j1", "panda_joint1")] == ("-166.003", "166.003", "2 deg")
         assert "j1[0] -> panda_joint1: x 0.0174533 (deg) x 1 + 0; limits -166.003 .. 166.003 deg, slack 2 deg" in text
-        assert in_text[("finger", "panda_finger_joint1")] == ("0", "40", "2")
+        assert in_text[("finger", "panda_finger_joint1")] == ("0", "40", "2 mm")
 
 
 @pytest.fixture(scope="module")

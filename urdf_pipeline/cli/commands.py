@@ -10,7 +10,8 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..errors import ExitCode, UserError
+from ..errors import ExitCode, UserError, neutral_line, neutral_text
+from .viewer_target import require_viewer, spawn_viewer
 
 if TYPE_CHECKING:
     from ..execute import SegmentResult
@@ -23,6 +24,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     if args.catalog and not args.dataset:
         raise UserError("--catalog needs --dataset NAME: the catalog dataset to register the outputs in")
+    viewer = require_viewer(args.connect) if args.connect else None  # a viewer listening there, before any work
     started = time.perf_counter()
     plan = compile_config(Path(args.config), args.episodes)
     detail(f"{args.config} compiled in {time.perf_counter() - started:.2f} s")
@@ -32,6 +34,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         from ..dataset import check_base
 
         say(f"all {check_base(plan, args.base)} segment id(s) found among the base recordings in {args.base}")
+    if args.spawn:  # a valid config: start the viewer (or find it running) before the run, so a failure costs nothing
+        viewer = spawn_viewer()
     segments = len(plan.segments)
     many = segments > 1 or plan.dataset.layout == "split"
     if many:
@@ -53,10 +57,10 @@ def cmd_run(args: argparse.Namespace) -> int:
         _print_single(run.results[0])
     for result in run.results:
         if result.status in ("written", "skipped"):
-            print(result.output)
+            print(neutral_line(str(result.output)))
     bugs = [r for r in run.results if r.status == "bug"]
     for result in bugs:
-        print(f"{result.label}: {result.reason}", file=sys.stderr)
+        print(neutral_text(f"{result.label}: {result.reason}"), file=sys.stderr)
     if run.interrupted:
         from ..dataset import exit_status, signal_name
 
@@ -64,10 +68,10 @@ def cmd_run(args: argparse.Namespace) -> int:
         return exit_status(run.signal)
     if args.catalog:  # what was written (or is up to date) is registered even when other segments failed
         say(register_outputs(run, args.catalog, args.dataset, args.layer).summary())
-    if args.spawn or args.connect:
+    if viewer is not None:
         from ..execute import send_to_viewer
 
-        say(f"sent {send_to_viewer(plan, run.results, args.connect, args.spawn)} segment(s) to the viewer")
+        say(f"sent {send_to_viewer(plan, run.results, viewer)} segment(s) to the viewer at {viewer}")
     if bugs:
         print("urdf-pipeline: internal error (a bug, not your config); please report it with the traceback above", file=sys.stderr)
         return ExitCode.BUG
@@ -79,11 +83,11 @@ def _print_single(result: SegmentResult) -> None:
     from ..progress import say
 
     if result.status == "failed":
-        print(result.reason, file=sys.stderr)
+        print(neutral_text(result.reason), file=sys.stderr)
     elif result.status == "skipped":
         say(f"{result.output} is up to date (same content hash); --force writes it again")
     elif result.status == "written":
-        say(f"{result.label}: {result.frames} rows in {result.seconds:.1f} s")
+        say(f"{result.label}: {result.frames:,} rows in {result.seconds:.1f} s")
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
@@ -114,7 +118,8 @@ def cmd_check(args: argparse.Namespace) -> int:
     from ..review import check_config, check_exit_code, render_check
 
     reports = check_config(Path(args.config), args.rows)
-    sys.stdout.write(render_check(reports, args.format))
+    text = render_check(reports, args.format)
+    sys.stdout.write(neutral_text(text) if args.format == "text" else text)
     return check_exit_code(reports)
 
 
@@ -145,7 +150,7 @@ def cmd_snapshot(args: argparse.Namespace) -> int:
     pictures = snapshot(plan, request)
     announce(pictures, time.perf_counter() - started)
     for picture in pictures:
-        print(picture.path)
+        print(neutral_line(str(picture.path)))
     return ExitCode.OK
 
 
@@ -171,7 +176,7 @@ def cmd_init(args: argparse.Namespace) -> int:
     if not args.output:
         sys.stdout.write(result.text)
     for line in said:
-        print(line, file=sys.stderr)
+        print(neutral_line(line), file=sys.stderr)
     return ExitCode.OK
 
 
@@ -189,6 +194,6 @@ def cmd_diff(args: argparse.Namespace) -> int:
         report = diff_files(args.old, args.new, render, args.size)
     if args.format == "text":  # stdout keeps one line per change; the pictures are named on stderr
         for picture in report.pictures:
-            print(f"urdf-pipeline: picture {picture.label}: {picture.path}", file=sys.stderr)
+            print(neutral_line(f"urdf-pipeline: picture {picture.label}: {picture.path}"), file=sys.stderr)
     sys.stdout.write(render_diff(report, args.format))
     return ExitCode.DIFFERENT if args.exit_code and not report.equivalent else ExitCode.OK

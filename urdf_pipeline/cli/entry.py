@@ -11,9 +11,10 @@ import traceback
 from collections.abc import Callable, Sequence
 
 from .. import PandasLeftOut
-from ..errors import ExitCode, UserError
+from ..errors import ExitCode, UserError, neutral_text
 from ..progress import command_logging
 from .parser import build_parser
+from .stderr_relay import stderr_through_logger, warnings_through_logger
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -32,10 +33,11 @@ def _main(argv: Sequence[str] | None) -> int:
     args = build_parser().parse_args(argv)
     handler: Callable[[argparse.Namespace], int] = args.handler
     # Rerun's own log lines (a WARN from its writer before our "cannot write" error) would say twice, and differently,
-    # what our one error line says; --verbose, RUST_LOG=warn (or any value the user sets) brings them back.
+    # what our one error line says; --verbose, RUST_LOG=warn (or any value the user sets) brings them back. They and
+    # Python's warnings reach stderr through our logger (stderr_relay.py), as everything else the command says.
     os.environ.setdefault("RUST_LOG", "warn" if args.verbose else "error")
     level = logging.WARNING if args.quiet else logging.DEBUG if args.verbose else logging.INFO
-    with command_logging(level):
+    with command_logging(level), stderr_through_logger(), warnings_through_logger():
         return _handle(handler, args)
 
 
@@ -62,7 +64,7 @@ def _handle(handler: Callable[[argparse.Namespace], int], args: argparse.Namespa
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # so the interpreter's final flush is quiet too
         return ExitCode.BROKEN_PIPE
     except Exception:
-        traceback.print_exc()
+        sys.stderr.write(neutral_text(traceback.format_exc()))  # a bug's message may quote input
         print("urdf-pipeline: internal error (a bug, not your config); please report it with the traceback above", file=sys.stderr)
         return trouble or ExitCode.BUG
     finally:

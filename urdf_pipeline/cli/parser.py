@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from .commands import cmd_check, cmd_diff, cmd_init, cmd_plan, cmd_run, cmd_schema, cmd_snapshot, cmd_validate
 
@@ -61,8 +61,19 @@ class _Commands:
         return sub
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse quotes what it refused (`unrecognized arguments: ...`): a file name from a pull request could hold a
+    newline and a workflow command, so the usage error goes out neutralised, as every line the tool prints."""
+
+    def error(self, message: str) -> NoReturn:
+        from ..errors import neutral_line
+
+        self.print_usage(sys.stderr)
+        self.exit(2, neutral_line(f"{self.prog}: error: {message}") + "\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="urdf-pipeline", description="A robot config file becomes one validated Rerun recording.")
+    parser = _Parser(prog="urdf-pipeline", description="A robot config file becomes one validated Rerun recording.")
     parser.add_argument("--version", action="version", version=_version())
     _verbosity(parser, False)
     commands = _Commands(parser)
@@ -77,8 +88,13 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--catalog", metavar="URL", help="register the outputs in this Rerun catalog server (needs --dataset)")
     run.add_argument("--dataset", metavar="NAME", help="the catalog dataset (created when missing)")
     run.add_argument("--layer", default="urdf", help="the catalog layer name of the segments' outputs (default: urdf)")
-    run.add_argument("--spawn", action="store_true", help="start a Rerun viewer and send it every segment (with the model)")
-    run.add_argument("--connect", metavar="URL", help="send every segment to the viewer at URL (rerun+http://HOST:9876/proxy)")
+    viewer = run.add_mutually_exclusive_group()
+    viewer.add_argument(
+        "--spawn", action="store_true", help="start a Rerun viewer (or use the one on port 9876) and send it every segment (with the model)"
+    )
+    viewer.add_argument(
+        "--connect", metavar="URL", help="send every segment to the viewer at URL (rerun+http://HOST:PORT/proxy), checked before the run"
+    )
     run.add_argument(
         "--report", metavar="FILE.json", help="write what the run did per segment (status, frames, seconds, worker, peak memory)"
     )

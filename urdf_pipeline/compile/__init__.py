@@ -14,6 +14,7 @@ from .. import lazy_surface
 if TYPE_CHECKING:
     from .compiler import DatalessCheck, DataNote, check_config_without_data, compile_config, compile_document
     from .temporal_edges import describe_temporal_edge
+    from .units import ANGULAR_UNITS, FACTORS, LINEAR_UNITS, UNIT_NAMES, unit_hint, units_that_fit
 
 __all__ = [
     "DataNote",
@@ -22,6 +23,12 @@ __all__ = [
     "compile_config",
     "compile_document",
     "describe_temporal_edge",
+    "ANGULAR_UNITS",
+    "FACTORS",
+    "LINEAR_UNITS",
+    "UNIT_NAMES",
+    "unit_hint",
+    "units_that_fit",
 ]
 
 __getattr__ = lazy_surface(
@@ -33,5 +40,11 @@ __getattr__ = lazy_surface(
         "compile_config": "compiler",
         "compile_document": "compiler",
         "describe_temporal_edge": "temporal_edges",
+        "ANGULAR_UNITS": "units",
+        "FACTORS": "units",
+        "LINEAR_UNITS": "units",
+        "UNIT_NAMES": "units",
+        "unit_hint": "units",
+        "units_that_fit": "units",
     },
 )

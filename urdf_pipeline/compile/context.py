@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from ..config import Document
 from ..confine import Confinement, confinement_for
 from ..errors import Problems, Where
+from ..urdf import XacroBudget
 
 SourceNames = Mapping[str, tuple[str, ...] | None]
 """The names of each source's values, by source; None when only its data holds them (`validate --no-data`)."""
@@ -25,6 +26,7 @@ class CompileContext:
     problems: Problems
     config_dir: Path  # the config file's folder as named (not resolved): relative paths in the config start here
     confinement: Confinement
+    xacro_budget: XacroBudget = field(default_factory=XacroBudget)  # the seconds every xacro expansion of this config shares
 
     @classmethod
     def for_document(cls, document: Document) -> CompileContext:

@@ -14,7 +14,7 @@ from ..plan import EdgePlan, FixedChain, RobotPlan, TemporalEdgePlan
 from ..urdf import NoFixedChain, UrdfModel, compose_chain, find_fixed_chain, normalized_quaternion, quaternion_from_rpy
 from .context import CompileContext, SourceNames
 from .frame_graph import FrameEdge, check_assume_identity
-from .temporal_edges import compile_temporal_edge
+from .temporal_edges import TemporalEntities, compile_temporal_edge
 
 
 @dataclass(frozen=True)
@@ -40,18 +40,19 @@ def compile_edges(
     edges: list[EdgePlan] = []
     temporal: list[TemporalEdgePlan] = []
     broken: list[EdgeSpec] = []
-    taken_entities: set[str] = set()
+    entities = TemporalEntities()
+    owners = _Owners(robots or [])
     for edge in specs:
         spec = edge.spec
         if "source" in spec:
-            compiled = compile_temporal_edge(ctx, edge, sources, taken_entities)
+            compiled = compile_temporal_edge(ctx, edge, sources, entities)
             if compiled is not None:
                 temporal.append(compiled)
             else:
                 broken.append(edge)
             continue
         if "fixed_chain" in spec:
-            chained = _fixed_chain_edge(ctx, edge, robots, models) if robots is not None else None
+            chained = _fixed_chain_edge(ctx, edge, owners, models) if robots is not None else None
             if chained is not None:
                 edges.append(chained)
             else:
@@ -77,27 +78,40 @@ def compile_edges(
     return CompiledEdges(tuple(edges), tuple(temporal), tuple(broken))
 
 
-def _owner(frame: str, robots: list[RobotPlan]) -> RobotPlan | None:
-    """The robot whose URDF emits `frame` (a link name with its frame_prefix applied)."""
-    for robot in robots:
-        if frame.startswith(robot.frame_prefix) and frame[len(robot.frame_prefix) :] in robot.links:
-            return robot
-    return None
+class _Owners:
+    """Which robot's URDF emits a frame (a link name with its frame_prefix applied): the first robot, in config order,
+    that has it. Made once for all edges, so each look-up is a dict's, whatever the robots' size."""
+
+    HINTED = 20  # unknown frames that get a "did you mean" hint: each compares the name with every link
+
+    def __init__(self, robots: list[RobotPlan]) -> None:
+        self.by_frame: dict[str, RobotPlan] = {}
+        for robot in robots:
+            for link in robot.links:
+                self.by_frame.setdefault(robot.frame_prefix + link, robot)
+        self.hints = self.HINTED
+        self.sorted: list[str] | None = None
+
+    def hint(self, frame: str) -> str:
+        self.hints -= 1
+        if self.hints < 0:
+            return ""
+        if self.sorted is None:
+            self.sorted = sorted(self.by_frame)
+        close = difflib.get_close_matches(frame, self.sorted, n=1, cutoff=0.6)
+        return f" (did you mean '{close[0]}'?)" if close else ""
 
 
-def _fixed_chain_edge(ctx: CompileContext, edge: EdgeSpec, robots: list[RobotPlan], models: Mapping[str, UrdfModel]) -> EdgePlan | None:
+def _fixed_chain_edge(ctx: CompileContext, edge: EdgeSpec, robots: _Owners, models: Mapping[str, UrdfModel]) -> EdgePlan | None:
     problems = ctx.problems
     spec = edge.spec
     start, end = spec["fixed_chain"]["from"], spec["fixed_chain"]["to"]
-    all_links = sorted(robot.frame_prefix + link for robot in robots for link in robot.links)
     owners = {}
     for key in ("from", "to"):
         frame = spec["fixed_chain"][key]
-        owners[key] = _owner(frame, robots)
+        owners[key] = robots.by_frame.get(frame)
         if owners[key] is None:
-            close = difflib.get_close_matches(frame, all_links, n=1, cutoff=0.6)
-            hint = f" (did you mean '{close[0]}'?)" if close else ""
-            problems.add(f"fixed_chain.{key} '{frame}' is a link of no URDF{hint}", edge.where("fixed_chain", key))
+            problems.add(f"fixed_chain.{key} '{frame}' is a link of no URDF{robots.hint(frame)}", edge.where("fixed_chain", key))
     robot, other = owners["from"], owners["to"]
     if robot is None or other is None:
         return None

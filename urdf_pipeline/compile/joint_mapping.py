@@ -9,15 +9,16 @@ value is its entry's `unit`, else the robot's `joints.unit` for the joint's kind
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
-from ..errors import Where
+from ..errors import Where, listing, quoted
 from ..errors import did_you_mean as _hint
 from ..plan import HeldJoint, JointChannel, MimicJoint, OnViolation
 from ..urdf import UrdfModel
 from .context import UNKNOWN_INDEX, CompileContext
-from .units import ANGULAR_UNITS, FACTORS, RobotUnits, fits, robot_units, urdf_unit
+from .units import ANGULAR_UNITS, FACTORS, RobotUnits, fits, parse_slack, robot_units, urdf_unit
 
 
 @dataclass(frozen=True)
@@ -33,11 +34,10 @@ class JointMapping:
 
 @dataclass(frozen=True)
 class _RobotJoints:
-    """What every map entry of one robot shares: its URDF, the units of `joints.unit` and the limit slack (source units)."""
+    """What every map entry of one robot shares: its URDF and the units of `joints.unit`."""
 
     model: UrdfModel
     units: RobotUnits
-    slack: float
 
 
 @dataclass(frozen=True)
@@ -57,11 +57,13 @@ def compile_joints(
     here = ("robots", robot_key, "joints")
     source = joints_spec["source"]
     limit_spec = joints_spec.get("limits", {})
-    robot = _RobotJoints(model, robot_units(joints_spec.get("unit")), float(limit_spec.get("slack", 0.0)))
+    robot = _RobotJoints(model, robot_units(joints_spec.get("unit")))
     on_violation: OnViolation = limit_spec.get("on_violation", "error")
     moving = [j.name for j in model.joints if j.moving]
     all_joints = [j.name for j in model.joints]
     mimic_joints = {j.name for j in model.joints if j.mimic is not None}
+    positions = {name: i for i, name in enumerate(names)} if names is not None else None  # linear in a wide source
+    hint = _Hints()
 
     channels: list[JointChannel] = []
     covered: dict[str, str] = {}  # joint -> how ("map entry 'j1'", "hold")
@@ -71,13 +73,13 @@ def compile_joints(
         spec = {"joint": written} if isinstance(written, str) else written
         joint_names = spec["joint"] if isinstance(spec["joint"], list) else [spec["joint"]]
         attempted.update(joint_names)
-        if names is not None and source_name not in names:
+        if names is not None and positions is not None and source_name not in positions:
             problems.add(
-                f"'{source_name}' is not a name of source '{source}'{_hint(source_name, list(names))}; its names are: {', '.join(names)}",
+                f"'{source_name}' is not a name of source '{source}'{hint(source_name, names)}; its names are: {listing(names)}",
                 where,
             )
             continue
-        entry = _MapEntry(source_name, names.index(source_name) if names is not None else UNKNOWN_INDEX, spec, where)
+        entry = _MapEntry(source_name, positions[source_name] if positions is not None else UNKNOWN_INDEX, spec, where)
         if not _corrections_consistent(ctx, entry):
             continue
         for joint_name in joint_names:
@@ -95,7 +97,7 @@ def compile_joints(
         joint = model.joint(joint_name)
         attempted.add(joint_name)
         if joint is None:
-            problems.add(f"URDF '{model.name}' has no joint '{joint_name}'{_hint(joint_name, all_joints)}", where)
+            problems.add(f"URDF '{model.name}' has no joint '{joint_name}'{hint(joint_name, all_joints)}", where)
         elif not joint.moving:
             problems.add(f"joint '{joint_name}' is {joint.type}; only moving joints can be held", where)
         elif joint.mimic is not None:
@@ -114,20 +116,22 @@ def compile_joints(
     ignored = [str(name) for name in joints_spec.get("ignore", [])]  # 7 and "7": a value named by its index
     for index, name in enumerate(ignored):
         where = ctx.where(*here, "ignore", index)
-        if names is not None and name not in names:
-            problems.add(f"ignored name '{name}' is not a name of source '{source}'{_hint(name, list(names))}", where)
+        if names is not None and positions is not None and name not in positions:
+            problems.add(f"ignored name '{name}' is not a name of source '{source}'{hint(name, names)}", where)
         elif name in joints_spec["map"]:
             problems.add(f"'{name}' is both mapped and ignored; keep one", where)
 
     if robot.units.given is not None:
         _check_unit_applies(ctx, robot, joints_spec, ctx.where(*here, "unit"))
-    unused = [n for n in names or () if n not in joints_spec["map"] and n not in ignored]
+    ignored_set = set(ignored)
+    unused = [n for n in names or () if n not in joints_spec["map"] and n not in ignored_set]
     if unused:
         problems.add(
-            f"source names neither mapped nor ignored: {', '.join(unused)}; map each to a URDF joint or list it under ignore",
+            f"source names neither mapped nor ignored: {listing(unused)}; map each to a URDF joint or list it under ignore",
             ctx.where(*here, "map"),
         )
-    mimics = _order_mimics(model, mimic_joints)
+    channels = _with_slack(ctx, (*here, "limits", "slack"), model, limit_spec, channels)
+    mimics = _order_mimics(model)
     uncovered = [j for j in moving if j not in covered and j not in mimic_joints and j not in attempted]
     if uncovered:
         problems.add(
@@ -158,13 +162,26 @@ def _corrections_consistent(ctx: CompileContext, entry: _MapEntry) -> bool:
     return True
 
 
+class _Hints:
+    """ "Did you mean" for the first few misspelled names of one robot: each hint compares with every name, so a config
+    with thousands of wrong names would be quadratic; after the first 20 the message names the culprit alone."""
+
+    def __init__(self, limit: int = 20) -> None:
+        self.left = limit
+
+    def __call__(self, name: str, choices: Sequence[str]) -> str:
+        if self.left <= 0:
+            return ""
+        self.left -= 1
+        return _hint(name, choices)
+
+
 def _channel(ctx: CompileContext, robot: _RobotJoints, entry: _MapEntry, joint_name: str) -> JointChannel | None:
     """One (source value, URDF joint) pair, or None after reporting why it cannot be."""
     model, spec, where, problems = robot.model, entry.spec, entry.where, ctx.problems
     joint = model.joint(joint_name)
-    all_joints = [j.name for j in model.joints]
     if joint is None:
-        problems.add(f"URDF '{model.name}' has no joint '{joint_name}'{_hint(joint_name, all_joints)}", where)
+        problems.add(f"URDF '{model.name}' has no joint '{joint_name}'{_hint(joint_name, [j.name for j in model.joints])}", where)
         return None
     if not joint.moving:
         problems.add(f"joint '{joint_name}' is {joint.type}; only revolute, continuous and prismatic joints can be driven", where)
@@ -206,7 +223,32 @@ def _channel(ctx: CompileContext, robot: _RobotJoints, entry: _MapEntry, joint_n
     )
     wrap = spec.get("wrap")
     center = channel.to_source_unit((limits[0] + limits[1]) / 2) if limits else channel.to_source_unit(0.0)
-    return replace(channel, slack=robot.slack * abs(channel.gain), wrap=float(wrap) if wrap else None, wrap_center=center)
+    return replace(channel, wrap=float(wrap) if wrap else None, wrap_center=center)
+
+
+def _with_slack(
+    ctx: CompileContext, here: tuple[str, ...], model: UrdfModel, limit_spec: dict[str, Any], channels: list[JointChannel]
+) -> list[JointChannel]:
+    """limits.slack onto each channel, in URDF units by joint kind (units.parse_slack), so joints.unit cannot change it."""
+    angular = {c.joint: bool(getattr(model.joint(c.joint), "angular", True)) for c in channels}
+    written_units: dict[bool, list[str]] = {}
+    for c in channels:
+        if c.source_range is None:
+            written_units.setdefault(angular[c.joint], []).append(c.source_unit)
+    meant = {kind: max(units, key=units.count) for kind, units in written_units.items()}  # the most common, first on a tie
+    for c in channels:  # a kind mapped only by source_range: its bare slack was in range units; name the URDF's
+        meant.setdefault(angular[c.joint], urdf_unit(angular[c.joint]))
+    slack, problems = parse_slack(limit_spec.get("slack"), meant)
+    for problem in problems:
+        ctx.problems.add(problem.message, ctx.where(*here, *problem.path))
+    kind = slack.single
+    if kind is not None and channels and not any(angular[c.joint] == kind for c in channels):
+        ctx.problems.add(
+            f"slack {quoted(limit_spec['slack'])} applies to {'revolute and continuous' if kind else 'prismatic'} joints only, and no mapped "
+            f"joint is one: it would change nothing; write it in {'m, cm or mm' if kind else 'rad or deg'}, or as {{angle: ..., length: ...}}",
+            ctx.where(*here),
+        )
+    return [replace(c, slack=slack.for_joint(angular[c.joint]), slack_written=slack.written(angular[c.joint])) for c in channels]
 
 
 def _check_unit_applies(ctx: CompileContext, robot: _RobotJoints, joints_spec: dict[str, Any], where: Where) -> None:
@@ -231,18 +273,6 @@ def _check_unit_applies(ctx: CompileContext, robot: _RobotJoints, joints_spec: d
     )
 
 
-def _order_mimics(model: UrdfModel, mimic_joints: set[str]) -> tuple[MimicJoint, ...]:
-    """Mimic joints in dependency order (a mimic may follow another mimic)."""
-    ordered: list[MimicJoint] = []
-    done: set[str] = set()
-    pending = [j for j in model.joints if j.name in mimic_joints]
-    while pending:
-        ready = [j for j in pending if j.mimic and (j.mimic.joint not in mimic_joints or j.mimic.joint in done)]
-        if not ready:
-            break  # a mimic cycle; reported by the caller's URDF checks
-        for joint in ready:
-            assert joint.mimic is not None
-            ordered.append(MimicJoint(joint.name, joint.mimic.joint, joint.mimic.multiplier, joint.mimic.offset))
-            done.add(joint.name)
-        pending = [j for j in pending if j.name not in done]
-    return tuple(ordered)
+def _order_mimics(model: UrdfModel) -> tuple[MimicJoint, ...]:
+    """Mimic joints in dependency order (a mimic may follow another mimic), linear in the joints (model.mimic_order)."""
+    return tuple(MimicJoint(j.name, j.mimic.joint, j.mimic.multiplier, j.mimic.offset) for j in model.mimic_order() if j.mimic is not None)

@@ -2,20 +2,23 @@
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..errors import UserError, UserErrors, listing, warn
+from ..errors import UserError, UserErrors, Where, listing, warn
 from ..plan import RobotPlan
 from ..urdf import (
     LoadedUrdf,
     UrdfModel,
     UrdfParseError,
+    XacroContent,
     garbage_meshes,
     load_urdf_source,
     parse_urdf,
     parse_urdf_text,
+    rerun_depth_problem,
     rerun_loader_error,
     resolve_meshes,
     rewrite_mesh_uris,
@@ -42,22 +45,46 @@ class CompiledRobot:
     model: UrdfModel
 
 
+def _xacro_refusal(exc: XacroContent, urdf: Any, loaded: LoadedUrdf) -> str:
+    """A xacro text given as URDF, with the fix of the form that gave it."""
+    if isinstance(urdf, str):
+        return exc.advice(f"expand it as xacro: urdf: {{xacro: {urdf}}} (with args: {{NAME: VALUE}} for its arguments)")
+    if "xacro" in urdf:
+        return f"the expansion of {urdf['xacro']} still holds xacro ({exc.found}, line {exc.line} of the expanded text): xacro left it unexpanded"
+    return exc.advice(
+        f"expand it as xacro: urdf: {{xacro: {loaded.path}}} with package_paths for the packages it names",
+        what=f"robot_descriptions '{urdf['robot_descriptions']}' gives a file that",
+    )
+
+
+def _check_depth(model: UrdfModel, loaded: LoadedUrdf, where: Where) -> None:
+    """A tree deeper than Rerun's loader can walk would crash `run` (a stack overflow, no message): refused here."""
+    depth, deepest = model.depth()
+    problem = rerun_depth_problem(depth)
+    if problem is not None:
+        message = f"{loaded.path.name} is a tree {depth:,} joints deep (link '{deepest}' below root link '{model.root_link}'); {problem}"
+        raise UserError(message, where)
+
+
 def load_urdf(ctx: CompileContext, key: str, spec: dict[str, Any], package_paths: dict[str, Path]) -> RobotUrdf:
     """The loaded URDF, its model and the text for Rerun's loader (axes normalised, what Rerun refuses repaired, with a
     warning saying what); the model is read from that text, so a visual dropped there needs no mesh."""
     where = ctx.where("robots", key, "urdf")
-    loaded = load_urdf_source(spec["urdf"], package_paths, ctx.config_dir, ctx.confinement, where)
+    loaded = load_urdf_source(spec["urdf"], package_paths, ctx.config_dir, ctx.confinement, where, ctx.xacro_budget)
     try:
         is_file = isinstance(spec["urdf"], str) or "xacro" not in spec["urdf"]  # an expanded xacro has no lines to point at
         model, root = parse_urdf(loaded.text, str(loaded.path), source_lines=is_file)
         text, notes = text_for_rerun(loaded.text, str(loaded.path), root)
         if text is not loaded.text:  # repaired: the model is read from what Rerun will draw
             model = parse_urdf_text(text, str(loaded.path))
+    except XacroContent as exc:
+        raise UserError(_xacro_refusal(exc, spec["urdf"], loaded), where) from None
     except UrdfParseError as exc:
         raise UserErrors([UserError(message, where) for message in exc.messages]) from None
     loader_error = rerun_loader_error(text)
     if loader_error is not None:  # what text_for_rerun does not repair: refused now rather than a crash in `run`
         raise UserError(f"Rerun's URDF loader cannot read {loaded.path.name}: {loader_error}", where)
+    _check_depth(model, loaded, where)
     if notes:
         warn(f"Rerun's URDF loader refuses parts of {loaded.path.name} that ROS tolerates; drawn without: {'; '.join(notes)}", where)
     return RobotUrdf(loaded, model, text)
@@ -68,16 +95,19 @@ def compile_robot(ctx: CompileContext, key: str, spec: dict[str, Any], sources: 
     defines but that failed is reported once, by itself); None: only its data knows them (`validate --no-data`)."""
     problems = ctx.problems
     here = ("robots", key)
-    package_paths = {name: (ctx.config_dir / folder).resolve() for name, folder in spec.get("package_paths", {}).items()}
     confinement = ctx.confinement
-    for name, folder in package_paths.items():
-        try:  # kept in package_paths: xacro and mesh lookups check each file they read, and say which one
-            confinement.check_read(folder, f"package '{name}' folder", ctx.where(*here, "package_paths", name))
-        except UserError as exc:
+    package_paths: dict[str, Path] = {}
+    for name, written in spec.get("package_paths", {}).items():
+        where = ctx.where(*here, "package_paths", name)
+        try:  # resolved by the read rule, which turns what the OS cannot follow into a user error at this key
+            written_path = Path(os.path.abspath(ctx.config_dir / written))  # as named, `..` folded; resolved by check_read
+            folder = package_paths[name] = confinement.check_read(written_path, f"package '{name}' folder", where)
+        except UserError as exc:  # kept, unresolved: xacro and mesh lookups check each file they read, and say which one
             problems.extend(exc)
+            package_paths[name] = Path(os.path.abspath(ctx.config_dir / written))
             continue
         if not folder.is_dir():
-            problems.add(f"package '{name}' directory not found: {folder}", ctx.where(*here, "package_paths", name))
+            problems.add(f"package '{name}' directory not found: {folder}", where)
     try:
         urdf = load_urdf(ctx, key, spec, package_paths)
     except UserError as exc:
@@ -115,7 +145,7 @@ def compile_robot(ctx: CompileContext, key: str, spec: dict[str, Any], sources: 
         moving = [j.name for j in model.joints if j.moving and j.mimic is None]
         if moving:
             problems.add(
-                f"URDF '{model.name}' has moving joints ({', '.join(moving)}) but the robot has no joints section; "
+                f"URDF '{model.name}' has moving joints ({listing(moving)}) but the robot has no joints section; "
                 "add joints: {source: ..., map: ...} (hold joints the data lacks)",
                 ctx.where(*here),
             )

@@ -15,9 +15,10 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from ..confine import Unresolvable, file_state, resolved
 from ..errors import UserError, Where, listing
 from ..plan import DatasetPlan, LeRobotSourcePlan, Segment, SourcePlan
-from ..sources import KINDS, kind_of
+from ..sources import KINDS, kind_of, refuse_control_characters
 from .context import CompileContext
 
 GLOB_CHARACTERS = re.compile(r"[*?\[]")
@@ -56,7 +57,7 @@ def _compile_glob(ctx: CompileContext, name: str, kind: str, spec: dict[str, Any
     # The folder the glob walks from must be readable; each match is checked again, as a file, by compile_source.
     fixed = itertools.takewhile(lambda part: not GLOB_CHARACTERS.search(part), Path(pattern).parts)
     ctx.confinement.check_read(Path(*fixed), f"{kind} glob folder", where)
-    paths = sorted(Path(os.path.abspath(p)) for p in glob.glob(pattern, recursive=True) if Path(p).is_file())
+    paths = _glob_files(ctx, pattern, kind, where)
     if not paths:
         raise UserError(f"'{spec[kind]}' matches no file (paths are relative to the config file: {ctx.config_dir})", where)
     by_stem: dict[str, SourcePlan] = {}
@@ -72,6 +73,28 @@ def _compile_glob(ctx: CompileContext, name: str, kind: str, spec: dict[str, Any
         except UserError as exc:
             ctx.problems.extend(exc)
     return by_stem
+
+
+def _glob_files(ctx: CompileContext, pattern: str, kind: str, where: Where) -> list[Path]:
+    """The files the glob matches, sorted; folders it matches are passed over. A match that is no readable file (a
+    symlink loop, a dangling link, a FIFO) or whose name holds a control character is refused, never skipped: a
+    segment would silently be missing. Each match is confined again, as a file, by compile_source."""
+    paths = []
+    for match in sorted(glob.glob(pattern, recursive=True)):
+        refuse_control_characters(match, f"{kind} file matched by the glob", where)
+        path = Path(os.path.abspath(match))
+        try:
+            real = resolved(path)
+        except Unresolvable as exc:
+            raise UserError(f"{kind} file {path}, matched by the glob, cannot be read: {exc.cause}", where) from None
+        if ctx.confinement.may_read(real):  # outside the roots: compile_source refuses it by the rule, learning nothing
+            state = file_state(real, f"{kind} file {path}, matched by the glob,", where)
+            if state == "folder":
+                continue
+            if state == "missing":
+                raise UserError(f"{kind} file {path}, matched by the glob, is a symbolic link to nothing ({real}); fix or remove it", where)
+        paths.append(path)
+    return paths
 
 
 def parse_episodes(spec: str | list[int], where: Where | None) -> str | list[int] | tuple[int | None, int | None]:
@@ -136,7 +159,11 @@ def expand_segments(ctx: CompileContext, sources: CompiledSources, episodes_over
     if episodic:
         available: set[int] | None = None
         for plan in episodic.values():
-            known = lerobot.episodes(plan)
+            try:
+                known = lerobot.episodes(plan)
+            except UserError as error:  # broken metadata: this config's problem, reported with the others
+                problems.extend(error)
+                return None
             frames = frames or known
             available = set(known) if available is None else available & set(known)
         chosen = _select(sorted(available or ()), selection, "the dataset's episodes", where_selection)
@@ -163,7 +190,7 @@ def expand_segments(ctx: CompileContext, sources: CompiledSources, episodes_over
     segments = []
     for (episode, stem), segment_id, path in zip(keys, ids, paths, strict=True):
         own = tuple(_source_for(plan, sources, episode, stem) for plan in sources.plans.values())
-        inputs = tuple(dict.fromkeys(p for plan in own for p in _inputs_of(plan)))
+        inputs = tuple(dict.fromkeys(p for plan in own for p in _inputs_of(ctx, plan)))
         rows = frames.get(episode) if episodic and episode is not None else None
         segments.append(Segment(segment_id, episode, stem, own, path, rows, inputs))
     return _dataset_plan(ctx, tuple(segments))
@@ -259,6 +286,12 @@ def _segment_ids(ctx: CompileContext, template: str, keys: list[tuple[int | None
             where,
         )
         return None
+    for segment_id in ids:  # a newline in an id would forge a line of review output and name an output file
+        try:
+            refuse_control_characters(segment_id, "segment id", where, "take it out of output.segment")
+        except UserError as error:
+            problems.extend(error)
+            return None
     bad = [i for i in ids if "/" in i or "\\" in i or i in (".", "..")]
     if bad:
         problems.add(f"segment id(s) {listing(bad)} contain a path separator; a segment id is a recording_id, not a path", where)
@@ -279,7 +312,7 @@ def _output_paths(ctx: CompileContext, template: str, ids: list[str]) -> list[Pa
     if len(ids) > 1 and "segment" not in fields:
         problems.add(f"{len(ids)} segments would all be written to '{template}'; put {{segment}} in output.path", where)
         return None
-    return [(ctx.config_dir / template.format(segment=i)).resolve() for i in ids]
+    return [_output_path(ctx.config_dir / template.format(segment=i)) for i in ids]
 
 
 def _source_for(plan: SourcePlan, sources: CompiledSources, episode: int | None, stem: str | None) -> SourcePlan:
@@ -291,12 +324,17 @@ def _source_for(plan: SourcePlan, sources: CompiledSources, episode: int | None,
     return plan
 
 
-def _inputs_of(plan: SourcePlan) -> tuple[Path, ...]:
+def _inputs_of(ctx: CompileContext, plan: SourcePlan) -> tuple[Path, ...]:
+    """The files a segment's source reads. A LeRobot episode's data files come from the dataset's metadata: each obeys
+    the read rule here (a data file linked out of the dataset, or a data_path leading out of it, is refused)."""
     from ..sources import lerobot
 
-    if isinstance(plan, LeRobotSourcePlan):
-        return lerobot.episode_inputs(plan)
-    return (plan.path,)
+    if not isinstance(plan, LeRobotSourcePlan):
+        return (plan.path,)
+    inputs = lerobot.episode_inputs(plan)
+    for file in inputs[1:]:  # one iteration per data file
+        ctx.confinement.check_read(file, f"episode {plan.episode}: LeRobot data file", plan.where)
+    return inputs
 
 
 def _dataset_plan(ctx: CompileContext, segments: tuple[Segment, ...]) -> DatasetPlan | None:
@@ -313,7 +351,7 @@ def _dataset_plan(ctx: CompileContext, segments: tuple[Segment, ...]) -> Dataset
         if "{" in output["model"]:
             problems.add("output.model is written once for all segments: it takes no placeholder", ctx.where("output", "model"))
             return None
-        model = (config_dir / output["model"]).resolve()
+        model = _output_path(config_dir / output["model"])
         if any(s.output == model for s in segments):
             problems.add(f"output.model {model} is also a segment's output path", ctx.where("output", "model"))
             return None
@@ -321,7 +359,7 @@ def _dataset_plan(ctx: CompileContext, segments: tuple[Segment, ...]) -> Dataset
         problems.add("output.model is only used with layout: split; remove it or set layout: split", ctx.where("output", "model"))
         return None
     if "manifest" in output:
-        manifest = (config_dir / output["manifest"]).resolve()
+        manifest = _output_path(config_dir / output["manifest"])
     else:
         directory = _fixed_directory(output["path"], config_dir)
         manifest = directory / f"{ctx.document.file.stem}.manifest.json"
@@ -340,16 +378,26 @@ def _outputs_confined(ctx: CompileContext, segments: tuple[Segment, ...], model:
     writes += [(manifest, "the manifest", manifest_key), (blueprint, "the blueprint", manifest_key)]
     refused: set[tuple[str, ...]] = set()
     for path, what, key in writes:
-        if key not in refused and not confinement.may_write(path):
-            refused.add(key)  # one error per key: every segment of a template outside the folder is outside
-            try:
-                confinement.check_write(path, what, ctx.where(*key))
-            except UserError as error:
-                ctx.problems.extend(error)
+        if key in refused:
+            continue  # one error per key: every segment of a template outside the folder is outside
+        try:  # the rule, then what is on disk: a folder in the way, a name too long, a symlink loop
+            confinement.check_write(path, what, ctx.where(*key))
+        except UserError as error:
+            refused.add(key)
+            ctx.problems.extend(error)
     return not refused
 
 
 def _fixed_directory(template: str, base: Path) -> Path:
     """The deepest directory of output.path before any placeholder: where the manifest goes by default."""
     fixed = itertools.takewhile(lambda part: "{" not in part, Path(template).parent.parts)
-    return base.joinpath(*fixed).resolve()
+    return _output_path(base.joinpath(*fixed))
+
+
+def _output_path(path: Path) -> Path:
+    """An output path resolved; as written (made absolute) when the OS cannot follow it: `_outputs_confined` refuses
+    it then, at its key, with the cause."""
+    try:
+        return resolved(path)
+    except Unresolvable:
+        return Path(os.path.abspath(path))

@@ -24,8 +24,39 @@ def describe_temporal_edge(edge: TemporalEdgePlan) -> str:
 # --- compile ---------------------------------------------------------------------------------------------------
 
 
-def compile_temporal_edge(ctx: CompileContext, edge: EdgeSpec, sources: SourceNames, taken_entities: set[str]) -> TemporalEdgePlan | None:
-    """Check the source and every value name now (metadata only); values are checked in the data pass. `taken_entities`
+class TemporalEntities:
+    """What the temporal edges of one config share, so that each edge costs the same however many there are: the
+    entity paths taken (and the next free suffix of each), and each source's value names by position."""
+
+    def __init__(self) -> None:
+        self.taken: set[str] = set()
+        self.next_suffix: dict[str, int] = {}
+        self.positions: dict[str, dict[str, int]] = {}
+
+    def entity_for(self, child: str) -> str:
+        """`/calibration/temporal/CHILD`, with characters an entity path part cannot hold replaced, unique per edge."""
+        part = re.sub(r"[^A-Za-z0-9_.-]", "_", child) or "_"
+        entity = f"{TEMPORAL_ENTITY}/{part}"
+        suffix = self.next_suffix.get(part, 2)
+        while entity in self.taken:
+            entity = f"{TEMPORAL_ENTITY}/{part}_{suffix}"
+            suffix += 1
+        self.next_suffix[part] = suffix
+        self.taken.add(entity)
+        return entity
+
+    def position(self, source: str, names: tuple[str, ...], value: str) -> int | None:
+        """Where `value` is among the names of `source` (the first, as tuple.index), None when it is not there."""
+        positions = self.positions.get(source)
+        if positions is None:
+            positions = self.positions[source] = {}
+            for index, name in enumerate(names):
+                positions.setdefault(name, index)
+        return positions.get(value)
+
+
+def compile_temporal_edge(ctx: CompileContext, edge: EdgeSpec, sources: SourceNames, entities: TemporalEntities) -> TemporalEdgePlan | None:
+    """Check the source and every value name now (metadata only); values are checked in the data pass. `entities`
     holds the entity paths earlier temporal edges took; this edge's is added. A source whose names only its data
     holds (`validate --no-data`) leaves the value names unchecked and their positions UNKNOWN_INDEX."""
     problems, defined = ctx.problems, ctx.source_names
@@ -39,7 +70,7 @@ def compile_temporal_edge(ctx: CompileContext, edge: EdgeSpec, sources: SourceNa
     missing = False
     for key in ("translation", "quaternion_xyzw"):
         for index, value in enumerate(spec[key]):
-            if names is not None and value not in names:
+            if names is not None and entities.position(name, names, value) is None:
                 close = closest(value, names)
                 hint = f" (did you mean '{close}'?)" if close is not None else f"; it has: {listing(names)}"
                 problems.add(f"source '{name}' has no value named '{value}'{hint}", edge.where(key, index))
@@ -50,7 +81,8 @@ def compile_temporal_edge(ctx: CompileContext, edge: EdgeSpec, sources: SourceNa
     quaternion = tuple(spec["quaternion_xyzw"])
 
     def at(value: str) -> int:
-        return names.index(value) if names is not None else UNKNOWN_INDEX
+        position = entities.position(name, names, value) if names is not None else None
+        return position if position is not None else UNKNOWN_INDEX
 
     return TemporalEdgePlan(
         parent=spec["parent"],
@@ -60,22 +92,10 @@ def compile_temporal_edge(ctx: CompileContext, edge: EdgeSpec, sources: SourceNa
         quaternion_names=quaternion,  # type: ignore[arg-type]
         translation_indices=tuple(at(v) for v in translation),  # type: ignore[arg-type]
         quaternion_indices=tuple(at(v) for v in quaternion),  # type: ignore[arg-type]
-        entity=_entity_for(spec["child"], taken_entities),
+        entity=entities.entity_for(spec["child"]),
         label=edge.label,
         where=edge.where(),
     )
-
-
-def _entity_for(child: str, taken: set[str]) -> str:
-    """`/calibration/temporal/CHILD`, with characters an entity path part cannot hold replaced, unique per edge."""
-    part = re.sub(r"[^A-Za-z0-9_.-]", "_", child) or "_"
-    entity = f"{TEMPORAL_ENTITY}/{part}"
-    suffix = 2
-    while entity in taken:
-        entity = f"{TEMPORAL_ENTITY}/{part}_{suffix}"
-        suffix += 1
-    taken.add(entity)
-    return entity
 
 
 # --- data pass -------------------------------------------------------------------------------------------------

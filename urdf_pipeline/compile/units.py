@@ -8,8 +8,12 @@ config does not name keeps the URDF's own unit. A map entry's own `unit` must fi
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from typing import Any
+
+from ..errors import quoted, shown
+from ..plan import JointChannel
 
 FACTORS: dict[str, float] = {"rad": 1.0, "deg": math.pi / 180.0, "m": 1.0, "cm": 1e-2, "mm": 1e-3}
 ANGULAR_UNITS = ("rad", "deg")
@@ -43,3 +47,169 @@ def robot_units(spec: Any) -> RobotUnits:
     if isinstance(spec, str):
         return RobotUnits(angle=spec, given=spec) if spec in ANGULAR_UNITS else RobotUnits(length=spec, given=spec)
     return RobotUnits(angle=spec.get("angle", "rad"), length=spec.get("length", "m"))
+
+
+# limits.slack carries its own unit, so that changing joints.unit cannot change it (2 deg stays 2 deg when the data
+# switches to rad). A string "NUMBER UNIT" applies to the joints of its unit's kind; {angle: ..., length: ...} to both.
+_SLACK_TEXT = re.compile(r"^\s*([+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?)\s*([A-Za-z]*)\s*$")
+
+
+@dataclass(frozen=True)
+class Slack:
+    """The overshoot clamped at the limits, by joint kind, in URDF units (rad, m), with the unit the config wrote it in."""
+
+    angle: float = 0.0
+    length: float = 0.0
+    angle_unit: str = "rad"
+    length_unit: str = "m"
+    single: bool | None = None  # the string form names one kind (True: angles): it must apply to some mapped joint
+
+    def for_joint(self, angular: bool) -> float:
+        """The slack of one joint kind, URDF units."""
+        return self.angle if angular else self.length
+
+    def written(self, angular: bool) -> tuple[float, str]:
+        """The slack of one joint kind as the config wrote it: (2.0, "deg")."""
+        value, unit = (self.angle, self.angle_unit) if angular else (self.length, self.length_unit)
+        return (value / FACTORS[unit], unit)
+
+
+@dataclass(frozen=True)
+class SlackProblem:
+    """A refused slack: the key under limits.slack it is at (() for slack itself, ("angle",) for its angle) and why."""
+
+    path: tuple[str, ...]
+    message: str
+
+
+def _show(written: Any) -> str:
+    """A slack as written, in a message: a string quoted, a number as YAML read it; bounded and on one line."""
+    return quoted(written, 60) if isinstance(written, str) else shown(written, 60)
+
+
+def number_text(value: float) -> str:
+    """2.0 -> 2, 0.5 -> 0.5: numbers as a person writes them in YAML."""
+    return f"{value:g}"
+
+
+def parse_slack(spec: Any, meant: dict[bool, str]) -> tuple[Slack, list[SlackProblem]]:
+    """limits.slack as written: 0, "2 deg", or {angle: "2 deg", length: "5 mm"}. `meant` is the source unit by joint kind
+    (True: angular) of the robot's mapped joints: what a bare number meant before slack carried a unit, for the fix."""
+    if spec is None:
+        return Slack(), []
+    if isinstance(spec, dict):
+        problems: list[SlackProblem] = []
+        parts: dict[str, tuple[float, str]] = {}
+        for key, angular in (("angle", True), ("length", False)):
+            if key in spec:
+                part = _slack_part(spec[key], (key,), angular, meant, problems)
+                if part is not None:
+                    parts[key] = part
+        angle, length = parts.get("angle", (0.0, "rad")), parts.get("length", (0.0, "m"))
+        return Slack(angle[0], length[0], angle[1], length[1]), problems
+    problems = []
+    part = _slack_part(spec, (), None, meant, problems)
+    if part is None:
+        return Slack(), problems
+    value, unit = part
+    if unit in ANGULAR_UNITS:
+        return Slack(angle=value, angle_unit=unit, single=True if value else None), problems
+    return Slack(length=value, length_unit=unit, single=False if value else None), problems
+
+
+def _slack_part(
+    written: Any, path: tuple[str, ...], angular: bool | None, meant: dict[bool, str], problems: list[SlackProblem]
+) -> tuple[float, str] | None:
+    """One slack value: (URDF units, its unit), or None after adding why not. angular None: either kind (slack itself)."""
+    if isinstance(written, bool) or not isinstance(written, int | float | str):
+        problems.append(SlackProblem(path, f"wrong type: expected a number with its unit such as 2 deg or 5 mm, got {_show(written)}"))
+        return None
+    match = _SLACK_TEXT.match(written) if isinstance(written, str) else None
+    if isinstance(written, str) and match is None:
+        problems.append(SlackProblem(path, f"{_show(written)} is not a slack: write NUMBER UNIT, e.g. 2 deg or 5 mm (units {_UNIT_LIST})"))
+        return None
+    try:
+        value = float(match.group(1)) if match else float(written)
+    except OverflowError:  # an integer too big for a float
+        value = math.inf
+    unit = match.group(2) if match else ""
+    if not math.isfinite(value):
+        problems.append(SlackProblem(path, f"slack {_show(written)} is not a finite number"))
+        return None
+    if value < 0:
+        problems.append(
+            SlackProblem(path, f"slack {_show(written)} is negative; the slack is the overshoot tolerated beyond each limit, 0 or more")
+        )
+        return None
+    if value == 0 and not unit:
+        return (0.0, urdf_unit(angular is not False))
+    if not unit:
+        problems.append(SlackProblem(path, _no_unit(written, value, angular, meant)))
+        return None
+    if unit not in FACTORS:
+        problems.append(SlackProblem(path, f"unknown unit {quoted(unit)} in slack {_show(written)}; units are {_UNIT_LIST}"))
+        return None
+    if angular is not None and fits(unit, angular) is False:
+        kind, units, other = ("an angle", "rad or deg", "a length") if angular else ("a length", "m, cm or mm", "an angle")
+        problems.append(
+            SlackProblem(
+                path,
+                f"slack {_show(written)} is {other}, but {path[-1]} takes {kind}: write it in {units} (e.g. {number_text(value)} {'deg' if angular else 'mm'})",
+            )
+        )
+        return None
+    return (value * FACTORS[unit], unit)
+
+
+_UNIT_LIST = "rad, deg for revolute and continuous joints; m, cm, mm for prismatic joints"
+
+
+def _no_unit(written: Any, value: float, angular: bool | None, meant: dict[bool, str]) -> str:
+    """The fix for a bare number: what it meant when slack was in each joint's source unit."""
+    kinds = [angular] if angular is not None else [k for k in (True, False) if k in meant] or [True]
+    units = {k: meant.get(k, urdf_unit(k)) for k in kinds}
+    text = number_text(value)
+    if angular is not None:
+        fix, how = f"{path_key(angular)}: {text} {units[angular]}", f"unit {units[angular]}"
+    elif len(kinds) == 2:
+        fix = f"slack: {{angle: {text} {units[True]}, length: {text} {units[False]}}}"
+        how = f"angles in {units[True]} and lengths in {units[False]}"
+    else:
+        fix, how = f"slack: {text} {units[kinds[0]]}", f"unit: {units[kinds[0]]}"
+    return (
+        f"{_show(written)} has no unit; slack now carries its own so that changing joints.unit cannot change it: "
+        f"write {fix} (what {_show(written)} meant with {how})"
+    )
+
+
+def path_key(angular: bool) -> str:
+    return "angle" if angular else "length"
+
+
+UNIT_NAMES = {"rad": "radians", "deg": "degrees", "m": "metres", "cm": "centimetres", "mm": "millimetres"}
+
+
+def units_that_fit(channel: JointChannel, raw_low: float, raw_high: float) -> list[str]:
+    """The other units of the channel's joint kind in which raw values from raw_low to raw_high would lie within the
+    limits (and slack), with the channel's scale, sign and offset kept: the likely unit mistake. Biggest unit first."""
+    if channel.source_range is not None or channel.lower is None or channel.upper is None or channel.source_unit not in FACTORS:
+        return []
+    kind = ANGULAR_UNITS if channel.source_unit in ANGULAR_UNITS else LINEAR_UNITS
+    found = []
+    for unit in kind:
+        if unit == channel.source_unit:
+            continue
+        gain = FACTORS[unit] * channel.scale * channel.sign
+        low, high = sorted((raw_low * gain + channel.offset, raw_high * gain + channel.offset))
+        if channel.lower - channel.slack <= low and high <= channel.upper + channel.slack:
+            found.append(unit)
+    return found
+
+
+def unit_hint(channel: JointChannel, raw_low: float, raw_high: float) -> str:
+    """ "the values fit the limits if they are degrees: `unit: deg`" when another unit fits (run's refusal), else ""."""
+    units = units_that_fit(channel, raw_low, raw_high)
+    if not units:
+        return ""
+    names = " or ".join(UNIT_NAMES[u] for u in units)
+    return f"the values fit the limits if they are {names}: `unit: {units[0]}`"

@@ -14,6 +14,7 @@ from typing import Any
 
 import yaml
 
+from ..confine import file_state
 from ..errors import UserError, Where
 
 PathKey = tuple[str | int, ...]
@@ -211,6 +212,9 @@ def _shown(tag: str) -> str:
 def read_text(file: Path, what: str = "config file") -> str:
     """The file's text, refused before any parsing when it is larger than MAX_BYTES, not UTF-8, or holds a NUL or
     another character YAML forbids (at that character's line and column)."""
+    state = file_state(file, f"the {what}", Where(file, 0))  # a FIFO or a device would keep the read waiting forever
+    if state == "folder":
+        raise UserError(f"the {what} is a folder, not a file", Where(file, 0))
     try:
         with file.open("rb") as stream:
             raw = stream.read(MAX_BYTES + 1)

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..confine import confinement_for
+from ..confine import confinement_for, file_state
 from ..errors import Problems, UserError, Where
 from .document import MAX_DEPTH, Document, PathKey, load_document, parse_document, read_text
 from .schema import validate_document
@@ -44,13 +44,15 @@ def expand_edge_specs(specs: list[dict[str, Any]], document: Document, problems:
 
 def _sidecar_specs(name: str, document: Document, here: PathKey, problems: Problems) -> list[EdgeSpec]:
     path = document.file.parent / name
-    try:
-        confinement_for(document.file).check_read(path, "edges file", document.where(*here))  # before existence: no probing
+    try:  # before existence: no probing; a path the OS cannot follow (a loop, a name too long) is refused here
+        real = confinement_for(document.file).check_read(path, "edges file", document.where(*here))
+        state = file_state(real, "edges file", document.where(*here))
     except UserError as exc:
         problems.extend(exc)
         return []
-    if not path.is_file():
-        problems.add(f"edges file not found: {path.resolve()} (paths are relative to the config file)", document.where(*here))
+    if state != "file":
+        shown = f"edges file {real} is a folder" if state == "folder" else f"edges file not found: {real}"
+        problems.add(f"{shown} (paths are relative to the config file)", document.where(*here))
         return []
     try:
         sidecar = _load_json(path) if path.suffix == ".json" else load_document(path, "edges file")

@@ -9,12 +9,14 @@ from __future__ import annotations
 
 import json
 import os
+import stat
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from .. import __version__
+from ..confine import Unresolvable, resolved
 from ..errors import Where
 from ..execute import require_ours, write_file_atomically
 
@@ -64,7 +66,7 @@ class Manifest:
         entry = self.entry(label)
         if entry is None or entry.get("content_sha256") != content_hash:
             return False
-        return self.resolve(entry["path"]) == output and output.is_file() and output.stat().st_size == entry.get("bytes")
+        return self.resolve(entry["path"]) == output and _size(output) == entry.get("bytes")
 
     def record(self, label: str, output: Path, content_hash: str, frames: int, extra: dict[str, Any]) -> None:
         entry = {
@@ -83,25 +85,30 @@ class Manifest:
         """The blueprint at `path` is the one this manifest recorded for `key`, untouched since (size and mtime): it
         is neither checked nor written again, so an up-to-date run needs no Rerun."""
         entry = self.blueprint
-        if entry is None or entry.get("content_sha256") != key or self.resolve(entry["path"]) != path.resolve():
+        if entry is None or entry.get("content_sha256") != key or self.resolve(entry["path"]) != self.resolve(str(path)):
             return False
         try:
-            stat = path.stat()
-        except OSError:
+            status = path.stat()
+        except (OSError, ValueError):
             return False
-        return [stat.st_size, stat.st_mtime_ns] == [entry.get("bytes"), entry.get("mtime_ns")]
+        return [status.st_size, status.st_mtime_ns] == [entry.get("bytes"), entry.get("mtime_ns")]
 
     def record_blueprint(self, path: Path, key: str) -> None:
-        stat = path.stat()
+        status = path.stat()
         relative = os.path.relpath(path, self.path.parent)
-        self.blueprint = {"path": relative, "content_sha256": key, "bytes": stat.st_size, "mtime_ns": stat.st_mtime_ns}
+        self.blueprint = {"path": relative, "content_sha256": key, "bytes": status.st_size, "mtime_ns": status.st_mtime_ns}
 
     def resolve(self, relative: str) -> Path:
-        return (self.path.parent / relative).resolve()
+        """An entry's path, resolved; as written when the OS cannot follow it (a loop, a name too long: the manifest may
+        come from a pull request), which then matches no output and names no file."""
+        try:
+            return resolved(self.path.parent / relative)
+        except Unresolvable:
+            return Path(os.path.abspath(self.path.parent / relative))
 
     def outputs(self) -> list[tuple[str, Path]]:
         """(segment id, layer or recording path) of every segment the manifest lists whose file exists."""
-        return [(s, self.resolve(e["path"])) for s, e in sorted(self.segments.items()) if self.resolve(e["path"]).is_file()]
+        return [(s, self.resolve(e["path"])) for s, e in sorted(self.segments.items()) if _size(self.resolve(e["path"])) is not None]
 
     def write(self, every_seconds: float = 0.0) -> None:
         """Atomically; `every_seconds` throttles the rewrites of a long run (the last one is always forced)."""
@@ -111,7 +118,7 @@ class Manifest:
         if every_seconds and now - self._last_write < every_seconds:
             return
         self._last_write = now
-        segments = [e for _, e in sorted(self.segments.items()) if self.resolve(e["path"]).is_file()]
+        segments = [e for _, e in sorted(self.segments.items()) if _size(self.resolve(e["path"])) is not None]
         data = {
             "format": FORMAT,
             "urdf_pipeline": __version__,
@@ -125,6 +132,15 @@ class Manifest:
         }
         text = json.dumps(data, indent=1, sort_keys=True) + "\n"
         write_file_atomically(self.path, lambda partial: partial.write_text(text, encoding="utf-8"), None)  # ours: see load
+
+
+def _size(path: Path) -> int | None:
+    """The size of the regular file at `path`; None when there is none or the OS cannot tell (never an exception)."""
+    try:
+        status = path.stat()
+    except (OSError, ValueError):
+        return None
+    return status.st_size if stat.S_ISREG(status.st_mode) else None
 
 
 def _is_entry(entry: Any) -> bool:

@@ -1,4 +1,5 @@
-"""The end-of-run summary: one line per segment (segment, frames, seconds, status, reason), then the totals."""
+"""The end-of-run summary: one row per segment (segment, frames, seconds, status, reason; one line per problem of a
+failed segment), then the totals."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from collections import Counter
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..errors import UserError
+from ..errors import UserError, neutral_line, shown
 from ..execute import SegmentResult
 
 if TYPE_CHECKING:
@@ -16,12 +17,24 @@ if TYPE_CHECKING:
     from .run import DatasetRun, RunOptions
 
 
+def _problems(result: SegmentResult) -> list[str]:
+    """The reason's lines, one problem each (a bug: its traceback's last line), each neutral: a segment id or message
+    made from a file name shows no control character and forges no workflow command."""
+    lines = [line for line in result.reason.strip().split("\n") if line.strip()]
+    return [neutral_line(line.strip()) for line in (lines[-1:] if result.status == "bug" else lines)]
+
+
 def summary_table(results: tuple[SegmentResult, ...]) -> str:
-    width = max([len("segment"), *(len(r.label) for r in results)])
+    """One row per segment; a segment that failed for several problems has one line per problem, the first on its
+    row, the others under it in the reason column."""
+    labels = [shown(r.label) for r in results]
+    width = max([len("segment"), *(len(label) for label in labels)])
     lines = [f"{'segment':<{width}}  {'frames':>9}  {'seconds':>8}  {'status':<11}  reason"]
-    for r in results:
-        reason = r.reason.strip().splitlines()[-1] if r.status == "bug" and r.reason else " | ".join(r.reason.strip().splitlines())
-        lines.append(f"{r.label:<{width}}  {r.frames:>9,}  {r.seconds:>8.2f}  {r.status:<11}  {reason}".rstrip())
+    indent = " " * (width + 2 + 9 + 2 + 8 + 2 + 11 + 2)
+    for r, label in zip(results, labels, strict=True):
+        first, *more = _problems(r) or [""]
+        lines.append(neutral_line(f"{label:<{width}}  {r.frames:>9,}  {r.seconds:>8.2f}  {r.status:<11}  {first}".rstrip()))
+        lines += [indent + problem for problem in more]
     return "\n".join(lines)
 
 

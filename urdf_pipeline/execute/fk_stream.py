@@ -6,9 +6,9 @@ from typing import TYPE_CHECKING
 
 import pyarrow as pa
 
-from ..progress import RowProgress
 from ..sources import CallbackErrors, JointValueMapper, raw_matrix
 from .joint_fk import ClosedFormJointTransforms
+from .progress_meter import RowMeter
 from .transform_lenses import transform_lenses, transform_stream
 
 if TYPE_CHECKING:
@@ -26,7 +26,7 @@ class JointTransformBatches:
     """The first lens's function: joint vectors -> per-row batches of joint transforms (Rerun's URDF FK, in closed
     form over whole columns: see joint_fk.py)."""
 
-    def __init__(self, mapper: JointValueMapper, tree: UrdfTree, progress: RowProgress | None = None) -> None:
+    def __init__(self, mapper: JointValueMapper, tree: UrdfTree, progress: RowMeter | None = None) -> None:
         self.mapper = mapper
         self.progress = progress
         self.transforms = ClosedFormJointTransforms(tree, list(mapper.joint_names))

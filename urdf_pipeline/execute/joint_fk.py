@@ -64,9 +64,14 @@ class ClosedFormJointTransforms:
         self.usable = self._agrees_with_rerun()
 
     def __call__(self, values: np.ndarray) -> pa.Array:
-        """`values`: float64, rows × joints. Rerun's FK when this robot did not pass the check at construction."""
+        """`values`: float64, rows × joints. Rerun's FK when this robot did not pass the check at construction.
+        Infinite values are refused after the pass (they give NaN here): numpy's warnings about them say nothing."""
         if not self.usable:
             return self._rerun(values)
+        with np.errstate(invalid="ignore", over="ignore"):
+            return self._closed_form(values)
+
+    def _closed_form(self, values: np.ndarray) -> pa.Array:
         rows, count = values.shape
         fixed = self._per_size(rows)
         half = values * self.half_turning  # float64 up to the sines: a wheel at 1000 rad keeps its 1e-5
@@ -91,9 +96,10 @@ class ClosedFormJointTransforms:
             batches = self._rerun(values).values
             translation = np.asarray(batches.field("translation").flatten(), dtype=np.float64).reshape(rows, count, 3)
             return translation, np.asarray(batches.field("quaternion").flatten(), dtype=np.float64).reshape(rows, count, 4)
-        half = values * self.half_turning
-        quaternion = np.sin(half)[..., None] * self.axis_q + np.cos(half)[..., None] * self.origin_q
-        translation = self.origin_t + (values * self.sliding)[..., None] * self.slide_axes
+        with np.errstate(invalid="ignore", over="ignore"):
+            half = values * self.half_turning
+            quaternion = np.sin(half)[..., None] * self.axis_q + np.cos(half)[..., None] * self.origin_q
+            translation = self.origin_t + (values * self.sliding)[..., None] * self.slide_axes
         return translation, quaternion
 
     def _per_size(self, rows: int) -> _SizeConstants:

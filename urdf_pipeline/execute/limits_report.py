@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ..compile import unit_hint
 from ..errors import Problems
 from ..plan import JointChannel
 from ..sources import JointValueMapper
@@ -32,7 +33,6 @@ def check_joint_statistics(mapper: JointValueMapper, problems: Problems) -> list
         )
     for channel, stats in zip(robot.channels, mapper.stats.channels, strict=False):
         label = f"robot '{robot.key}' joint '{channel.joint}' (source value '{channel.source_name}')"
-        slack = channel.slack_in_source_unit or 0.0
         if stats.nonfinite_rows:
             problems.add(
                 f"{label}: {stats.nonfinite_rows} of {mapper.stats.rows} rows are NaN or infinite, the first at row {stats.first_nonfinite_row} "
@@ -41,15 +41,18 @@ def check_joint_statistics(mapper: JointValueMapper, problems: Problems) -> list
             )
         if stats.clamped_rows:
             notes.append(
-                f"{label}: clamped {stats.clamped_rows} of {mapper.stats.rows} rows within slack {slack:g} {channel.source_unit} "
+                f"{label}: clamped {stats.clamped_rows} of {mapper.stats.rows} rows within slack {channel.slack_text} "
                 f"of limits {_limits_text(channel)}; worst value {stats.clamped_worst_raw:.6g} {channel.source_unit}"
             )
         if stats.beyond_rows:
             text = (
                 f"{label}: {stats.beyond_rows} of {mapper.stats.rows} rows beyond the URDF limits {_limits_text(channel)} "
-                f"by more than slack {slack:g} {channel.source_unit}; worst value {stats.beyond_worst_raw:.6g} {channel.source_unit}"
+                f"by more than slack {channel.slack_text}; worst value {stats.beyond_worst_raw:.6g} {channel.source_unit}"
             )
-            if robot.on_violation == "error":
+            hint = unit_hint(channel, stats.raw_min, stats.raw_max) if not channel.wrap and stats.raw_min <= stats.raw_max else ""
+            if robot.on_violation == "error" and hint:
+                problems.add(f"{text}; {hint} on this entry (or joints.unit for the whole robot)", channel.where)
+            elif robot.on_violation == "error":
                 problems.add(
                     f"{text}. Check this entry's joint, unit, sign and offset, or set joints.limits.on_violation: clamp", channel.where
                 )

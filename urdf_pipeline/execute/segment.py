@@ -11,13 +11,14 @@ from typing import TYPE_CHECKING, Literal
 
 from ..errors import Problems
 from ..plan import Plan
-from ..progress import RowProgress, say
 from ..progress import note as log_note
+from ..progress import say
 from ..sources import CallbackErrors, JointValueMapper, module_for, with_sorting_retry
 from .edges_stream import calibration_stream
 from .fk_stream import JointTransformBatches, fk_stream
 from .limits_report import check_joint_statistics
 from .model_stream import cached_tree, robot_model_stream
+from .progress_meter import source_meter
 from .provenance import provenance_stream
 from .stream_writer import drain_streams
 from .temporal_stream import TemporalEdgeValues, check_temporal_edges, temporal_edge_streams
@@ -100,12 +101,12 @@ def _open(plan: Plan, parts: Parts, provenance: dict[str, str] | None, quiet: bo
             streams.append(robot_model_stream(robot, trees[robot.key]))
     if parts != "model":
         for source in plan.sources:
-            driven = []
+            driven: list[tuple[str, str, JointTransformBatches]] = []
+            meter = None if quiet else source_meter(plan, source, rows_expected)  # its rows counted once, by the first robot
             for robot in plan.robots_for(source.name):
                 mapper = JointValueMapper(robot, source)
                 mappers.append(mapper)
-                progress = None if quiet else RowProgress(f"robot {robot.key}", total=rows_expected)
-                batches = JointTransformBatches(mapper, trees[robot.key], progress)
+                batches = JointTransformBatches(mapper, trees[robot.key], None if driven else meter)
                 driven.append((robot.key, robot.fk_entity, batches))
             if driven:  # a source used only by temporal edges is read there
                 streams.append(fk_stream(module_for(source).open_stream(source), driven, errors))

@@ -1,4 +1,5 @@
-"""`run --spawn` / `run --connect URL`: the run's recordings sent to a Rerun viewer.
+"""`run --spawn` / `run --connect URL`: the run's recordings sent to a Rerun viewer (the command line has checked,
+before the run, that one listens at the URL: `cli/viewer_target.py`).
 
 One RecordingStream per segment, with the config's application id and the segment's recording id, so the viewer
 merges what it receives into that segment (a layer lands on its base episode instead of opening beside it). In
@@ -15,8 +16,9 @@ from .segment_run import SegmentResult
 DEFAULT_VIEWER_URL = "rerun+http://127.0.0.1:9876/proxy"
 
 
-def send_to_viewer(plan: Plan, results: tuple[SegmentResult, ...], url: str | None, spawn: bool) -> int:
-    """Send every written or up-to-date segment; returns how many were sent."""
+def send_to_viewer(plan: Plan, results: tuple[SegmentResult, ...], url: str | None) -> int:
+    """Send every written or up-to-date segment to the viewer at `url` (default: the local viewer's port); returns how
+    many were sent."""
     import rerun as rr
     from rerun.chunk import RrdReader
 
@@ -28,10 +30,7 @@ def send_to_viewer(plan: Plan, results: tuple[SegmentResult, ...], url: str | No
     for result in (r for r in usable if r.label != "model"):
         stream = rr.RecordingStream(plan.output.application_id, recording_id=result.label, send_properties=False)
         try:
-            if spawn and sent == 0:
-                stream.spawn(default_blueprint=blueprint)  # a viewer already listening on the port is reused
-            else:
-                stream.connect_grpc(url or DEFAULT_VIEWER_URL, default_blueprint=blueprint)
+            stream.connect_grpc(url or DEFAULT_VIEWER_URL, default_blueprint=blueprint)
             if model_store is not None:
                 stream.send_chunks(model_store)
             stream.send_chunks(RrdReader(result.output).store())

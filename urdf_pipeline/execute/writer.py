@@ -10,11 +10,13 @@ from __future__ import annotations
 
 import os
 import re
+import stat
 import tempfile
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Literal
 
+from ..confine import file_state, os_cause
 from ..errors import UserError, Where
 
 Kind = Literal["recording", "manifest", "blueprint"]
@@ -55,11 +57,15 @@ def write_file_atomically(
 
 def foreign_reason(path: Path, kind: Kind) -> str | None:
     """Why the existing `path` is not a file this tool wrote; None when it is ours (or does not exist)."""
-    if not os.path.lexists(path):
+    try:
+        status = os.lstat(path)
+    except FileNotFoundError:
         return None
-    if path.is_symlink():
+    except (OSError, ValueError) as exc:  # a name too long, a file in place of a folder, no permission
+        return f"it cannot be examined ({os_cause(exc, path)})"
+    if stat.S_ISLNK(status.st_mode):
         return "it is a symbolic link"
-    if not path.is_file():
+    if not stat.S_ISREG(status.st_mode):
         return "it is not a regular file"
     if kind == "manifest":
         import json
@@ -99,7 +105,7 @@ def require_writable(directory: Path, where: Where | None) -> None:
     existing = directory
     while not os.path.lexists(existing) and existing != existing.parent:
         existing = existing.parent
-    if not existing.is_dir():
+    if file_state(existing, f"cannot write to {directory}:", where, "used") != "folder":
         raise UserError(f"cannot write to {directory}: {existing} is not a directory; choose another output path", where)
     if existing != directory:
         if not os.access(existing, os.W_OK | os.X_OK):

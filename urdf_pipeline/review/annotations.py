@@ -18,10 +18,11 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Literal
 
-from ..errors import ConfigWarning, UserError, UserErrors, Where, collect_warnings, located
+from ..errors import LINE_LIMIT, ConfigWarning, UserError, UserErrors, Where, collect_warnings, located, neutral_line, shortened, shown
 from .non_config import not_a_config
 
 Severity = Literal["error", "warning", "note"]
+PART = LINE_LIMIT // 8  # characters of an annotation's file or YAML path (the message has LINE_LIMIT // 2)
 SEVERITY_ORDER = {"error": 0, "warning": 1, "note": 2}
 GITHUB_COMMAND = {"error": "error", "warning": "warning", "note": "notice"}
 AnnotationFormat = Literal["github", "json"]
@@ -56,18 +57,20 @@ class ConfigResult:
         return not self.errors
 
     def ok_line(self) -> str:
-        return f"ok: {self.config}\n" if self.ok and not self.skipped else ""
+        return neutral_line(f"ok: {self.config}") + "\n" if self.ok and not self.skipped else ""
 
     def annotations(self) -> list[Annotation]:
         return [Annotation.at(p.severity, p.message, p.where, self.config) for p in (*self.warnings, *self.errors, *self.notes)]
 
     def skipped_line(self) -> str:
-        return f"skipped: {self.config}: not a urdf-pipeline config ({self.skipped})\n" if self.skipped else ""
+        return neutral_line(f"skipped: {self.config}: not a urdf-pipeline config ({self.skipped})") + "\n" if self.skipped else ""
 
 
 @dataclass(frozen=True)
 class Annotation:
-    """A problem as CI sees it (github, json): the file normalised, line and column 0 when unknown."""
+    """A problem as CI sees it (github, json): the file normalised, line and column 0 when unknown. Its texts come
+    from the pull request (file names, YAML keys, URDF names in messages): each is held as `errors.shown` gives it,
+    one line, control characters visible, bounded, so neither format carries a raw newline, ESC or a megabyte."""
 
     file: str  # as the user gave it (relative stays relative), normalized: `./a/../b.yaml` -> `b.yaml`
     line: int
@@ -79,22 +82,29 @@ class Annotation:
     @staticmethod
     def at(severity: Severity, message: str, where: Where | None, config: str) -> Annotation:
         """A problem at `where`; one without a place is put on the config being validated, as a whole."""
+        text = shown(message, LINE_LIMIT // 2)
         if where is None:
-            return Annotation(os.path.normpath(config), 0, 0, "", severity, message)
-        return Annotation(os.path.normpath(where.file), where.line, where.column if where.line else 0, where.path, severity, message)
+            return Annotation(shown(os.path.normpath(config), PART), 0, 0, "", severity, text)
+        file, path = shown(os.path.normpath(where.file), PART), shown(where.path, PART)
+        return Annotation(file, where.line, where.column if where.line else 0, path, severity, text)
 
     def sort_key(self) -> tuple[str, int, int, str, int, str]:
         return self.file, self.line, self.column, self.path, SEVERITY_ORDER[self.severity], self.message
 
     def github(self) -> str:
-        """The workflow command: `::error file=F,line=L,col=C::PATH: message` (line and col only when known)."""
+        """The workflow command: `::error file=F,line=L,col=C::PATH: message` (line and col only when known), escaped
+        as GitHub reads them: `%`, CR and LF in the message; `%`, CR, LF, `:` and `,` in a property."""
         properties = [f"file={_escape_property(self.file)}"]
         if self.line:
             properties.append(f"line={self.line}")
             if self.column:
                 properties.append(f"col={self.column}")
+        head = f"::{GITHUB_COMMAND[self.severity]} {','.join(properties)}::"
         text = f"{self.path}: {self.message}" if self.path else self.message
-        return f"::{GITHUB_COMMAND[self.severity]} {','.join(properties)}::{_escape_data(text)}"
+        data = _escape_data(text)
+        if len(head) + len(data) > LINE_LIMIT:  # each `%` takes three characters escaped: the line stays bounded
+            data = _escape_data(shortened(text, (LINE_LIMIT - len(head)) // 3))
+        return head + data
 
 
 def validate_config(config: str, *, data: bool = True, skip_non_configs: bool = False) -> ConfigResult:

@@ -1,66 +1,29 @@
 """`urdf-pipeline check`: which corrections put a sample of each mapped joint's values inside its URDF limits.
 
-For revolute joints the candidates are identity, negate, wrap by a full turn, offsets of +-90 and +-180 degrees,
-and their combinations; for prismatic joints the unit factors m, cm, mm and negation. Candidates that give the
-same values on the sample are one candidate (the simplest is shown). One fitting candidate: the YAML to paste;
-several: ambiguous, settle against a known pose; none: the column is probably another joint or the order is off.
+The candidates (check_candidates.py) combine the units of the joint's kind (deg <-> rad; m, cm, mm) with the sign,
+a wrap by a full turn and offsets of +-90 and +-180 degrees; candidates that give the same values on the sample are
+one (the simplest is shown). The config's own corrections fit: "fits as configured" (or, when the values fit a
+bigger unit as well and look like it, ambiguous: say so). Else the simplest fitting candidate (fewest changes) is the
+advice with the YAML to paste ("the values fit if they are degrees: `unit: deg`", and for the whole robot's
+`joints.unit` when every joint of that kind agrees); several equally simple: ambiguous, settle against a known pose;
+none: the column is probably another joint or the order is off.
 """
 
 from __future__ import annotations
 
-import itertools
-import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from ..compile import compile_config
-from ..errors import ExitCode
+from ..compile import UNIT_NAMES, compile_config
+from ..errors import ExitCode, shown
 from ..plan import JointChannel, Plan, RobotPlan, SourcePlan
 from ..sources import wrapped
+from .check_candidates import ANGLES, angular, fits, fitting, looks_like_a_bigger_unit, unit_only
 
 SAMPLE_ROWS = 100_000
-
-
-@dataclass(frozen=True)
-class Candidate:
-    sign: int
-    wrap: bool
-    offset_deg: float  # revolute: added after conversion, in degrees (pasted as radians)
-    unit_factor: float  # prismatic: metres per source unit
-
-    def describe(self, channel: JointChannel) -> str:
-        parts = []
-        if channel.lower is not None and self.unit_factor != channel.factor * channel.scale and not _angular(channel):
-            parts.append(f"x {self.unit_factor:g} m per source unit")
-        if self.sign < 0:
-            parts.append("negate")
-        if self.wrap:
-            parts.append("wrap a full turn")
-        if self.offset_deg:
-            parts.append(f"offset {self.offset_deg:+g} deg")
-        return ", ".join(parts) or "identity"
-
-    def yaml(self, channel: JointChannel) -> str:
-        entry = [f"joint: {channel.joint}"]
-        if _angular(channel):
-            entry.append(f"unit: {channel.source_unit}")
-            if channel.scale != 1:
-                entry.append(f"scale: {channel.scale:g}")
-            if self.wrap:
-                entry.append(f"wrap: {360 if channel.source_unit == 'deg' else round(2 * math.pi, 9)}")
-        else:
-            unit, scale = _linear_unit(self.unit_factor)
-            entry.append(f"unit: {unit}")
-            if scale != 1:
-                entry.append(f"scale: {scale:g}")
-        if self.sign < 0:
-            entry.append("sign: -1")
-        if self.offset_deg:
-            entry.append(f"offset: {round(math.radians(self.offset_deg), 9)}")
-        return f"{channel.source_name}: {{{', '.join(entry)}}}"
 
 
 @dataclass(frozen=True)
@@ -82,49 +45,8 @@ class JointReport:
     slack_rows: int = 0
     slack_worst: float | None = None
     message: str = ""
-
-
-def _angular(channel: JointChannel) -> bool:
-    return channel.source_unit in ("rad", "deg")
-
-
-def _linear_unit(factor: float) -> tuple[str, float]:
-    if math.isclose(factor, 1.0):
-        return "m", 1.0
-    if math.isclose(factor, 1e-2):
-        return "cm", 1.0
-    if math.isclose(factor, 1e-3):
-        return "mm", 1.0
-    return "m", factor
-
-
-def _candidates(channel: JointChannel) -> list[Candidate]:
-    if _angular(channel):
-        base = channel.factor * channel.scale
-        offsets = (0.0, 90.0, -90.0, 180.0, -180.0)
-        combos = itertools.product(offsets, (1, -1), (False, True))
-        ordered = sorted(combos, key=lambda c: (c[0] != 0, abs(c[0]), c[0] < 0, c[2], c[1] < 0))
-        return [Candidate(sign, wrap, offset, base) for offset, sign, wrap in ordered]
-    return [Candidate(sign, False, 0.0, factor) for factor in (1.0, 1e-2, 1e-3) for sign in (1, -1)]
-
-
-def _values(channel: JointChannel, raw: np.ndarray, candidate: Candidate) -> np.ndarray:
-    turn = 360.0 if channel.source_unit == "deg" else 2 * math.pi
-    if candidate.wrap:
-        center = channel.to_source_unit(((channel.lower or 0.0) + (channel.upper or 0.0)) / 2)
-        raw = wrapped(raw, center, turn)
-    return raw * candidate.unit_factor * candidate.sign + math.radians(candidate.offset_deg) * (1 if _angular(channel) else 0)
-
-
-def _is_current(candidate: Candidate, channel: JointChannel) -> bool:
-    if channel.source_range is not None:
-        return False
-    return (
-        candidate.sign == channel.sign
-        and math.isclose(math.radians(candidate.offset_deg) if _angular(channel) else 0.0, channel.offset, abs_tol=1e-9)
-        and candidate.wrap == bool(channel.wrap)
-        and math.isclose(candidate.unit_factor, channel.factor * channel.scale)
-    )
+    unit_fits: str | None = None  # the simplest advice changes the unit only, to this one
+    robot_advice: str | None = None  # every joint of this kind fits in another unit: the robot's joints.unit to paste
 
 
 def _current_values(channel: JointChannel, raw: np.ndarray) -> np.ndarray:
@@ -144,34 +66,88 @@ def check_channel(robot: RobotPlan, channel: JointChannel, raw: np.ndarray) -> J
         return replace(report, message="no finite values in the sample")
     if channel.lower is None or channel.upper is None:
         return replace(report, verdict="no limits", current_fits=True, message="the joint has no limits: nothing to check against")
-    lower, upper, slack = channel.lower, channel.upper, channel.slack
+    lower, upper = channel.lower, channel.upper
     current = _current_values(channel, finite)
-    fits = bool(np.all((current >= lower - slack) & (current <= upper + slack)))
-    report = replace(report, limits_in_source_unit=channel.limits_in_source_unit, current_fits=fits)
+    current_fits = fits(current, channel)
+    report = replace(report, limits_in_source_unit=channel.limits_in_source_unit, current_fits=current_fits)
     outside = (current < lower) | (current > upper)
-    if fits and outside.any():
+    if current_fits and outside.any():
         excess = np.maximum(lower - current, current - upper)
         report = replace(report, slack_rows=int(outside.sum()), slack_worst=float(finite[np.argmax(excess)]))
     if channel.source_range is not None:  # the config maps the range itself: only the fit is to check
-        if fits:
+        if current_fits:
             return replace(report, verdict="fits", message="source_range maps the values onto the joint's range")
         message = f"values leave source_range {list(channel.source_range)}: the range (or the column) is wrong"
         return replace(report, verdict="none", message=message)
-    kept: list[tuple[Candidate, np.ndarray]] = []
-    for candidate in _candidates(channel):
-        values = _values(channel, finite, candidate)
-        if not np.all((values >= lower - slack) & (values <= upper + slack)):
+    kept = fitting(channel, finite)
+    report = replace(report, fitting=tuple(c.describe(channel) + (" (the config's)" if c.is_current(channel) else "") for c in kept))
+    if current_fits:
+        bigger = looks_like_a_bigger_unit(channel, finite)
+        if bigger is None:
+            return replace(report, verdict="fits", message="fits as configured")
+        reach = float(np.max(np.abs(finite)))
+        message = (
+            f"fits as configured, but the values also fit if they are {UNIT_NAMES[bigger]} (`unit: {bigger}`): as "
+            f"{channel.source_unit} they all stay within {reach:.3g} {channel.source_unit} of zero on a joint whose limits span "
+            f"{(upper - lower) / abs(channel.gain):.4g} {channel.source_unit}; settle against a known pose"
+        )
+        return replace(report, verdict="ambiguous", message=message)
+    if not kept:
+        message = "no correction fits: the column is probably another joint, or the name order is off"
+        return replace(report, verdict="none", message=message)
+    simplest = [c for c in kept if len(c.changes(channel)) == len(kept[0].changes(channel))]
+    more = len(kept) - len(simplest)
+    also = f" ({more} more with more changes fit too: {'; '.join(c.describe(channel) for c in kept[len(simplest) :][:3])})" if more else ""
+    if len(simplest) == 1:
+        best = simplest[0]
+        unit = best.unit if best.changes(channel) == ("unit",) else None
+        return replace(report, verdict="fits", paste=best.yaml(channel), message=best.advice(channel) + also, unit_fits=unit)
+    count = len(simplest[0].changes(channel))
+    units = {c.unit for c in simplest}
+    if len(units) == 1 and channel.source_unit not in units:  # every way out changes the unit: that much is sure
+        (unit,) = units
+        rest = "; ".join(replace(c, unit=channel.source_unit).describe(channel) for c in simplest)
+        message = f"the values fit only if they are {UNIT_NAMES[unit]} (`unit: {unit}`), and then one of: {rest}"
+    else:
+        listed = "; ".join(c.describe(channel) for c in simplest)
+        message = f"several corrections fit with {count} change{'s' if count > 1 else ''} each: {listed}"
+    return replace(report, verdict="ambiguous", message=message + "; settle against a known pose")
+
+
+def _robot_advice(robot: RobotPlan, reports: list[JointReport], raw: np.ndarray) -> list[JointReport]:
+    """When some joint's advice is another unit and every mapped joint of that kind fits in it (with its own sign,
+    offset and wrap), the robot's `joints.unit` is the one line to change: say it on each of the robot's reports."""
+    by_channel = {(r.source_name, r.joint): r for r in reports}
+    advised = {r.unit_fits for r in reports if r.unit_fits is not None}
+    for unit in sorted(advised):
+        kind = [c for c in robot.channels if c.source_range is None and angular(c) == (unit in ANGLES)]
+        agree = all(
+            np.isfinite(raw[:, c.source_index]).any() and fits(unit_only(c, unit).values(c, _finite(raw[:, c.source_index])), c)
+            for c in kind
+            if c.lower is not None and c.upper is not None
+        )
+        if not agree:
             continue
-        if any(np.allclose(values, other, atol=1e-9) for _, other in kept):
-            continue
-        kept.append((candidate, values))
-    report = replace(report, fitting=tuple(c.describe(channel) + (" (the config's)" if _is_current(c, channel) else "") for c, _ in kept))
-    if len(kept) == 1:
-        return replace(report, verdict="fits", paste=kept[0][0].yaml(channel), message="one correction fits")
-    if kept:
-        return replace(report, verdict="ambiguous", message="several corrections fit: settle against a known pose")
-    message = "no correction fits: the column is probably another joint, or the name order is off"
-    return replace(report, verdict="none", message=message)
+        others = {c.source_unit for c in robot.channels if c.source_range is None and angular(c) != (unit in ANGLES)}
+        other = next(iter(others)) if len(others) == 1 else None
+        if unit in ANGLES:
+            written = f"{{angle: {unit}, length: {other}}}" if other not in (None, "m") else unit
+        else:
+            written = f"{{angle: {other}, length: {unit}}}" if other not in (None, "rad") else unit
+        what = "revolute and continuous" if unit in ANGLES else "prismatic"
+        advice = (
+            f"every {what} joint of robot {robot.key} fits if its values are {UNIT_NAMES[unit]}: "
+            f"write `unit: {written}` under robots.{robot.key}.joints"
+        )
+        for c in kind:
+            report = by_channel.get((c.source_name, c.joint))
+            if report is not None:
+                by_channel[(c.source_name, c.joint)] = replace(report, robot_advice=advice)
+    return [by_channel[(r.source_name, r.joint)] for r in reports]
+
+
+def _finite(column: np.ndarray) -> np.ndarray:
+    return column[np.isfinite(column)]
 
 
 def check_plan(plan: Plan, sample: dict[str, np.ndarray]) -> list[JointReport]:
@@ -181,7 +157,8 @@ def check_plan(plan: Plan, sample: dict[str, np.ndarray]) -> list[JointReport]:
         if robot.source is None:
             continue
         raw = sample[robot.source]
-        reports += [check_channel(robot, channel, raw[:, channel.source_index]) for channel in robot.channels]
+        robot_reports = [check_channel(robot, channel, raw[:, channel.source_index]) for channel in robot.channels]
+        reports += _robot_advice(robot, robot_reports, raw)
     return reports
 
 
@@ -228,15 +205,15 @@ def render_check(reports: Sequence[JointReport], format: str) -> str:
 def as_text(reports: Sequence[JointReport]) -> str:
     lines: list[str] = []
     robot = None
-    for r in reports:
+    for i, r in enumerate(reports):
         if r.robot != robot:
             robot = r.robot
-            lines.append(f"robot {robot}: {r.rows} sampled rows")
+            lines.append(f"robot {shown(robot)}: {r.rows} sampled rows")
         status = "ok" if r.current_fits else "DOES NOT FIT"
         limits = f"{r.limits_in_source_unit[0]:.6g} .. {r.limits_in_source_unit[1]:.6g}" if r.limits_in_source_unit else "none"
         raw = f"{r.raw_min:.6g} .. {r.raw_max:.6g}" if r.raw_min is not None else "no values"
         lines.append(
-            f"  {r.source_name} -> {r.joint} [{r.source_unit}]: values {raw}; URDF limits {limits}; with the config's corrections: {status}"
+            f"  {shown(r.source_name)} -> {shown(r.joint)} [{r.source_unit}]: values {raw}; URDF limits {limits}; with the config's corrections: {status}"
         )
         if r.slack_rows:
             lines.append(
@@ -244,7 +221,10 @@ def as_text(reports: Sequence[JointReport]) -> str:
             )
         if r.fitting:
             lines.append(f"    fitting corrections: {'; '.join(r.fitting)}")
-        lines.append(f"    {r.verdict}: {r.message}")
+        lines.append(f"    {r.verdict}: {shown(r.message, 1000)}")
         if r.paste:
-            lines.append(f"    paste: {r.paste}")
+            lines.append(f"    paste: {shown(r.paste, 1000)}")
+        if i + 1 == len(reports) or reports[i + 1].robot != r.robot:  # the robot's last joint: its whole-robot advice, once
+            advice = dict.fromkeys(x.robot_advice for x in reports if x.robot == r.robot and x.robot_advice)
+            lines += [f"  whole robot: {a}" for a in advice if a]
     return "\n".join(lines)

@@ -1,8 +1,11 @@
 """What `diff` compares: two config files, or a config and its text at a git revision, each compiled quietly.
 
-`diff CONFIG --git REV` compiles the config's text at REV (`git show REV:./NAME`, run in the config's folder) from a
-hidden temporary file beside the config, so relative paths resolve as for the working tree's config. Everything
-else the old config refers to (URDF, data, sidecar edge files) is read from the working tree.
+`diff CONFIG --git REV` compiles the config's text at REV from a hidden temporary file beside the config, so relative
+paths resolve as for the working tree's config. REV is first verified as a commit (`git rev-parse --verify
+--end-of-options REV^{commit}`): what a user (or a workflow fed by a pull request) passes never reaches git as an
+option; the text is then read by the commit's hash (`git cat-file blob --end-of-options HASH:./NAME`, run in the
+config's folder). Everything else the old config refers to (URDF, data, sidecar edge files) is read from the working
+tree.
 """
 
 from __future__ import annotations
@@ -14,9 +17,9 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import IO, TYPE_CHECKING, Any
 
-from ..errors import UserError, UserErrors, Where, collect_warnings
+from ..errors import UserError, UserErrors, Where, collect_warnings, quoted, shown
 from ..plan import Plan
 from .diff import diff_plans
 from .diff_base import DiffReport
@@ -42,11 +45,20 @@ def diff_files(old: str, new: str, render: Path | None = None, size: Size | None
 def diff_git(config: str, revision: str, render: Path | None = None, size: Size | None = None) -> DiffReport:
     """The config at `revision` vs the working tree's. Files the old config refers to are read from the working tree."""
     path = Path(config)
-    new_plan = compile_quietly(path)
-    with git_revision_copy(path, revision) as old_copy:
+    if not _is_file(path):
+        compile_quietly(path)  # the config's own error (not found, not a file, a name too long) before any git call
+    with git_revision_copy(path, revision) as old_copy:  # REV verified first: a bad one is refused before any work
+        new_plan = compile_quietly(path)
         old_plan = _renamed_errors(old_copy, Path(f"{path}@{revision}"))
         old_plan = _as_if_named(old_plan, old_copy, path)
     return _report(f"{config}@{revision}", config, old_plan, new_plan, render, size)
+
+
+def _is_file(path: Path) -> bool:
+    try:
+        return path.is_file()
+    except OSError:  # a name too long, a permission refused: compile_config words it
+        return False
 
 
 def _report(old: str, new: str, old_plan: Plan, new_plan: Plan, render: Path | None, size: Size | None) -> DiffReport:
@@ -56,14 +68,14 @@ def _report(old: str, new: str, old_plan: Plan, new_plan: Plan, render: Path | N
     return DiffReport(old, new, diff_plans(old_plan, new_plan), pictures)
 
 
-def _renamed_errors(copy: Path, shown: Path) -> Plan:
+def _renamed_errors(copy: Path, named: Path) -> Plan:
     """Compile the temporary copy; its errors name `CONFIG@REV`, not the hidden file that is about to be removed."""
     try:
         return compile_quietly(copy)
     except UserError as exc:
         errors = exc.errors if isinstance(exc, UserErrors) else [exc]
         renamed = [
-            UserError(e.message, replace(e.where, file=shown) if e.where is not None and e.where.file == copy else e.where) for e in errors
+            UserError(e.message, replace(e.where, file=named) if e.where is not None and e.where.file == copy else e.where) for e in errors
         ]
         raise (renamed[0] if len(renamed) == 1 else UserErrors(renamed)) from None
 
@@ -77,32 +89,80 @@ def _as_if_named(plan: Plan, copy: Path, config: Path) -> Plan:
     return plan
 
 
-def git_show(config: Path, revision: str) -> str:
-    """The text of `config` at `revision` (`git show REV:./NAME` in the config's folder)."""
-    folder = config.absolute().parent  # as compile_config sees it: relative paths start from here
-    spec = f"{revision}:./{config.name}"
+GIT_COPY_BYTES = 8 * 2**20  # more of the old config's text than the YAML reader accepts: it refuses a larger copy itself
+
+
+def _git(arguments: list[str], config: Path, revision: str, **kwargs: Any) -> subprocess.Popen[bytes]:
+    """git, started in the config's folder (as compile_config sees it: relative paths start from here). The caller puts
+    `--end-of-options` before any argument that holds user data, so none can be read as an option."""
+    folder = config.absolute().parent
     try:
-        result = subprocess.run(["git", "show", spec], cwd=folder, capture_output=True, text=True, check=False)
-    except FileNotFoundError:
-        raise UserError("git is not installed (needed by --git)", Where(config, 0)) from None
+        return subprocess.Popen(["git", *arguments], cwd=folder, stdin=subprocess.DEVNULL, stderr=subprocess.PIPE, **kwargs)
+    except FileNotFoundError as exc:
+        if exc.filename == "git":
+            raise UserError("git is not installed (needed by --git)", Where(config, 0)) from None
+        raise UserError(f"cannot run git in {shown(folder)}: no such folder", Where(config, 0)) from None
     except OSError as exc:
-        raise UserError(f"cannot run git in {folder}: {exc}", Where(config, 0)) from None
-    if result.returncode != 0:
-        reason = (result.stderr.strip().splitlines() or ["git failed"])[-1].removeprefix("fatal: ")
-        raise UserError(f"cannot read {config.name} at git revision '{revision}': {reason}", Where(config, 0))
-    return result.stdout
+        raise UserError(
+            f"cannot run git in {shown(folder)} for --git {quoted(revision)}: {shown(exc.strerror or exc)}", Where(config, 0)
+        ) from None
+
+
+def _last_line(stderr: bytes) -> str:
+    lines = [line for line in stderr.decode("utf-8", "replace").splitlines() if line.strip()]
+    return shown(lines[-1].removeprefix("fatal: ").removeprefix("error: ")) if lines else ""
+
+
+def verified_revision(config: Path, revision: str) -> str:
+    """The commit `revision` names (`git rev-parse --verify --end-of-options REV^{commit}`), as its full hash: what the
+    user typed reaches git only as a revision, never as an option (`--output=FILE`, `-c core.pager=...`), and every
+    later call names the hash."""
+    child = _git(
+        ["rev-parse", "--verify", "--quiet", "--end-of-options", f"{revision}^{{commit}}"], config, revision, stdout=subprocess.PIPE
+    )
+    out, err = child.communicate()
+    commit = out.decode("ascii", "replace").strip()
+    if child.returncode != 0 or not commit or not all(c in "0123456789abcdef" for c in commit):
+        why = _last_line(err)
+        raise UserError(
+            f"--git {quoted(revision)} names no commit in {shown(config.absolute().parent)}"
+            + (f": {why}" if why else "")
+            + "; give a branch, tag or commit (`main`, `HEAD~1`, `v1.2`)",
+            Where(config, 0),
+        )
+    return commit
 
 
 @contextmanager
 def git_revision_copy(config: Path, revision: str) -> Iterator[Path]:
-    """The config's text at `revision` in a hidden file beside the config (so relative paths resolve alike), removed afterwards."""
-    text = git_show(config, revision)
+    """The config's text at `revision` (`git cat-file blob COMMIT:./NAME` in the config's folder) in a hidden file
+    beside the config (so relative paths resolve alike), removed afterwards. At most GIT_COPY_BYTES are copied: the
+    YAML reader refuses a copy that large, as it refuses such a file in the working tree."""
+    commit = verified_revision(config, revision)
     folder = config.absolute().parent  # as compile_config sees it: relative paths start from here
     handle, name = tempfile.mkstemp(prefix=f".{config.stem}.git-", suffix=config.suffix or ".yaml", dir=folder)
     copy = Path(name)
     try:
-        with os.fdopen(handle, "w", encoding="utf-8") as stream:
-            stream.write(text)
+        with os.fdopen(handle, "wb") as stream:
+            _copy_blob(config, revision, f"{commit}:./{config.name}", stream)
         yield copy
     finally:
         copy.unlink(missing_ok=True)
+
+
+def _copy_blob(config: Path, revision: str, spec: str, stream: IO[bytes]) -> None:
+    """The blob's bytes into `stream`, at most GIT_COPY_BYTES; a user error naming REV when git cannot give it."""
+    child = _git(["cat-file", "blob", "--end-of-options", spec], config, revision, stdout=subprocess.PIPE)
+    assert child.stdout is not None and child.stderr is not None
+    left = GIT_COPY_BYTES
+    while left > 0 and (chunk := child.stdout.read(min(left, 1 << 16))):
+        stream.write(chunk)
+        left -= len(chunk)
+    if left <= 0:
+        child.kill()
+    child.stdout.close()
+    err = child.stderr.read(1 << 16)
+    child.stderr.close()
+    if child.wait() != 0 and left > 0:
+        why = _last_line(err) or "git failed"
+        raise UserError(f"cannot read {shown(config.name)} at git revision {quoted(revision)}: {why}", Where(config, 0))

@@ -6,25 +6,28 @@ from __future__ import annotations
 import json
 from typing import Any, Literal
 
+from ..errors import LINE_LIMIT, neutral_text, shown
 from .diff_base import Change, DiffReport
+from .markdown_text import code, code_path
 from .report_markdown import pictures_markdown
 
 DiffFormat = Literal["text", "json", "markdown"]
 
 
 def render_text(report: DiffReport) -> str:
-    """One line per change; the empty string when there is none."""
-    return "".join(change.line + "\n" for change in report.changes)
+    """One line per change (each neutral: names from the configs hold no newline or control character, forge no
+    workflow command, and a long one is shortened); the empty string when there is none."""
+    return neutral_text("".join(shown(change.line, LINE_LIMIT) + "\n" for change in report.changes))
 
 
 def _change(change: Change) -> dict[str, Any]:
     return {
         "group": change.group,
         "subject": change.subject,
-        "detail": change.detail,
+        "detail": shown(change.detail, LINE_LIMIT),  # words for a person, bounded; old and new are the values as they are
         "old": change.old,
         "new": change.new,
-        "line": change.line,
+        "line": shown(change.line, LINE_LIMIT),
     }
 
 
@@ -40,20 +43,14 @@ def render_json(report: DiffReport) -> str:
     return json.dumps(data, indent=2) + "\n"
 
 
-def _code(text: str) -> str:
-    """A Markdown code span that survives backticks inside the text."""
-    fence = "``" if "`" in text else "`"
-    return f"{fence} {text} {fence}" if fence == "``" else f"`{text}`"
-
-
 def render_markdown(report: DiffReport) -> str:
     count = len(report.changes)
     lines = [
-        f"**urdf-pipeline diff** {_code(report.old)} → {_code(report.new)}: "
+        f"**urdf-pipeline diff** {code_path(report.old)} → {code_path(report.new)}: "
         + (f"{count} change(s)" if count else "no semantic difference"),
         "",
     ]
-    lines += [f"- {_code(change.line)}" for change in report.changes]
+    lines += [f"- {code(change.line, LINE_LIMIT // 2)}" for change in report.changes]
     if report.changes:
         lines.append("")
     lines += pictures_markdown(report.pictures, "Pictures (old and new at the same joint values, one camera):")

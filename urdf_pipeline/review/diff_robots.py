@@ -50,7 +50,7 @@ def _robot_changes(report: _Report, subject: str, old_plan: Plan, old: RobotPlan
     if old.source is None or new.source is None:
         return
     report.field(group, subject, "NaN policy", old.nan_policy, new.nan_policy)
-    report.field(group, subject, "limits slack (source units)", _slack(old), _slack(new))
+    report.field(group, subject, "limits slack", _slack(old), _slack(new))
     report.field(group, subject, "limits on_violation", old.on_violation, new.on_violation)
 
     old_names, new_names = old_plan.source(old.source).names, new_plan.source(new.source).names
@@ -94,9 +94,10 @@ def _collisions(robot: RobotPlan) -> str:
     return "keep" if robot.keep_collisions else "drop"
 
 
-def _slack(robot: RobotPlan) -> float | None:
-    """The config's limits.slack (source units): each channel holds it in URDF units, times its gain."""
-    return next((c.slack_in_source_unit for c in robot.channels if c.slack_in_source_unit is not None), None)
+def _slack(robot: RobotPlan) -> str | None:
+    """The robot's limits.slack in the config's own form ("2 deg", "{angle: 2 deg, length: 2 mm}", "0"): each channel holds
+    the slack of its joint's kind with the unit it was written in, so a changed joints.unit shows no slack change."""
+    return robot.slack_text if robot.channels else None
 
 
 def _channels_by_name(robot: RobotPlan) -> dict[str, list[JointChannel]]:

@@ -27,7 +27,17 @@ from urllib.parse import unquote
 
 from ..confine import confinement_for
 from ..errors import UserError, Where
-from ..urdf import LoadedUrdf, UrdfModel, UrdfParseError, load_urdf_source, package_roots, parse_urdf_text, read_urdf
+from ..urdf import (
+    LoadedUrdf,
+    UrdfModel,
+    UrdfParseError,
+    XacroBudget,
+    XacroContent,
+    load_urdf_source,
+    package_roots,
+    parse_urdf_text,
+    read_urdf,
+)
 from .source_probe import _relative
 from .yaml_writer import Block
 
@@ -111,6 +121,10 @@ def _plain(argument: UrdfArgument, out_file: Path) -> InitUrdf:
         raise UserError(f"URDF file not found: {urdf}")
     try:
         _, model = read_urdf(urdf)
+    except XacroContent as exc:
+        raise UserError(
+            exc.advice(f"use --xacro {argument.value} (and --arg NAME=VALUE for its arguments); a config names it urdf: {{xacro: FILE}}")
+        ) from None
     except (UrdfParseError, OSError, UnicodeDecodeError) as exc:
         raise UserError(f"{urdf}: {exc}") from None
     relative = _relative(urdf, out_file.parent)
@@ -128,11 +142,12 @@ def _xacro(argument: UrdfArgument, out_file: Path) -> InitUrdf:
         entry["args"] = dict(argument.args)
     base = confinement_for(out_file)
     finds: dict[str, Path] = {}
+    budget = XacroBudget("init's")  # one for every expansion below: a retry takes its time from the same bound
     while True:
         roots = (path.parent.resolve(), *(folder.resolve() for folder in finds.values()))
         confinement = dataclasses.replace(base, read_roots=(*base.read_roots, *roots))
         try:
-            loaded = load_urdf_source(entry, finds, out_file.parent, confinement, Where(path, 0))
+            loaded = load_urdf_source(entry, finds, out_file.parent, confinement, Where(path, 0), budget)
             break
         except UserError as exc:
             needed = FIND_NEEDED.search(exc.message)
@@ -164,6 +179,11 @@ def _robot_descriptions(argument: UrdfArgument, out_file: Path) -> InitUrdf:
 def _model(loaded: LoadedUrdf, argument: UrdfArgument, source_lines: bool) -> UrdfModel:
     try:
         return parse_urdf_text(loaded.text, str(loaded.path), source_lines)
+    except XacroContent as exc:
+        if argument.form == "xacro":
+            raise UserError(f"{argument.option}: the expansion still holds xacro ({exc.found}): xacro left it unexpanded") from None
+        fix = f"expand it with init --xacro {loaded.path}; a config names it urdf: {{xacro: FILE}}"
+        raise UserError(f"{argument.option}: {exc.advice(fix, what='the file it gives')}") from None
     except UrdfParseError as exc:
         raise UserError(f"{argument.option}: {exc}") from None
 

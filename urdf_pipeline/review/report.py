@@ -15,7 +15,7 @@ from dataclasses import fields, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
-from ..errors import ConfigWarning, collect_warnings, show_warning
+from ..errors import ConfigWarning, collect_warnings, show_warning, shown
 from ..plan import IndexPlan, Plan, RobotPlan, SourcePlan
 from ..urdf import Joint, UrdfModel, parse_urdf_text
 from .pictures import plan_pictures
@@ -216,6 +216,7 @@ def _joint_rows(robot: RobotPlan, model: UrdfModel, observed: dict[tuple[str, st
                 target_range=c.target_range,
                 limits_source_units=limits,
                 slack_source_units=c.slack_in_source_unit if limits is not None else None,
+                slack=c.slack_written if limits is not None else None,
                 observed=_observed(report) if report is not None else None,
             )
         )
@@ -313,7 +314,7 @@ def _ordered_edges(edges: list[EdgeEntry], root: str) -> list[EdgeEntry]:
 
 def _mermaid_label(frame: str) -> str:
     """A frame name inside a quoted mermaid label: characters mermaid would read as syntax become entity codes."""
-    text = frame.replace("#", "#35;")
+    text = shown(frame).replace("#", "#35;")  # one line, bounded: a newline would end the mermaid line
     for char, code in (('"', "#quot;"), ("<", "#lt;"), (">", "#gt;"), ("`", "#96;"), ("|", "#124;")):
         text = text.replace(char, code)
     return text

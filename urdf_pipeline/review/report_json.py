@@ -42,6 +42,7 @@ def _row(row: JointRow) -> dict[str, Any]:
         "target_range": _rs(row.target_range),
         "limits_source_units": _rs(row.limits_source_units),
         "slack_source_units": _r(row.slack_source_units),
+        "slack": {"value": rounded(row.slack[0]), "unit": row.slack[1]} if row.slack else None,
         "limits_urdf": _rs(row.limits_urdf),
         "mimic": {"driver": row.mimic.driver, "multiplier": rounded(row.mimic.multiplier), "offset": rounded(row.mimic.offset)}
         if row.mimic

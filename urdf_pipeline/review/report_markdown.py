@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from ..errors import LINE_LIMIT, neutral_text
 from ..plan import IndexPlan
+from .markdown_text import cell, code, code_path, fence_for, link_target, plain
 from .report_model import (
     JOINT_TYPES,
     EdgeEntry,
@@ -21,6 +23,7 @@ from .report_model import (
 )
 
 MARKDOWN_SEGMENTS = 20  # segment rows shown in markdown; json lists them all
+MARKDOWN_NAMES = 24  # names in one line of a list (ignored source values); json lists them all
 DASH = "—"
 ORDER_NOTE = (
     "Per source value, in this order: wrap (source units) → value × unit factor × scale × sign + offset (offset in URDF "
@@ -35,13 +38,18 @@ def _ns(values: Sequence[float]) -> str:
     return ", ".join(_n(v) for v in values)
 
 
-def _code(text: str) -> str:
-    return f"`` {text} ``" if "`" in text else f"`{text}`"
+_code = code  # every name from the config, URDF or data is a code span (markdown_text.py: inert whatever it holds)
+
+
+def _names(names: Sequence[str]) -> str:
+    """Code spans, the first MARKDOWN_NAMES of them: one line stays readable however many names there are."""
+    more = f" and {len(names) - MARKDOWN_NAMES:,} more" if len(names) > MARKDOWN_NAMES else ""
+    return ", ".join(_code(name) for name in names[:MARKDOWN_NAMES]) + more
 
 
 def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
     def line(cells: Sequence[str]) -> str:
-        return "| " + " | ".join(cell.replace("|", "\\|").replace("\n", " ") for cell in cells) + " |"
+        return "| " + " | ".join(cell(text) for text in cells) + " |"
 
     return [line(header), line(["---"] * len(header)), *(line(row) for row in rows)]
 
@@ -54,13 +62,13 @@ def _source_details(source: SourceEntry) -> str:
     parts = []
     for key, value in source.settings:
         if isinstance(value, IndexPlan):
-            shown = f"{value.column} ({value.kind}{', ' + value.unit if value.unit else ''})"
+            shown = f"{plain(value.column)} ({value.kind}{', ' + value.unit if value.unit else ''})"
         elif isinstance(value, bool):
             shown = "yes" if value else "no"
         elif value is None:
             shown = "row_index (generated)" if key == "index" else DASH
         else:
-            shown = str(value)
+            shown = plain(value)  # a dataset, column, topic, ... as the config names it
         parts.append(f"{key}: {shown}")
     return "; ".join(parts)
 
@@ -82,8 +90,7 @@ def _limits_cell(row: JointRow) -> str:
     if row.limits_source_units is None:
         return "none"
     low, high = row.limits_source_units
-    slack = row.slack_source_units
-    return f"{_n(low)} .. {_n(high)}" + (f" ± {_n(slack)}" if slack is not None and rounded(slack) else "")
+    return f"{_n(low)} .. {_n(high)}" + (f" ± {row.slack_text}" if row.slack_text != "0" else "")
 
 
 def _driver_cell(row: JointRow) -> str:
@@ -116,7 +123,7 @@ def _robot_markdown(robot: RobotEntry, sample: SampleEntry | None) -> list[str]:
     lines = [
         f"#### Robot {_code(robot.key)}: URDF {_code(robot.robot_name)}",
         "",
-        f"- URDF: {_code(robot.urdf_origin)}, sha256 {_code(robot.urdf_sha256)}",
+        f"- URDF: {code_path(robot.urdf_origin)}, sha256 {_code(robot.urdf_sha256)}",
         f"- entity path {_code(robot.entity_path_prefix)}, frame prefix {prefix}, root frame {_code(robot.root_frame)}, "
         f"collision geometries {'kept' if robot.collision_geometries == 'keep' else 'dropped'}",
         "- URDF joints: " + ", ".join(f"{counts[kind]} {kind}" for kind in JOINT_TYPES) + f"; {counts['mimic']} mimic",
@@ -128,7 +135,7 @@ def _robot_markdown(robot: RobotEntry, sample: SampleEntry | None) -> list[str]:
         f"values beyond the slack: {_code(str(robot.on_violation))}"
     )
     ignored = robot.ignored_source_values
-    lines.append("- ignored source values: " + (", ".join(_code(name) for name in ignored) if ignored else "none"))
+    lines.append("- ignored source values: " + (_names(ignored) if ignored else "none"))
     if sample is not None:
         read = sample.rows_read(robot.source)
         lines.append(f"- sampled: the first {_plural(read, 'row')} of source {_code(robot.source)} (at most {sample.rows})")
@@ -163,23 +170,23 @@ def _edge_cells(edge: EdgeEntry) -> list[str]:
         rotation = "per row: quaternion_xyzw " + ", ".join(_code(n) for n in temporal.quaternion_names)
     else:
         translation, rotation = _ns(edge.translation or ()), _ns(edge.rotation_rpy_deg or ())
-    return [_code(edge.parent), _code(edge.child), translation, rotation, edge.origin.description]
+    return [_code(edge.parent), _code(edge.child), translation, rotation, plain(edge.origin.description)]
 
 
 def _output_markdown(output: OutputEntry) -> list[str]:
     lines = ["#### Output", "", f"- layout {_code(output.layout)}, application_id {_code(output.application_id)}"]
     if output.model is not None:
-        lines.append(f"- model (meshes, static URDF transforms, written once, static only): {_code(output.model.relative)}")
-    lines.append(f"- manifest: {_code(output.manifest.relative)}")
+        lines.append(f"- model (meshes, static URDF transforms, written once, static only): {code_path(output.model.relative)}")
+    lines.append(f"- manifest: {code_path(output.manifest.relative)}")
     what = "layer (forward kinematics, calibration edges)" if output.layout == "split" else "recording"
     lines.append(f"- {_plural(output.segment_count, 'segment')}, each a {what} whose recording_id is the segment id:")
     rows = []
     for segment in output.segments[:MARKDOWN_SEGMENTS]:
         source = f"episode {segment.episode}" if segment.episode is not None else ""
         if segment.stem is not None:
-            source = f"file {segment.stem}" + (f" ({source})" if source else "")
+            source = f"file {_code(segment.stem)}" + (f" ({source})" if source else "")
         frames = str(segment.frames) if segment.frames is not None else DASH
-        rows.append([_code(segment.id), source or DASH, frames, _code(segment.output.relative)])
+        rows.append([_code(segment.id), source or DASH, frames, code_path(segment.output.relative)])
     hidden = output.segment_count - len(rows)
     if hidden > 0:
         rows.append([f"… {hidden} more", "", "", ""])
@@ -187,10 +194,11 @@ def _output_markdown(output: OutputEntry) -> list[str]:
 
 
 def pictures_markdown(pictures: Sequence[PictureEntry], note: str) -> list[str]:
-    """Links to the pictures `--render` drew (their paths as given: the reader opens them beside the text)."""
+    """Links to the pictures `--render` drew (their paths as given: the reader opens them beside the text), each
+    label plain text and each path percent-encoded, whatever the config's file name holds."""
     if not pictures:
         return []
-    return [f"{note} " + " · ".join(f"[{picture.label}]({picture.path.replace(' ', '%20')})" for picture in pictures), ""]
+    return [f"{note} " + " · ".join(f"[{plain(picture.label)}]({link_target(picture.path)})" for picture in pictures), ""]
 
 
 def _pictures_markdown(pictures: Sequence[PictureEntry]) -> list[str]:
@@ -203,7 +211,7 @@ def render_markdown(report: PlanReport) -> str:
     segments = report.output.segment_count
     config = report.config.relative
     lines = [
-        f"### urdf-pipeline plan: {_code(config)}",
+        f"### urdf-pipeline plan: {code_path(config)}",
         "",
         f"Root frame {_code(report.root_frame)}; {_plural(len(robots), 'robot')}, {_plural(len(sources), 'source')}, "
         f"{_plural(len(edges), 'edge')} ({configured} from the config, {len(edges) - configured} URDF joints), "
@@ -214,7 +222,7 @@ def render_markdown(report: PlanReport) -> str:
         "",
         *_table(
             ["source", "kind", "file", "reads", "values"],
-            [[_code(s.name), s.kind, _code(s.file.relative), _source_details(s), str(len(s.names))] for s in sources],
+            [[_code(s.name), s.kind, code_path(s.file.relative), _source_details(s), str(len(s.names))] for s in sources],
         ),
         "",
     ]
@@ -232,9 +240,9 @@ def render_markdown(report: PlanReport) -> str:
         "",
         "#### Frame tree",
         "",
-        "```mermaid",
+        fence_for(report.mermaid) + "mermaid",
         report.mermaid,
-        "```",
+        fence_for(report.mermaid),
         "",
         "`-->` URDF moving joint, `-.->` URDF fixed joint, `==>` an edge of the config (`-.->` when its identity is assumed).",
         "",
@@ -248,5 +256,6 @@ def render_markdown(report: PlanReport) -> str:
         place = warning.file or config
         if warning.line:
             place += f":{warning.line}" + (f":{warning.column}" if warning.column else "")
-        lines.append(f"- {_code(place)}" + (f" {_code(warning.path)}" if warning.path else "") + f": {warning.message}")
-    return "\n".join(lines) + "\n"
+        path = f" {code_path(warning.path)}" if warning.path else ""
+        lines.append(f"- {code_path(place)}{path}: {plain(warning.message, LINE_LIMIT // 2)}")
+    return neutral_text("\n".join(lines) + "\n")  # the last guard: no line a workflow command, none unbounded

@@ -100,7 +100,8 @@ class JointRow:
     source_range: tuple[float, float] | None = None
     target_range: tuple[float, float] | None = None  # URDF units
     limits_source_units: tuple[float, float] | None = None  # JointChannel.limits_in_source_unit
-    slack_source_units: float | None = None
+    slack_source_units: float | None = None  # the slack as a span of raw source values (JointChannel.slack_in_source_unit)
+    slack: tuple[float, str] | None = None  # limits.slack as the config wrote it for this joint's kind: (2.0, "deg")
     mimic: Mimic | None = None
     hold: float | None = None  # URDF units
     observed: Observed | None = None
@@ -109,6 +110,12 @@ class JointRow:
     def limits_unit(self) -> str:
         """The unit of limits_source_units: the source's, or "source units" when source_range maps the values."""
         return self.unit if self.unit is not None and self.source_range is None else "source units"
+
+    @property
+    def slack_text(self) -> str:
+        """The slack with its own unit, as every format shows it: "2 deg"; "0" for none (a zero's unit says nothing)."""
+        value, unit = self.slack or (0.0, "")
+        return f"{number(value)} {unit}" if rounded(value) and unit else "0"
 
 
 @dataclass(frozen=True)

@@ -3,6 +3,12 @@ terminal. Paths as the plan holds them; limits in source units, as markdown and 
 
 from __future__ import annotations
 
+from dataclasses import fields, is_dataclass, replace
+from pathlib import Path
+from typing import Any
+
+from ..errors import neutral_text, shown
+from .markdown_text import PATH_LIMIT
 from .report_model import EdgeEntry, JointRow, OutputEntry, PlanReport, RobotEntry, SampleEntry, number
 
 
@@ -19,7 +25,7 @@ def _mapped_text(row: JointRow) -> str:
         steps.append("limits none")
     else:
         unit = row.limits_unit
-        steps.append(f"limits {number(limits[0])} .. {number(limits[1])} {unit}, slack {number(row.slack_source_units or 0)} {unit}")
+        steps.append(f"limits {number(limits[0])} .. {number(limits[1])} {unit}, slack {row.slack_text}")
     return "; ".join(steps)
 
 
@@ -99,7 +105,28 @@ def _sample_text(sample: SampleEntry) -> str:
     return f"sample (at most {sample.rows} rows of each source; read {read}):\n" + as_text(sample.reports)
 
 
+# fields the text form does not print (all edges, the mermaid tree, warnings, a source's names: it counts them) or
+# that check renders (the sample): left as they are
+_KEPT = frozenset({"edges", "mermaid", "warnings", "names", "sample"})
+
+
+def _one_line(value: Any) -> Any:
+    """The report with every name, path and value in it as errors.shown gives it (one line, control characters visible,
+    shortened past PATH_LIMIT): what the text form prints from a config, URDF or file name cannot start a line of
+    its own. Tool words and numbers are unchanged."""
+    if isinstance(value, str):
+        return shown(value, PATH_LIMIT)
+    if isinstance(value, Path):
+        return Path(shown(str(value), PATH_LIMIT))
+    if isinstance(value, tuple):
+        return tuple(_one_line(item) for item in value)
+    if is_dataclass(value) and not isinstance(value, type):
+        return replace(value, **{f.name: _one_line(getattr(value, f.name)) for f in fields(value) if f.init and f.name not in _KEPT})
+    return value
+
+
 def render_text(report: PlanReport) -> str:
+    report = _one_line(report)
     lines = [f"config {report.config.planned}", f"root frame: {report.root_frame}"]
     lines += [f"source {source.name}: {source.kind} with {len(source.names)} names" for source in report.sources]
     for robot in report.robots:
@@ -109,4 +136,5 @@ def render_text(report: PlanReport) -> str:
     lines += _output_lines(report.output)
     lines += [f"picture {picture.label}: {picture.path}" for picture in report.pictures]
     text = "\n".join(lines)
-    return text + ("\n" + _sample_text(report.sample) if report.sample is not None else "") + "\n"
+    # the one guard for every name above: each line one line, control characters visible, bounded, no workflow command
+    return neutral_text(text + ("\n" + _sample_text(report.sample) if report.sample is not None else "") + "\n")

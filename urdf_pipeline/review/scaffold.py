@@ -43,7 +43,8 @@ from ..config import SCHEMA_RESOURCE, Document, parse_document, schema_text
 from ..errors import UserError
 from ..sources import SourceDescription
 from ..urdf import Joint, UrdfModel
-from .init_urdf import UrdfArgument, load_robot, package_paths
+from .init_units import SampledUnits
+from .init_urdf import InitUrdf, UrdfArgument, load_robot, package_paths
 from .name_match import Match, match_names
 from .source_probe import SourceInfo, read_source, stub_source
 from .yaml_writer import Block, Item, Seq, number, render_block, to_data
@@ -182,18 +183,33 @@ def _source_entry(info: SourceInfo, names: list[str], stub: bool, mismatch: bool
     return entry
 
 
-def _joints(model: UrdfModel, source_key: str, source: SourceDescription, names: list[str], matches: list[Match], stub: bool) -> Block:
+def _joints(
+    model: UrdfModel,
+    source_key: str,
+    source: SourceDescription,
+    names: list[str],
+    matches: list[Match],
+    stub: bool,
+    units: SampledUnits | None = None,
+) -> Block:
     drivable = [j for j in model.joints if j.moving and j.mimic is None]
     by_name = {j.name: j for j in model.joints}
     joints = Block()
     joints.add("source", source_key)
-    unit = "rad" if any(j.angular for j in drivable) else "m"
-    other = "prismatic joints say theirs (m | mm) in their entry" if unit == "rad" else "all joints are prismatic"
-    joints.add("unit", unit, f"review: the unit of the source values ({'rad | deg' if unit == 'rad' else 'm | mm'}); {other}")
+    angular = any(j.angular for j in drivable)
+    sampled = units.robot_unit(angular) if units is not None else None
+    unit = sampled[0] if sampled else "rad" if angular else "m"
+    length = units.robot_unit(False) if units is not None and angular else None
+    other = "prismatic joints say theirs (m | mm) in their entry" if angular else "all joints are prismatic"
+    comment = sampled[1] if sampled else f"review: the unit of the source values ({'rad | deg' if angular else 'm | mm'}); {other}"
+    joints.add("unit", unit, comment)
     mapping = Block()
     for match in matches:
         joint = by_name[match.joint]
-        value: Any = match.joint if joint.angular == (unit == "rad") else {"joint": match.joint, "unit": "rad" if joint.angular else "m"}
+        choice = units.joints.get(match.joint) if units is not None else None
+        kind_unit = unit if joint.angular == angular else (length[0] if length else "m")
+        own = choice.unit if choice is not None else kind_unit
+        value: Any = match.joint if own == unit and joint.angular == angular else {"joint": match.joint, "unit": own}
         if stub:
             comment = joint_summary(joint)
         elif source.names is None:
@@ -202,7 +218,7 @@ def _joints(model: UrdfModel, source_key: str, source: SourceDescription, names:
             comment = f"TODO: no source name resembles a joint name: matched by position, surely wrong; {joint_summary(joint)}"
         else:
             comment = f"review: matched by name (score {match.score:.2f}); {joint_summary(joint)}"
-        mapping.add(match.source_name, value, comment)
+        mapping.add(match.source_name, value, comment + (f"; {choice.reason}" if choice is not None else ""))
     joints.add("map", mapping, "source name: URDF joint (add sign, offset, unit per entry when needed)")
     matched_sources = {m.source_name for m in matches}
     unmatched = [n for n in names if n not in matched_sources]
@@ -232,17 +248,44 @@ def _joints(model: UrdfModel, source_key: str, source: SourceDescription, names:
     return joints
 
 
-def scaffold(urdf: UrdfArgument, source: str | None, out_file: Path) -> Scaffold:
-    """The config text for the robot `urdf` names (and source spec `source`), to be written at `out_file` (paths
-    relative to it)."""
+@dataclass(frozen=True)
+class ScaffoldInputs:
+    """What init reads once: the robot (xacro expanded) and the source's description."""
+
+    description: InitUrdf
+    info: SourceInfo
+    source: str | None
+    out_file: Path
+
+    @property
+    def key(self) -> str:
+        model = self.description.model
+        return _identifier(model.name, _identifier(self.description.file.stem.split(".")[0], "robot"))
+
+
+def load_inputs(urdf: UrdfArgument, source: str | None, out_file: Path) -> ScaffoldInputs:
     description = load_robot(urdf, out_file)
+    inputs = ScaffoldInputs(description, stub_source("", []), source, out_file)
+    joint_names = [j.name for j in description.model.joints if j.moving and j.mimic is None]
+    key = inputs.key
+    info = stub_source(key, joint_names) if source is None else read_source(source, f"{key}_state", out_file)
+    return ScaffoldInputs(description, info, source, out_file)
+
+
+def scaffold(urdf: UrdfArgument, source: str | None, out_file: Path, units: SampledUnits | None = None) -> Scaffold:
+    """The config text for the robot `urdf` names (and source spec `source`), to be written at `out_file` (paths
+    relative to it); `units`: each joint's unit as init_units chose it from a sample."""
+    return compose(load_inputs(urdf, source, out_file), units)
+
+
+def compose(inputs: ScaffoldInputs, units: SampledUnits | None = None) -> Scaffold:
+    description, info, source, out_file = inputs.description, inputs.info, inputs.source, inputs.out_file
     model = description.model
     out_dir = out_file.parent
-    key = _identifier(model.name, _identifier(description.file.stem.split(".")[0], "robot"))
+    key = inputs.key
     source_key = f"{key}_state"
     joint_names = [j.name for j in model.joints if j.moving and j.mimic is None]
     stub = source is None
-    info = stub_source(key, joint_names) if source is None else read_source(source, source_key, out_file)
     names, matches = _pair(info.description, joint_names)
     if not matches:
         raise UserError(f"--source {source}: it holds no values")
@@ -257,7 +300,7 @@ def scaffold(urdf: UrdfArgument, source: str | None, out_file: Path) -> Scaffold
     if paths is not None:
         stubbed = any("TODO" in i.comment for i in paths.items if isinstance(i, Item))
         robot.add("package_paths", paths, "TODO: meshes that do not resolve until the stubs below are filled in" if stubbed else "")
-    joints = _joints(model, source_key, info.description, names, matches, stub)
+    joints = _joints(model, source_key, info.description, names, matches, stub, units)
     robot.add("joints", joints)
     robots = Block()
     robots.add(key, robot)
@@ -320,50 +363,29 @@ def self_check(result: Scaffold, out_file: Path) -> Document:
     return document
 
 
-def remaining_problems(document: Document) -> list[str]:
-    """What `validate` would still refuse (expected: the TODO stubs), as messages without the file location."""
-    from ..compile import compile_document
-    from ..errors import UserErrors
-
-    try:
-        compile_document(document)
-    except UserErrors as exc:
-        return [f"{e.where.path}: {e.message}" if e.where and e.where.path else e.message for e in exc.errors]
-    except UserError as exc:
-        return [f"{exc.where.path}: {exc.message}" if exc.where and exc.where.path else exc.message]
-    return []
-
-
-def summary_lines(result: Scaffold, problems: list[str], output: Path | None) -> list[str]:
-    """What init says on stderr, from its result and what validate would still refuse: worded here only."""
-    how = f"{result.by_name} by name, for review" if result.by_name else "the stub's names" if result.stub else "by position"
-    said = [
-        f"init: {result.mapped} joint(s) mapped ({how}), {result.held} held, {result.ignored} source name(s) ignored; "
-        f"{result.todos} TODO(s) to settle" + (f" in {output}" if output is not None else "")
-    ]
-    if result.mismatch:
-        said.append("init: the source's width differs from the URDF's joints to drive, so its names are a guess to settle:")
-        said.append(f"  {result.mismatch}")
-    if problems:
-        said.append(f"init: validate would still refuse {len(problems)} thing(s), the stubs marked TODO:")
-        said += [f"  {problem}" for problem in problems]
-    elif result.mismatch:
-        said.append("init: validate accepts it as written, but its names stay a guess by position until that is settled")
-    else:
-        said.append("init: the config validates; review the guesses marked `review:` and `TODO:`")
-    return said
-
-
 def init_config(urdf: UrdfArgument, source: str | None, output: Path | None, force: bool) -> tuple[Scaffold, list[str]]:
-    """Scaffold, check and write (to `output`, or return it for stdout); the lines to say on stderr."""
+    """Scaffold, check and write (to `output`, or return it for stdout); the lines to say on stderr. With a source,
+    a bounded sample (check's) chooses each joint's unit, and check's rules judge the result (init_units.py)."""
+    from .init_summary import SampleVerdict, compiled, summary_lines
+    from .init_units import read_units, refused_by_check
+
     out_file = (output if output is not None else Path.cwd() / "urdf-pipeline.yaml").absolute()
     if output is not None and out_file.exists() and not force:
         raise UserError(f"{output} exists; --force overwrites it")
-    result = scaffold(urdf, source, out_file)
-    problems = remaining_problems(self_check(result, out_file))
+    inputs = load_inputs(urdf, source, out_file)
+    result = compose(inputs)
+    plan, problems = compiled(self_check(result, out_file))
+    verdict = None
+    if plan is not None and source is not None:
+        units, sample, unread = read_units(plan)
+        if units is not None and units.joints:
+            result = compose(inputs, units)
+            plan, problems = compiled(self_check(result, out_file))
+        refused = tuple(refused_by_check(plan, sample)) if plan is not None and units is not None else ()
+        verdict = SampleVerdict(refused, unread, units.rows if units is not None else 0)
     if output is not None:
         out_file.parent.mkdir(parents=True, exist_ok=True)
         partial = out_file.with_name(out_file.name + ".partial")
         partial.write_text(result.text, encoding="utf-8")
         partial.replace(out_file)
-    return result, summary_lines(result, problems, output)
+    return result, summary_lines(result, problems, output, verdict)

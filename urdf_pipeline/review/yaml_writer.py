@@ -9,6 +9,8 @@ from typing import Any
 
 import yaml
 
+from ..errors import escaped
+
 
 @dataclass
 class Item:
@@ -109,7 +111,7 @@ def _with_comments(bodies: list[tuple[str, str]]) -> list[str]:
             out.append(body)
         else:
             gap = max(column - len(body), 3)
-            out.append(body + " " * gap + "# " + comment)
+            out.append(body + " " * gap + "# " + escaped(comment))  # a newline in a name would end the comment
     return out
 
 
@@ -120,7 +122,7 @@ def render_block(block: Block, indent: int = 0) -> list[str]:
 
     for item in block.items:
         if isinstance(item, Note):
-            bodies.append((pad + "# " + item.text, ""))
+            bodies.append((pad + "# " + escaped(item.text), ""))
             nested.append([])
         elif isinstance(item.value, (Block, Seq)):
             bodies.append((f"{pad}{scalar(item.key)}:", item.comment))

@@ -13,7 +13,7 @@ from typing import Any
 
 from ..plan import SourcePlan
 from . import csv, hdf5, lerobot, mcap, parquet, rrd
-from .base import GLOB, EntryField, SourceDescription, SourceKind, resolve_input
+from .base import GLOB, EntryField, SourceDescription, SourceKind, refuse_control_characters, resolve_input
 from .callbacks import CallbackErrors
 from .joint_values import JointValueMapper, raw_matrix, wrapped
 from .ordering import NeedsSorting, sorted_in_memory, with_sorting_retry
@@ -33,6 +33,7 @@ __all__ = [
     "kind_of",
     "module_for",
     "raw_matrix",
+    "refuse_control_characters",
     "resolve_input",
     "sorted_in_memory",
     "with_sorting_retry",

@@ -10,11 +10,27 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from ..config import Document
-from ..confine import confinement_for
-from ..errors import UserError
+from ..confine import Unresolvable, confinement_for, file_state, resolved
+from ..errors import UserError, Where
 from .stream import SourceStream
 
 GLOB = re.compile(r"[*?\[]")
+# Characters a file name must not hold: it becomes a segment id, a recording id, an output file name and a line of
+# review output (a newline would start a forged `::error::` line). C0 and C1 controls, DEL, line and paragraph
+# separators and the bidirectional overrides that make text read otherwise than it is.
+CONTROL = re.compile("[\x00-\x1f\x7f-\x9f\u2028\u2029\u200e\u200f\u202a-\u202e\u2066-\u2069]")
+
+
+def refuse_control_characters(path: str | Path, what: str, where: Where | None, fix: str = "rename the file") -> None:
+    """A name that holds a control character is refused, shown escaped (`repr`-like): see CONTROL."""
+    text = str(path)
+    if CONTROL.search(text):
+        shown = text.encode("unicode_escape").decode("ascii")
+        raise UserError(
+            f"{what} '{shown}' holds a control character (a newline, a tab, an escape, a direction override); "
+            f"it would become a segment id, a recording id and an output file name: {fix}",
+            where,
+        )
 
 
 @dataclass(frozen=True)
@@ -64,16 +80,26 @@ class SourceKind(Protocol):
 
 
 def resolve_input(document: Document, config_dir: Path, path: str, *where: str | int, directory: bool = False) -> Path:
-    """A path from the config, relative to the config file; it must exist."""
-    resolved = (config_dir / path).resolve() if not Path(path).is_absolute() else Path(path)
+    """A path from the config, relative to the config file; it must exist. A path the OS cannot follow (a symlink
+    loop, a name too long, a file in place of a folder, a FIFO) is a user error at the path's key."""
+    located = document.where(*where)
+    what = f"{where[-1]} {'folder' if directory else 'file'}"  # "parquet file", "lerobot folder"
+    refuse_control_characters(path, what, located)
+    named = config_dir / path  # an absolute `path` stays itself, and is shown as given (a glob's match, a link)
+    try:
+        real = named if Path(path).is_absolute() else resolved(named)
+    except Unresolvable as exc:
+        if config_dir != document.file.parent:
+            raise UserError(f"{what} {named} cannot be read: {exc.cause}", located) from None
+        real = named  # check_read says why (or refuses it by the rule, when it points outside)
     if config_dir == document.file.parent:  # a config's path; `init` passes the input's own folder: named at the terminal
-        what = f"{where[-1]} {'folder' if directory else 'file'}"  # "parquet file", "lerobot folder"
-        confinement_for(document.file).check_read(resolved, what, document.where(*where))  # before existence: no probing
-    ok = resolved.is_dir() if directory else resolved.is_file()
-    if not ok:
+        real = confinement_for(document.file).check_read(real, what, located)  # before existence: no probing
+    state = file_state(real, what, located)
+    if state != ("folder" if directory else "file"):
         kind = "directory" if directory else "file"
-        raise UserError(f"{kind} not found: {resolved} (paths are relative to the config file)", document.where(*where))
-    return resolved
+        shown = f"{real} is a {state}, not a {kind}" if state != "missing" else f"{kind} not found: {real}"
+        raise UserError(f"{shown} (paths are relative to the config file)", located)
+    return real
 
 
 @dataclass(frozen=True)
@@ -88,12 +114,21 @@ class FileInput:
 def file_input(path: str) -> FileInput:
     """PATH (relative to the current folder, maybe a glob) of a file kind; it must name at least one file."""
     pattern = bool(GLOB.search(path))
+    found = sorted(glob.glob(path, recursive=True)) if pattern else [path]
+    files = []
+    for match in found:
+        refuse_control_characters(match, "file", None)
+        try:
+            real = resolved(match)
+        except Unresolvable as exc:
+            raise UserError(f"{match} cannot be read: {exc.cause}") from None
+        state = file_state(real, "file", None)
+        if state == "file":
+            files.append(real)
+        elif not pattern:
+            raise UserError(f"{real} is a folder, not a file" if state == "folder" else f"file not found: {real}")
+    if not files:
+        raise UserError(f"'{path}' matches no file")
     if pattern:
-        found = sorted(p for p in glob.glob(path, recursive=True) if Path(p).is_file())
-        if not found:
-            raise UserError(f"'{path}' matches no file")
-        return FileInput(Path(found[0]).resolve(), True, "{stem}")
-    resolved = Path(path).resolve()
-    if not resolved.is_file():
-        raise UserError(f"file not found: {resolved}")
-    return FileInput(resolved, False, re.sub(r"[^A-Za-z0-9_.-]", "_", Path(path).name.split(".", 1)[0]) or "segment")
+        return FileInput(files[0], True, "{stem}")
+    return FileInput(files[0], False, re.sub(r"[^A-Za-z0-9_.-]", "_", Path(path).name.split(".", 1)[0]) or "segment")

@@ -22,6 +22,7 @@ from ..plan import CsvSourcePlan
 from .base import SourceDescription, file_input, resolve_input
 from .ordering import with_duplicates
 from .stream import SourceStream
+from .time_range import index_problem
 from .wide import describe_wide, reading_error, wide_columns, wide_stream
 
 PLAN_TYPE = CsvSourcePlan
@@ -42,8 +43,8 @@ def _open(path: Path, where: Where | None, convert: pa_csv.ConvertOptions | None
         raise reading_error(path, exc, [], where) from None
 
 
-def _header(path: Path, where: Where | None) -> pa.Schema:
-    """The header's columns with the types of the first block, which must hold at least one row."""
+def _header(path: Path, where: Where | None) -> tuple[pa.Schema, pa.RecordBatch]:
+    """The header's columns with the types of the first block, which must hold at least one row, and that block."""
     reader = _open(path, where)
     try:
         first = reader.read_next_batch()
@@ -53,14 +54,18 @@ def _header(path: Path, where: Where | None) -> pa.Schema:
         raise reading_error(path, exc, [], where) from None
     if first is None or first.num_rows == 0:
         raise UserError(f"CSV file {path} has a header but no rows; a source with zero rows moves nothing", where)
-    return reader.schema
+    return reader.schema, first
 
 
 def compile_source(name: str, spec: dict[str, Any], document: Document, config_dir: Path) -> CsvSourcePlan:
     here = ("sources", name)
     path = resolve_input(document, config_dir, spec["csv"], *here, "csv")
-    schema = _header(path, document.where(*here, "csv"))
+    schema, first = _header(path, document.where(*here, "csv"))
     index, names = wide_columns(spec, "csv", path, schema, document, here)
+    # The first block's times (the rest are checked as they are read, at run): a wrong unit shows in the first rows.
+    problem = index_problem(first.column(index.column), index, 0, f"index column '{index.column}' of {path}")
+    if problem is not None:
+        raise UserError(problem, document.where(*here, "index"))
     return with_duplicates(CsvSourcePlan(name, path, index, names, document.where(*here)), spec)
 
 
@@ -84,4 +89,4 @@ def describe(name: str, path: str, part: str | None, document: Document) -> Sour
     given = file_input(path)
     if part is not None:
         raise UserError(f"a CSV source takes no #PART: its columns are the names (the form is {SPEC_FORM})")
-    return describe_wide("csv", _header(given.file, None), given.file, given.segment, given.pattern)
+    return describe_wide("csv", _header(given.file, None)[0], given.file, given.segment, given.pattern)

@@ -11,12 +11,13 @@ from pathlib import Path
 from typing import Any
 
 from ..config import Document
-from ..errors import UserError, listing
+from ..errors import UserError, Where, listing
 from ..plan import Hdf5SourcePlan, IndexPlan
 from .base import EntryField, SourceDescription, file_input, resolve_input
-from .integrity import check_hdf5_datasets
+from .integrity import HDF5_BLOCK_ROWS, check_hdf5_datasets, hdf5_file_problem, hdf5_storage_problem
 from .ordering import in_blocks, in_time_order, with_duplicates
 from .stream import SourceStream, compile_index, index_column
+from .time_range import check_index_batches
 
 PLAN_TYPE = Hdf5SourcePlan
 SPEC_FORM = "hdf5:FILE#/DATASET"
@@ -57,7 +58,10 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
     except OSError as exc:
         raise UserError(f"cannot open HDF5 file {path}: {exc}", document.where(*here, "hdf5")) from None
     with file:
-        node = file.get(dataset)
+        problem = hdf5_file_problem(file)
+        if problem is not None:
+            raise UserError(f"HDF5 file {path} {problem}", document.where(*here, "hdf5"))
+        node = _node(file, dataset, path, document.where(*here, "dataset"))
         if not isinstance(node, h5py.Dataset):
             raise UserError(
                 f"no dataset '{dataset}' in {path.name}; its 2-D datasets: {listing(_datasets_of_rank(file, 2), empty='none')}",
@@ -70,6 +74,7 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
             )
         if node.dtype.kind not in "fiu":
             raise UserError(f"dataset '{dataset}' holds {node.dtype}, not numbers", document.where(*here, "dataset"))
+        _require_stored(node, dataset, path, document.where(*here, "dataset"))
         rows, width = node.shape
         if names is None:  # no names: the values are mapped by their index, 0 .. width - 1
             names = tuple(str(i) for i in range(width))
@@ -90,7 +95,7 @@ def _check_index(file: Any, index: IndexPlan, rows: int, path: Path, document: D
     import h5py
 
     where = document.where(*here, "index")
-    node = file.get(index.column)
+    node = _node(file, index.column, path, where)
     if not isinstance(node, h5py.Dataset):
         raise UserError(
             f"no index dataset '{index.column}' in {path.name}; its 1-D datasets: {listing(_datasets_of_rank(file, 1), empty='none')}",
@@ -107,6 +112,27 @@ def _check_index(file: Any, index: IndexPlan, rows: int, path: Path, document: D
         )
     if node.dtype.kind not in "fiu":
         raise UserError(f"index dataset '{index.column}' holds {node.dtype}, not a time", where)
+    _require_stored(node, index.column, path, where)
+    blocks = (node[start : start + HDF5_BLOCK_ROWS] for start in range(0, rows, HDF5_BLOCK_ROWS))  # one per block of rows
+    try:
+        check_index_batches(blocks, index, f"index dataset '{index.column}' of {path.name}", where)
+    except (OSError, ValueError, RuntimeError) as exc:  # a corrupt chunk: check_hdf5_datasets names it too
+        raise UserError(f"HDF5 file {path} is corrupt: index dataset '{index.column}' cannot be read: {exc}", where) from None
+
+
+def _node(file: Any, name: str, path: Path, where: Where) -> Any:
+    """The object at `name`, or None; a link that cannot be followed (a soft link to itself) is a user error."""
+    try:
+        return file.get(name)
+    except (KeyError, OSError, RuntimeError, ValueError) as exc:
+        raise UserError(f"'{name}' in HDF5 file {path} cannot be opened: {str(exc).strip() or type(exc).__name__}", where) from None
+
+
+def _require_stored(node: Any, name: str, path: Path, where: Where) -> None:
+    """Before any value is read (by the checks, or by Rerun at run): the file holds the dataset's bytes."""
+    problem = hdf5_storage_problem(node, path.stat().st_size)
+    if problem is not None:
+        raise UserError(f"dataset '{name}' of HDF5 file {path.name} {problem}", where)
 
 
 def describe(name: str, path: str, part: str | None, document: Document) -> SourceDescription:

@@ -11,8 +11,10 @@ be told from data; limits and NaN checks still apply to it.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from ..errors import UserError, Where
 
@@ -90,3 +92,60 @@ def check_hdf5_datasets(path: Path, datasets: Sequence[str], where: Where | None
                     f"HDF5 file {path} is corrupt: dataset '{dataset}' cannot be read: {_reason(exc)}; re-export or replace the file",
                     where,
                 ) from None
+
+
+# HDF5 declares a dataset's shape apart from what it stores: a file of a few KB can declare 2^34 rows whose chunks were
+# never written (read back as the fill value, zeros), which every check and the run would then read. A dataset is
+# read only when the file holds its bytes: every chunk allocated, a contiguous block inside the file, and, beyond
+# HDF5_FREE_BYTES declared, at most HDF5_MAX_RATIO times fewer bytes stored than declared. Logged joint values
+# compress a few times at most; a constant signal packs ~1000:1 with deflate (an idle recording: let through while
+# small), and scale-offset or plugin filters pack without bound. So the work a file can cause is bounded by its size.
+HDF5_MAX_RATIO = 100
+HDF5_FREE_BYTES = 64 << 20
+
+
+def hdf5_file_problem(file: Any) -> str | None:
+    """Why the open h5py `file` is not read at all: an external link anywhere in it (opening it, h5py or Rerun's
+    reader would open another file, outside the config's roots and unchecked); None when there is none."""
+    import h5py
+
+    def external(name: str, link: Any) -> str | None:
+        return f"/{name}" if isinstance(link, h5py.ExternalLink) else None
+
+    found = file.visititems_links(external)
+    return f"holds an external link ({found}), which reads another file; copy the data into this file" if found else None
+
+
+def hdf5_storage_problem(node: Any, file_size: int) -> str | None:
+    """Why the h5py dataset `node` is not read: its values live in other files (virtual, external storage), or the
+    file stores far fewer bytes than its shape declares; None when it holds them. Metadata only, constant time."""
+    import h5py
+
+    plist = node.id.get_create_plist()
+    layout = plist.get_layout()
+    if layout == h5py.h5d.VIRTUAL:
+        return "is a virtual dataset (its values are read from other files); copy the data into this file"
+    if plist.get_external_count():
+        return "keeps its values in external raw files, which a config may not make the tool read; copy the data into this file"
+    declared = int(node.size) * node.dtype.itemsize
+    if declared == 0:
+        return None
+    stored = int(node.id.get_storage_size())
+    rows = node.shape[0] if node.shape else 1
+    says = f"declares {rows} rows ({declared} bytes) but the file stores {stored} bytes of it"
+    fix = "write the dataset fully, or cut it to the rows written"
+    if layout == h5py.h5d.CHUNKED:
+        needed = math.prod(-(-size // chunk) for size, chunk in zip(node.shape, node.chunks, strict=True))
+        allocated = int(node.id.get_num_chunks())
+        if allocated < needed:
+            return f"{says} ({allocated} of its {needed} chunks were written; the others would read as fill values, not data); {fix}"
+    elif layout == h5py.h5d.CONTIGUOUS:
+        offset = node.id.get_offset()
+        if stored < declared or offset is None or offset + declared > file_size:
+            return f"{says}{'' if offset is None else f' at offset {offset} of a {file_size}-byte file'}; {fix}"
+    if declared > HDF5_FREE_BYTES and stored * HDF5_MAX_RATIO < declared:
+        return (
+            f"{says}: more than {HDF5_MAX_RATIO} times less than declared, far beyond what logged joint values compress to "
+            f"(a decompression bomb, or a constant signal); {fix}"
+        )
+    return None

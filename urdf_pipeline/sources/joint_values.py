@@ -29,6 +29,8 @@ class ChannelStats:
     beyond_worst_raw: float = float("nan")
     nonfinite_rows: int = 0
     first_nonfinite_row: int = -1  # row number in the source, counting from 0
+    raw_min: float = float("inf")  # finite raw values (after wrap) of the rows logged: which unit they fit, if refused
+    raw_max: float = float("-inf")
 
 
 @dataclass
@@ -141,6 +143,7 @@ class JointValueMapper:
         if clamp_mask.any():
             values = np.where(clamp_mask, np.clip(values, self.lower, self.upper), values)
         self._record(picked, excess, within, beyond, nonfinite if self.nan_policy == "error" else np.zeros_like(nonfinite), first_row)
+        self._record_range(picked_for_values, drop)
         rows = len(raw)
         full = np.empty((rows, len(self.joint_names)), dtype=np.float64)
         count = len(self.columns)
@@ -178,6 +181,19 @@ class JointValueMapper:
             self.stats.filled_rows += int((bad_rows & ~no_value).sum())
             self.stats.dropped_rows += int(no_value.sum())
         return no_value if no_value.any() else None
+
+    def _record_range(self, values: np.ndarray, drop: np.ndarray | None) -> None:
+        """Each column's finite min and max, whole columns at once (no warning for a column without finite values)."""
+        if not len(values):
+            return
+        finite = np.isfinite(values)
+        if drop is not None:
+            finite &= ~drop[:, None]
+        low = np.where(finite, values, np.inf).min(axis=0)
+        high = np.where(finite, values, -np.inf).max(axis=0)
+        with self._lock:
+            for i, stats in enumerate(self.stats.channels):
+                stats.raw_min, stats.raw_max = min(stats.raw_min, float(low[i])), max(stats.raw_max, float(high[i]))
 
     def _record(
         self, picked: np.ndarray, excess: np.ndarray, within: np.ndarray, beyond: np.ndarray, nonfinite: np.ndarray, first_row: int

@@ -3,27 +3,33 @@
 from __future__ import annotations
 
 import json
+import string
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 import pyarrow as pa
 
 from ..config import Document
+from ..confine import file_state
 from ..errors import UserError, Where
-from ..plan import LeRobotSourcePlan
+from ..plan import IndexPlan, LeRobotSourcePlan
 from .base import EntryField, SourceDescription, resolve_input
 from .integrity import check_parquet_pages
 from .ordering import in_time_order, with_duplicates
 from .stream import SourceStream
+from .time_range import check_parquet_index
 
 if TYPE_CHECKING:
     from rerun.chunk import Chunk
 
+T = TypeVar("T")
 PLAN_TYPE = LeRobotSourcePlan
 SPEC_FORM = "lerobot:DIR[#FEATURE]"
 SUFFIXES: tuple[str, ...] = ()  # a folder: `is_dataset` says it
 VECTOR_COMPONENT = "urdf_pipeline:joint_values"
+FRAME_INDEX = IndexPlan("frame_index", "sequence", None)  # the timeline of every LeRobot source
 
 
 def feature_names(feature: dict[str, Any]) -> list[str] | None:
@@ -42,17 +48,15 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
     here = ("sources", name)
     root = resolve_input(document, config_dir, spec["lerobot"], *here, "lerobot", directory=True)
     info_path = root / "meta" / "info.json"
-    try:
-        info = json.loads(info_path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise UserError(f"{root} is not a LeRobot dataset: {info_path} is missing", document.where(*here, "lerobot")) from None
-    except (OSError, json.JSONDecodeError) as exc:
-        raise UserError(f"cannot read {info_path}: {exc}", document.where(*here, "lerobot")) from None
+    info = _info(root, document.where(*here, "lerobot"))
     version = str(info.get("codebase_version", ""))
     if not (version.startswith("v2") or version.startswith("v3")):
         raise UserError(f"LeRobot codebase_version '{version}' is not supported (v2.x or v3 only)", document.where(*here, "lerobot"))
     feature_key = spec.get("feature", "observation.state")
     features = info.get("features", {})
+    if not isinstance(features, dict) or not all(isinstance(f, dict) for f in features.values()):
+        raise UserError(f"'features' in {info_path} is not a mapping of feature names to mappings", document.where(*here, "lerobot"))
+    _data_path_template(info, info_path, document.where(*here, "lerobot"))
     if feature_key not in features:
         numeric = [k for k, f in features.items() if f.get("dtype") in ("float32", "float64")]
         raise UserError(
@@ -82,14 +86,57 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
     return plan
 
 
-def _info(root: Path) -> dict[str, Any]:
-    info: dict[str, Any] = json.loads((root / "meta" / "info.json").read_text(encoding="utf-8"))
+# What a hostile or broken dataset's metadata raises while it is read: each becomes one user error at the source.
+METADATA_ERRORS = (OSError, ValueError, KeyError, TypeError, AttributeError, IndexError, pa.ArrowException)
+TEMPLATE_FIELDS = frozenset({"episode_chunk", "episode_index", "chunk_index", "file_index"})
+
+
+def _info(root: Path, where: Where | None = None) -> dict[str, Any]:
+    """meta/info.json as a mapping; a user error when it is missing, no regular file (a FIFO would block), or not a
+    JSON object."""
+    path = root / "meta" / "info.json"
+    if file_state(path, "LeRobot metadata file", where) != "file":
+        raise UserError(f"{root} is not a LeRobot dataset: {path} is missing", where)
+    try:
+        info = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise UserError(f"cannot read {path}: {exc}", where) from None
+    if not isinstance(info, dict):
+        raise UserError(f"{path} holds {type(info).__name__}, not a JSON object", where)
     return info
+
+
+def _data_path_template(info: dict[str, Any], info_path: Path, where: Where | None) -> str:
+    """info.json's data_path: relative, inside the dataset (no `..`), with only LeRobot's own fields and no attribute
+    or item access (`{episode_index.__class__}` would reach into Python objects)."""
+    template = str(info.get("data_path", ""))
+    try:
+        fields = {name for _, name, _, _ in string.Formatter().parse(template) if name is not None}
+    except ValueError as exc:
+        raise UserError(f"data_path '{template}' in {info_path} is not a path template: {exc}", where) from None
+    if not fields <= TEMPLATE_FIELDS or Path(template).is_absolute() or ".." in Path(template).parts:
+        raise UserError(
+            f"data_path '{template}' in {info_path} must stay inside the dataset and use only "
+            f"{', '.join('{' + f + '}' for f in sorted(TEMPLATE_FIELDS))}",
+            where,
+        )
+    return template
+
+
+def _metadata(plan: LeRobotSourcePlan, read: Callable[[], T]) -> T:
+    """`read()` of the dataset's metadata; whatever a broken file raises is a user error at the source."""
+    try:
+        return read()
+    except METADATA_ERRORS as exc:
+        raise UserError(f"cannot read the episode metadata of LeRobot dataset {plan.root}: {exc}", plan.where) from None
 
 
 def is_dataset(path: Path) -> bool:
     """A folder holding meta/info.json: what `init` takes for a LeRobot dataset when `lerobot:` is left out."""
-    return (path / "meta" / "info.json").is_file()
+    try:
+        return (path / "meta" / "info.json").is_file()
+    except (OSError, ValueError):  # a name too long, no permission: not a dataset, `init` says what it cannot read
+        return False
 
 
 def describe(name: str, path: str, part: str | None, document: Document) -> SourceDescription:
@@ -115,9 +162,9 @@ def _unnamed_width(root: Path, feature: str) -> int | None:
     """The width of a 1-D feature without names; None when the feature is missing, named or not 1-D."""
     try:
         features = _info(root).get("features", {})
-    except (OSError, json.JSONDecodeError):
+    except UserError:
         return None
-    spec = features.get(feature)
+    spec = features.get(feature) if isinstance(features, dict) else None
     if not isinstance(spec, dict) or feature_names(spec) is not None:
         return None
     shape = spec.get("shape") or []
@@ -129,10 +176,11 @@ def _episode_table(root: Path) -> pa.Table | None:
     import pyarrow.parquet as pq
 
     jsonl = root / "meta" / "episodes.jsonl"
-    if jsonl.is_file():
+    if file_state(jsonl, "LeRobot metadata file", None) == "file":
         rows = [json.loads(line) for line in jsonl.read_text(encoding="utf-8").splitlines() if line.strip()]
         return pa.table({"episode_index": [int(r["episode_index"]) for r in rows], "length": [r.get("length") for r in rows]})
     files = sorted((root / "meta" / "episodes").glob("**/*.parquet"))
+    files = [f for f in files if file_state(f, "LeRobot metadata file", None) == "file"]
     if not files:
         return None
     wanted = ["episode_index", "length", "data/chunk_index", "data/file_index"]
@@ -142,23 +190,37 @@ def _episode_table(root: Path) -> pa.Table | None:
 
 def episodes(plan: LeRobotSourcePlan) -> dict[int, int | None]:
     """Episode index -> its length in frames (None when the metadata does not say), from the dataset's metadata only."""
+    return _metadata(plan, lambda: _episodes(plan))
+
+
+def _episodes(plan: LeRobotSourcePlan) -> dict[int, int | None]:
     table = _episode_table(plan.root)
     if table is None:
-        total = int(_info(plan.root).get("total_episodes", 0))
+        total = int(_info(plan.root, plan.where).get("total_episodes", 0))
         return dict.fromkeys(range(total))
     lengths = table.column("length").to_pylist() if "length" in table.column_names else [None] * table.num_rows
     return dict(zip(table.column("episode_index").to_pylist(), lengths, strict=True))
 
 
 def episode_inputs(plan: LeRobotSourcePlan) -> tuple[Path, ...]:
-    """The files one episode is read from (for its content hash): meta/info.json and the episode's data file(s)."""
-    info = _info(plan.root)
-    template = str(info.get("data_path", ""))
+    """The files one episode is read from (for its content hash): meta/info.json and the episode's data file(s), each a
+    regular file (a FIFO would block pyarrow and Rerun's reader). compile/segments.py applies the read rule to them."""
+    inputs = _metadata(plan, lambda: _episode_inputs(plan))
+    for file in inputs[1:]:  # one iteration per data file
+        what = f"episode {plan.episode}: LeRobot data file"
+        if file_state(file, what, plan.where) != "file":
+            raise UserError(f"{what} {file} does not exist", plan.where)
+    return inputs
+
+
+def _episode_inputs(plan: LeRobotSourcePlan) -> tuple[Path, ...]:
+    info = _info(plan.root, plan.where)
     meta = plan.root / "meta" / "info.json"
+    template = _data_path_template(info, meta, plan.where)
     if "{episode_index" in template:  # v2: one file per episode
         chunk = plan.episode // int(info.get("chunks_size", 1000))
         path = plan.root / template.format(episode_chunk=chunk, episode_index=plan.episode)
-        if path.is_file():
+        if file_state(path, "LeRobot data file", plan.where) == "file":
             return (meta, path)
     table = _episode_table(plan.root)
     if table is not None and {"data/chunk_index", "data/file_index"} <= set(table.column_names):  # v3: episodes share files
@@ -166,7 +228,7 @@ def episode_inputs(plan: LeRobotSourcePlan) -> tuple[Path, ...]:
 
         rows = table.filter(pc.equal(table.column("episode_index"), plan.episode)).to_pylist()
         paths = {plan.root / template.format(chunk_index=r["data/chunk_index"], file_index=r["data/file_index"]) for r in rows}
-        if paths and all(p.is_file() for p in paths):
+        if paths and all(file_state(p, "LeRobot data file", plan.where) == "file" for p in paths):
             return (meta, *sorted(paths))
     return (meta, *sorted((plan.root / "data").glob("**/*.parquet")))  # unknown layout: every data file, to be safe
 
@@ -175,11 +237,8 @@ def check_episode_data(plan: LeRobotSourcePlan, where: Where | None) -> None:
     """The episode has rows (by the dataset's metadata) and its data files decode (pyarrow, before Rerun's reader)."""
     import pyarrow.parquet as pq
 
-    try:
-        length = episodes(plan).get(plan.episode)
-        files = episode_inputs(plan)[1:]
-    except (OSError, ValueError, KeyError, TypeError, pa.ArrowException) as exc:
-        raise UserError(f"cannot read the episode metadata of LeRobot dataset {plan.root}: {exc}", where) from None
+    length = episodes(plan).get(plan.episode)
+    files = episode_inputs(plan)[1:]
     if length == 0:
         raise UserError(
             f"episode {plan.episode} of LeRobot dataset {plan.root} has zero frames (meta says length 0); nothing would move", where
@@ -192,6 +251,8 @@ def check_episode_data(plan: LeRobotSourcePlan, where: Where | None) -> None:
         columns = [c for c in (plan.feature, "frame_index", "episode_index") if c in present]
         try:
             check_parquet_pages(file, columns, where)
+            if "frame_index" in present:  # the timeline Rerun's reader makes: values beyond int64 would wrap
+                check_parquet_index(file, FRAME_INDEX, where)
         except UserError as exc:
             raise UserError(f"episode {plan.episode}: {exc.message}", where) from None
 

@@ -23,6 +23,7 @@ from .mcap_probe import MESSAGE_COMPONENT, probe, topic_entity, topic_messages
 from .named_rows import NAME_FIELD, NAMED_COMPONENT, VALUE_FIELD, named_rows_column
 from .ordering import in_time_order, with_duplicates
 from .stream import SourceStream
+from .time_range import INT64_MAX
 
 if TYPE_CHECKING:
     from rerun.chunk import Chunk, McapChannelInfo
@@ -48,12 +49,43 @@ def _first_message_names(path: Path, topic: str, where: Where) -> tuple[str, ...
 
 def _channels(path: Path, where: Where | None) -> list[McapChannelInfo]:
     """The file's channels, from its summary."""
+    return list(_info(path, where).channels)
+
+
+def _info(path: Path, where: Where | None) -> Any:
     from rerun.chunk import McapReader
 
     try:
-        return list(McapReader(path).info().channels)
+        return McapReader(path).info()
     except (ValueError, OSError, RuntimeError) as exc:
         raise UserError(f"cannot read MCAP file {path}: {exc}", where) from None
+
+
+def _check_log_times(path: Path, topic: str, info: Any, where: Where) -> None:
+    """MCAP log times are uint64 nanoseconds; a timeline holds at most 2^63 - 1 (Rerun clamps what is beyond, so the
+    late messages would all sit at one time in 2262). Refused from the summary's last log time; the row (in log-time
+    order) is counted from the late chunks alone, read with the mcap library, when the file allows it."""
+    end = info.message_end_time_ns
+    if end is None or end <= INT64_MAX:
+        return
+    row = ""
+    try:
+        from mcap.reader import make_reader
+
+        with path.open("rb") as stream:
+            late = make_reader(stream).iter_messages(topics=[topic], starting_at=INT64_MAX + 1)
+            beyond = sum(1 for _ in late)  # the messages at or after 2^63 only: a few late chunks
+        total = sum(c.message_count or 0 for c in info.channels if topic_entity(c.topic) == topic_entity(topic))
+        if not beyond:
+            return  # another topic's messages are the late ones
+        row = f" at row {total - beyond} (counting from 0, in log-time order) and after"
+    except Exception:  # noqa: BLE001 - the mcap library's errors on a damaged file: the summary's value is refused anyway
+        pass
+    raise UserError(
+        f"messages of {path.name} are logged at up to {end} ns{row}: beyond a timeline's range ({INT64_MAX} ns, in 2262); "
+        "MCAP log times are uint64, a timeline's int64. Fix the recorder's clock, or use timeline: header",
+        where,
+    )
 
 
 def _joint_state_topics(channels: list[McapChannelInfo]) -> list[str]:
@@ -63,7 +95,8 @@ def _joint_state_topics(channels: list[McapChannelInfo]) -> list[str]:
 def compile_source(name: str, spec: dict[str, Any], document: Document, config_dir: Path) -> McapSourcePlan:
     here = ("sources", name)
     path = resolve_input(document, config_dir, spec["mcap"], *here, "mcap")
-    all_channels = _channels(path, document.where(*here, "mcap"))
+    info = _info(path, document.where(*here, "mcap"))
+    all_channels = list(info.channels)
     topic = topic_entity(spec["topic"])
     channels = [c for c in all_channels if topic_entity(c.topic) == topic]
     if not channels:
@@ -83,6 +116,8 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
     if all(count is not None for count in counts) and sum(counts) == 0:  # type: ignore[arg-type]
         raise UserError(f"topic '{spec['topic']}' has no messages in {path}; a source with zero rows", document.where(*here, "topic"))
     timeline = TIMELINES[spec.get("timeline", "header")]
+    if timeline == TIMELINES["log_time"]:
+        _check_log_times(path, topic, info, document.where(*here, "timeline"))
     names = tuple(spec["names"]) if "names" in spec else _first_message_names(path, topic, document.where(*here, "topic"))
     return with_duplicates(McapSourcePlan(name, path, topic, timeline, names, document.where(*here)), spec)
 
@@ -114,7 +149,16 @@ def _named_rows(plan: McapSourcePlan, chunk: Chunk) -> list[Chunk]:
         return []
     if plan.timeline not in batch.schema.names:
         raise UserError(f"messages on '{plan.topic}' have no {plan.timeline} timeline", plan.where)
-    if plan.timeline == "ros2_timestamp":
+    if plan.timeline != "ros2_timestamp":  # uint64 log or publish times: Rerun clamps those beyond int64 to its largest
+        clamped = batch.column(batch.schema.get_field_index(plan.timeline)).cast(pa.int64()).to_numpy(zero_copy_only=False) == INT64_MAX
+        if clamped.any():
+            raise UserError(
+                f"{int(np.count_nonzero(clamped))} messages on '{plan.topic}' have a {plan.timeline} at or beyond 2^63 ns, beyond a "
+                f"timeline's range ({INT64_MAX} ns, in 2262): MCAP times are uint64, a timeline's int64. Fix the recorder's clock, or use "
+                "timeline: header",
+                plan.where,
+            )
+    else:
         stamps = batch.column(batch.schema.get_field_index(plan.timeline)).cast(pa.int64()).to_numpy(zero_copy_only=False)
         zero = int(np.count_nonzero(stamps == 0))
         if zero:

@@ -17,6 +17,7 @@ from .base import EntryField, SourceDescription, file_input, resolve_input
 from .integrity import check_parquet_pages, refuse_empty_parquet
 from .ordering import in_time_order, with_duplicates
 from .stream import SourceStream, compile_index
+from .time_range import check_parquet_index
 from .wide import describe_wide, guess_index, index_type_problem, reading_error, wide_columns, wide_stream
 
 PLAN_TYPE = ParquetSourcePlan
@@ -45,6 +46,7 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
     if "column" not in spec:  # a wide table: checked from the footer alone; pyarrow reads it (no page check needed)
         index, names = wide_columns(spec, "parquet", path, schema, document, here)
         refuse_empty_parquet(path, document.where(*here, "parquet"))
+        check_parquet_index(path, index, document.where(*here, "index"))  # the index column alone: times that fit
         return with_duplicates(ParquetSourcePlan(name, path, None, index, names, document.where(*here)), spec)
     column = spec["column"]
     if column not in schema.names:
@@ -68,6 +70,7 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
         raise UserError(problem, document.where(*here, "index"))
     refuse_empty_parquet(path, document.where(*here, "parquet"))  # from the footer, before any data page
     check_parquet_pages(path, [column, index.column], document.where(*here, "parquet"))  # corrupt pages: a user error here
+    check_parquet_index(path, index, document.where(*here, "index"))  # Rerun's reader would wrap a time beyond int64 ns
     return with_duplicates(ParquetSourcePlan(name, path, column, index, names, document.where(*here)), spec)
 
 

@@ -24,6 +24,7 @@ from .base import EntryField, SourceDescription
 from .lerobot import VECTOR_COMPONENT
 from .ordering import BLOCK_ROWS, in_time_order
 from .stream import SourceStream, compile_index
+from .time_range import index_problem
 
 if TYPE_CHECKING:
     from rerun.chunk import Chunk
@@ -115,12 +116,11 @@ def wide_columns(
 
 
 def timeline(values: pa.Array, index: IndexPlan, first_row: int, plan: WidePlan) -> pa.Array:
-    """One batch's index column as Rerun's index array: int64 (a sequence), timestamp[ns] or duration[ns]."""
-    if values.null_count:
-        row = first_row + int(np.argmax(values.is_null().to_numpy(zero_copy_only=False)))
-        raise UserError(
-            f"index column '{index.column}' of {plan.path} is empty at row {row} (counting from 0): every row needs its time", plan.where
-        )
+    """One batch's index column as Rerun's index array: int64 (a sequence), timestamp[ns] or duration[ns]. An empty
+    cell, or a value whose timeline value does not fit int64 (time_range.py), is refused naming its row."""
+    problem = index_problem(values, index, first_row, f"index column '{index.column}' of {plan.path}")
+    if problem is not None:
+        raise UserError(problem, plan.where)
     if index.kind == "sequence":
         return values.cast(pa.int64())
     if pa.types.is_timestamp(values.type):  # already a time: its own unit, not the config's
@@ -129,15 +129,8 @@ def timeline(values: pa.Array, index: IndexPlan, first_row: int, plan: WidePlan)
         factor = TIME_FACTORS[index.unit or "s"]
         raw = values.to_numpy(zero_copy_only=False)
         if pa.types.is_integer(values.type):
-            ints = raw.astype(np.int64) * factor
+            ints = raw.astype(np.int64) * factor  # fits: checked above
         else:
-            bad = ~np.isfinite(raw)
-            if bad.any():
-                row = first_row + int(np.argmax(bad))
-                raise UserError(
-                    f"index column '{index.column}' of {plan.path} holds {raw[bad][0]} at row {row} (counting from 0), not a time",
-                    plan.where,
-                )
             ints = np.round(raw.astype(np.float64) * factor).astype(np.int64)  # as Rerun's readers round
     arrow_type = pa.timestamp("ns") if index.kind == "timestamp" else pa.duration("ns")
     return pa.array(ints, pa.int64()).cast(arrow_type)

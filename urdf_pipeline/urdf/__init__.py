@@ -1,5 +1,6 @@
-"""The robot description: URDF text (a file, xacro in a bounded child process, robot_descriptions), the light model
-(joints, links, limits, mimics), repairs for Rerun's loader, meshes, fixed chains, geometry.
+"""The robot description: URDF text (a file, xacro in a bounded child process, robot_descriptions), read as XML with
+what no URDF reader reads refused (xacro content, misplaced links and joints), the light model (joints, links, limits,
+mimics), repairs for Rerun's loader, meshes, fixed chains, geometry.
 May import: the top-level base (errors, plan, confine) only: it knows nothing of configs.
 
 The names below are the package's public surface; other packages import them from here, never from its modules.
@@ -17,7 +18,9 @@ if TYPE_CHECKING:
     from .load import LoadedUrdf, load_urdf_source
     from .meshes import garbage_meshes, package_roots, resolve_meshes, rewrite_mesh_uris
     from .model import Joint, UrdfModel, UrdfParseError, parse_urdf, parse_urdf_text, read_urdf
-    from .repair import rerun_loader_error, text_for_rerun
+    from .repair import rerun_depth_problem, rerun_loader_error, text_for_rerun
+    from .xacro_guard import XacroBudget
+    from .xml_text import XacroContent
 
 __all__ = [
     "Joint",
@@ -27,6 +30,8 @@ __all__ = [
     "UrdfModel",
     "UrdfParseError",
     "Vector",
+    "XacroBudget",
+    "XacroContent",
     "compose_chain",
     "find_fixed_chain",
     "garbage_meshes",
@@ -38,6 +43,7 @@ __all__ = [
     "quaternion_from_rpy",
     "quaternion_multiply",
     "read_urdf",
+    "rerun_depth_problem",
     "rerun_loader_error",
     "resolve_meshes",
     "rewrite_mesh_uris",
@@ -54,6 +60,8 @@ __getattr__ = lazy_surface(
         "UrdfModel": "model",
         "UrdfParseError": "model",
         "Vector": "geometry",
+        "XacroBudget": "xacro_guard",
+        "XacroContent": "xml_text",
         "compose_chain": "fixed_chain",
         "find_fixed_chain": "fixed_chain",
         "garbage_meshes": "meshes",
@@ -65,6 +73,7 @@ __getattr__ = lazy_surface(
         "quaternion_from_rpy": "geometry",
         "quaternion_multiply": "geometry",
         "read_urdf": "model",
+        "rerun_depth_problem": "repair",
         "rerun_loader_error": "repair",
         "resolve_meshes": "meshes",
         "rewrite_mesh_uris": "meshes",

@@ -31,16 +31,21 @@ def find_fixed_chain(model: UrdfModel, start: str, end: str) -> tuple[Joint, ...
     children: dict[str, list[Joint]] = {}
     for joint in model.joints:
         children.setdefault(joint.parent, []).append(joint)
-    reached: dict[str, tuple[Joint, ...]] = {start: ()}
+    reached: dict[str, Joint | None] = {start: None}  # each link the walk reaches, and the joint it came through
     frontier = [start]
     while frontier:
         link = frontier.pop()
         for joint in children.get(link, ()):
             if joint.type == "fixed" and joint.child not in reached:
-                reached[joint.child] = (*reached[link], joint)
+                reached[joint.child] = joint
                 frontier.append(joint.child)
     if end in reached:
-        return reached[end]
+        chain: list[Joint] = []
+        step = reached[end]
+        while step is not None:  # back up from `end`: linear in the chain, however long
+            chain.append(step)
+            step = reached[step.parent]
+        return tuple(reversed(chain))
     parent_joint = {joint.child: joint for joint in model.joints}
     link = end
     while link in parent_joint:

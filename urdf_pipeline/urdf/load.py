@@ -19,7 +19,7 @@ from typing import Any
 
 from ..confine import Confinement
 from ..errors import UserError, Where
-from .xacro_guard import XacroRequest, expand_xacro
+from .xacro_guard import XacroBudget, XacroRequest, expand_xacro
 
 
 @dataclass(frozen=True)
@@ -34,13 +34,21 @@ class LoadedUrdf:
         return hashlib.sha256(self.text.encode("utf-8")).hexdigest()
 
 
-def load_urdf_source(spec: Any, package_paths: Mapping[str, Path], config_dir: Path, confinement: Confinement, where: Where) -> LoadedUrdf:
+def load_urdf_source(
+    spec: Any,
+    package_paths: Mapping[str, Path],
+    config_dir: Path,
+    confinement: Confinement,
+    where: Where,
+    budget: XacroBudget | None = None,
+) -> LoadedUrdf:
     """`spec` is a robot's `urdf` entry; its paths are relative to `config_dir` (the config file's folder, as named) and
-    read only where `confinement` allows. Errors point at `where`: this module knows files, not configs."""
+    read only where `confinement` allows. Errors point at `where`: this module knows files, not configs. A xacro takes
+    its time from `budget`, the config's (one of its own when None)."""
     if isinstance(spec, str):
         return _plain(spec, config_dir, confinement, where)
     if "xacro" in spec:
-        return _xacro(spec, package_paths, config_dir, confinement, where)
+        return _xacro(spec, package_paths, config_dir, confinement, where, budget)
     return _robot_descriptions(spec["robot_descriptions"], where)
 
 
@@ -52,23 +60,32 @@ def _read(path: Path, where: Where) -> str:
 
 
 def _plain(urdf: str, config_dir: Path, confinement: Confinement, where: Where) -> LoadedUrdf:
-    path = (config_dir / urdf).resolve()
-    if path.name.endswith(".xacro"):
+    if Path(urdf).name.endswith(".xacro"):
         raise UserError(f"'{urdf}' is a xacro file, not a URDF; use the xacro form: urdf: {{xacro: {urdf}, args: {{...}}}}", where)
-    confinement.check_read(path, "URDF file", where)  # before its existence is checked: no probing
+    path = confinement.check_read(
+        Path(os.path.abspath(config_dir / urdf)), "URDF file", where
+    )  # before its existence is checked: no probing
     if not path.is_file():
         raise UserError(f"URDF file not found: {path} (paths are relative to the config file)", where)
     return LoadedUrdf(_read(path, where), path, f"file {urdf}")
 
 
-def _xacro(spec: dict[str, Any], package_paths: Mapping[str, Path], config_dir: Path, confinement: Confinement, where: Where) -> LoadedUrdf:
+def _xacro(
+    spec: dict[str, Any],
+    package_paths: Mapping[str, Path],
+    config_dir: Path,
+    confinement: Confinement,
+    where: Where,
+    budget: XacroBudget | None,
+) -> LoadedUrdf:
     """Expanded in a bounded child process that refuses code, the environment and files outside the config's roots."""
-    path = (config_dir / spec["xacro"]).resolve()
-    confinement.check_read(path, "xacro file", where)
+    path = confinement.check_read(
+        Path(os.path.abspath(config_dir / spec["xacro"])), "xacro file", where
+    )  # resolved; OS errors are user errors
     if not path.is_file():
         raise UserError(f"xacro file not found: {path} (paths are relative to the config file)", where)
     args = {name: _xacro_value(value) for name, value in spec.get("args", {}).items()}
-    text = expand_xacro(XacroRequest(path, str(spec["xacro"]), args, package_paths, confinement), where)
+    text = expand_xacro(XacroRequest(path, str(spec["xacro"]), args, package_paths, confinement), where, budget)
     shown = " ".join(f"{k}:={v}" for k, v in sorted(args.items()))
     return LoadedUrdf(text, path, f"xacro {spec['xacro']}" + (f" {shown}" if shown else ""))
 

@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import BinaryIO
 from urllib.parse import unquote
 
-from ..confine import Confinement
+from ..confine import Confinement, file_state
 from ..errors import UserError, Where
 from .model import MeshRef
 
@@ -113,7 +113,11 @@ def resolve_meshes(
             missing.append(mesh)
             reasons[mesh.uri] = str(exc)
             continue
-        found = next((c for c in options if c.is_file()), None)
+        try:
+            found = _first_file(options, confinement, f"{what} {mesh.uri}, file", where)
+        except UserError as exc:  # a loop, a name too long, a FIFO: inside the roots, so its cause may be told
+            refused[mesh.uri] = exc
+            continue
         if found is None and len(options) == 1 and not confinement.may_read(options[0]):
             found = options[0]  # refused below whether it exists or not: a config learns nothing of files outside
         if found is None:
@@ -125,6 +129,19 @@ def resolve_meshes(
         except UserError as exc:
             refused[mesh.uri] = exc
     return MeshResolution(resolved, tuple(missing), reasons, tuple(refused.values()))
+
+
+def _first_file(options: list[Path], confinement: Confinement, what: str, where: Where | None) -> Path | None:
+    """The first candidate that is a regular file. One the OS cannot follow (or a FIFO) is a user error with its cause
+    when it lies inside the config's roots; outside them it counts as absent (the read rule refuses it by its place)."""
+    for candidate in options:
+        try:
+            if file_state(candidate, what, where) == "file":
+                return candidate
+        except UserError:
+            if confinement.may_read(candidate):
+                raise
+    return None
 
 
 def garbage_meshes(meshes: list[MeshRef], resolved: Mapping[str, Path], urdf_name: str, where: Where | None) -> list[UserError]:

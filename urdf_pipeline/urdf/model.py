@@ -3,6 +3,8 @@
 It reads a URDF as ROS does (urdfdom): the first of a repeated element counts, joint axes are normalised, and a
 structure ROS refuses (a joint naming a link that does not exist, two parents for a link, duplicate names, a mimic
 cycle) is refused here too, naming the joint or link, before it could surface later as a confusing frame-graph error.
+The XML itself is read by `xml_text.parse_root`. Every check is linear in links and joints (a 20,000-link chain is read
+in about a second).
 """
 
 from __future__ import annotations
@@ -11,15 +13,16 @@ import math
 import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
-from xml.parsers.expat import ExpatError, ParserCreate
 
-from ..errors import did_you_mean
+from ..errors import did_you_mean, listing
+from .xml_text import UrdfParseError, parse_root
 
 MOVING_TYPES = ("revolute", "continuous", "prismatic")
 ANGULAR_TYPES = ("revolute", "continuous")
 JOINT_TYPES = (*MOVING_TYPES, "fixed", "floating", "planar")
-MAX_DEPTH = 100  # element nesting; a URDF needs about six levels
+HINTED = 20  # problems per file that get a "did you mean" hint: each compares a name with every link or joint
 # A decimal number as urdfdom reads it (no "inf", "nan", hex or "1_0", which Python's float() would take).
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
 
@@ -74,15 +77,41 @@ class UrdfModel:
     root_link: str
 
     def joint(self, name: str) -> Joint | None:
-        return next((j for j in self.joints if j.name == name), None)
+        return self._by_name.get(name)
 
+    @cached_property
+    def _by_name(self) -> dict[str, Joint]:
+        """Joints by name, made once: callers look up every mapped joint (linear, not quadratic, in a large robot)."""
+        return {joint.name: joint for joint in self.joints}
 
-class UrdfParseError(Exception):
-    """The file is not a usable URDF; the caller turns each message into a user error at the config line."""
+    def depth(self) -> tuple[int, str]:
+        """How many joints the deepest link is below the root link, and that link; linear in the joints."""
+        children: dict[str, list[str]] = {}
+        for joint in self.joints:
+            children.setdefault(joint.parent, []).append(joint.child)
+        deepest = (0, self.root_link)
+        frontier = [(self.root_link, 0)]
+        while frontier:  # a tree (parse_urdf refuses cycles and second parents): each link is met once
+            link, level = frontier.pop()
+            if level > deepest[0]:
+                deepest = (level, link)
+            frontier += [(child, level + 1) for child in children.get(link, ())]
+        return deepest
 
-    def __init__(self, *messages: str) -> None:
-        super().__init__("; ".join(messages))
-        self.messages = messages
+    def mimic_order(self) -> tuple[Joint, ...]:
+        """The mimic joints, each after the joint it mimics when that is a mimic too; linear in the joints.
+        (The model refuses mimic cycles, so every walk ends.)"""
+        ordered: list[Joint] = []
+        placed: set[str] = set()
+        for joint in self.joints:
+            path: list[Joint] = []
+            current: Joint | None = joint
+            while current is not None and current.mimic is not None and current.name not in placed:
+                path.append(current)
+                placed.add(current.name)
+                current = self._by_name.get(current.mimic.joint)
+            ordered += reversed(path)
+        return tuple(ordered)
 
 
 class InvalidNumber(ValueError):
@@ -114,36 +143,6 @@ def unit_vector(vector: tuple[float, ...]) -> tuple[float, float, float] | None:
     return (vector[0] / norm, vector[1] / norm, vector[2] / norm)
 
 
-def parse_root(text: str, origin: str) -> tuple[ET.Element, dict[int, int]]:
-    """The <robot> element and the line of each element (by id). Like ROS's parser (tinyxml2), namespace-unaware:
-    `<robot xmlns="...">` is a <robot>, a leftover `<xacro:property>` is no URDF element."""
-    builder, lines = ET.TreeBuilder(), {}
-    parser = ParserCreate()
-    depth = [0]
-
-    def start(tag: str, attributes: dict[str, str]) -> None:
-        depth[0] += 1
-        if depth[0] > MAX_DEPTH:  # a URDF is a few levels deep; thousands would exhaust recursion further on
-            raise UrdfParseError(f"{origin}:{parser.CurrentLineNumber}: elements nested more than {MAX_DEPTH} levels deep")
-        lines[id(builder.start(tag, attributes))] = parser.CurrentLineNumber
-
-    def end(tag: str) -> None:
-        depth[0] -= 1
-        builder.end(tag)
-
-    parser.StartElementHandler = start
-    parser.EndElementHandler = end
-    parser.CharacterDataHandler = builder.data
-    try:
-        parser.Parse(text, True)
-    except ExpatError as exc:
-        raise UrdfParseError(f"{origin} is not valid XML: {exc}") from None
-    robot = builder.close()
-    if robot.tag != "robot":
-        raise UrdfParseError(f"{origin}: root element is <{robot.tag}>, not <robot>")
-    return robot, lines
-
-
 @dataclass
 class _Problems:
     """Messages `ORIGIN:LINE: message`, the line of the element at fault when the text is the file itself."""
@@ -151,14 +150,17 @@ class _Problems:
     origin: str
     lines: dict[int, int] | None
     messages: list[str] = field(default_factory=list)
+    hints: int = HINTED  # "did you mean" hints left
 
     def add(self, message: str, element: ET.Element | None = None) -> None:
         line = self.lines.get(id(element)) if self.lines is not None and element is not None else None
         self.messages.append(f"{self.origin}:{line}: {message}" if line else f"{self.origin}: {message}")
 
-
-def _hint(name: str, choices: list[str]) -> str:
-    return did_you_mean(name, choices)  # the one rule of errors.did_you_mean
+    def hint(self, name: str, choices: list[str]) -> str:
+        """` (did you mean 'x'?)` (the one rule of errors.did_you_mean) for the first HINTED problems, then nothing:
+        each hint compares `name` with every choice, so a file of 20,000 wrong names must not ask for all of them."""
+        self.hints -= 1
+        return did_you_mean(name, choices) if self.hints >= 0 else ""
 
 
 def _joint(element: ET.Element, problems: _Problems) -> Joint | None:
@@ -216,12 +218,13 @@ def _unique(kind: str, elements: list[ET.Element], problems: _Problems) -> None:
 
 def _check_tree(joints: dict[str, tuple[Joint, ET.Element]], links: tuple[str, ...], problems: _Problems) -> None:
     known = set(links)
+    ordered = sorted(known)
     parent_joint: dict[str, Joint] = {}
     for joint, element in joints.values():
         for end, link in (("parent", joint.parent), ("child", joint.child)):
             if link not in known:
                 problems.add(
-                    f"joint '{joint.name}' names {end} link '{link}', which the URDF does not define{_hint(link, sorted(known))}; "
+                    f"joint '{joint.name}' names {end} link '{link}', which the URDF does not define{problems.hint(link, ordered)}; "
                     f'fix the joint\'s <{end} link="..."/> or add <link name="{link}"/>',
                     element,
                 )
@@ -239,26 +242,29 @@ def _check_tree(joints: dict[str, tuple[Joint, ET.Element]], links: tuple[str, .
 def _check_mimics(joints: dict[str, tuple[Joint, ET.Element]], declared: set[str], problems: _Problems) -> None:
     """`declared`: every joint name in the file, those already refused included (no second error for them)."""
     by_name = {name: joint for name, (joint, _) in joints.items()}
+    ordered = sorted(by_name)
     for joint, element in joints.values():
         if joint.mimic is None or (joint.mimic.joint in declared and joint.mimic.joint not in by_name):
             continue
         driver = by_name.get(joint.mimic.joint)
         if driver is None:
-            hint = _hint(joint.mimic.joint, sorted(by_name))
+            hint = problems.hint(joint.mimic.joint, ordered)
             problems.add(f"joint '{joint.name}' mimics '{joint.mimic.joint}', which the URDF lacks{hint}", element)
         elif not driver.moving:
             problems.add(f"joint '{joint.name}' mimics '{driver.name}', a {driver.type} joint that never moves", element)
-    reported: set[str] = set()
+    done: set[str] = set()  # joints whose walk along their drivers ended: each joint is walked once
     for joint, element in joints.values():
-        chain = [joint.name]
-        current = joint
-        while current.mimic is not None and current.mimic.joint in by_name and current.mimic.joint not in chain:
-            current = by_name[current.mimic.joint]
-            chain.append(current.name)
-        if current.mimic is not None and current.mimic.joint in chain and not (reported & set(chain)):
-            cycle = chain[chain.index(current.mimic.joint) :]
-            reported.update(cycle)
+        path: list[str] = []
+        on_path: set[str] = set()
+        current: Joint | None = joint
+        while current is not None and current.name not in done and current.name not in on_path:
+            path.append(current.name)
+            on_path.add(current.name)
+            current = by_name.get(current.mimic.joint) if current.mimic is not None else None
+        if current is not None and current.name in on_path:
+            cycle = path[path.index(current.name) :]
             problems.add(f"joints mimic each other in a cycle: {' -> '.join([*cycle, cycle[0]])}; one of them must be driven", element)
+        done.update(path)
 
 
 def _root(joints: list[Joint], links: tuple[str, ...], origin: str) -> str:
@@ -279,12 +285,12 @@ def _root(joints: list[Joint], links: tuple[str, ...], origin: str) -> str:
                     frontier.append(child)
         cut_off = [link for link in links if link not in below]
         if cut_off:
-            raise UrdfParseError(f"{origin}: links {', '.join(cut_off)} form a cycle of joints, cut off from root link '{roots[0]}'")
+            raise UrdfParseError(f"{origin}: links {listing(cut_off)} form a cycle of joints, cut off from root link '{roots[0]}'")
         return roots[0]
     if not roots:
         raise UrdfParseError(f"{origin}: every link has a parent joint, so the joints form a cycle and there is no root link")
     raise UrdfParseError(
-        f"{origin}: expected one root link, found {len(roots)}: {', '.join(roots)}; connect them with joints so one link is the root"
+        f"{origin}: expected one root link, found {len(roots)}: {listing(roots)}; connect them with joints so one link is the root"
     )
 
 
@@ -303,7 +309,7 @@ def parse_urdf_text(text: str, origin: str, source_lines: bool = True) -> UrdfMo
 
 def parse_urdf(text: str, origin: str, source_lines: bool = True) -> tuple[UrdfModel, ET.Element]:
     """`parse_urdf_text`, also giving the parsed XML root (for repairs: the text is parsed once)."""
-    robot, lines = parse_root(text, origin)
+    robot, lines = parse_root(text, origin, source_lines)
     problems = _Problems(origin, lines if source_lines else None)
     link_elements = robot.findall("link")
     links = tuple(link.get("name", "") for link in link_elements)

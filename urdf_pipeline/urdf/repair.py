@@ -4,11 +4,13 @@ Rerun's loader (urdf-rs) uses a non-unit axis as given (wrong poses) and refuses
 (urdfdom) tolerates: an empty <texture/>, a material without a name, an <inertial> or a <visual> that urdfdom drops.
 Here each such detail is made what ROS makes of it (the first of a repeated element, the element dropped) and said
 in a note; a URDF that needs no repair is handed over byte for byte. Whatever Rerun's loader still refuses is a user
-error found by `validate` (`rerun_loader_error`), not a crash in `run`.
+error found by `validate` (`rerun_loader_error`), not a crash in `run`; so is a tree deeper than the loader can walk
+(`rerun_depth_limit`: it recurses once per level on a thread of Rust's default stack, and a 2,000-link chain crashes it).
 """
 
 from __future__ import annotations
 
+import os
 import tempfile
 import xml.etree.ElementTree as ET
 from collections import Counter
@@ -26,6 +28,9 @@ _SINGLE = {
     "inertial": ("origin", "mass", "inertia"),
     "material": ("color", "texture"),
 }
+RUST_STACK_ENV = "RUST_MIN_STACK"  # the stack, in bytes, of the threads Rust code starts (Rerun's loader among them)
+RUST_DEFAULT_STACK = 2 << 20
+STACK_PER_LEVEL = 2048  # bytes of that stack one tree level takes in Rerun's loader, with margin (measured: ~1.1 KB)
 _GEOMETRY_ATTRIBUTES = {"box": ("size",), "cylinder": ("radius", "length"), "capsule": ("radius", "length"), "sphere": ("radius",)}
 
 
@@ -173,6 +178,21 @@ def text_for_rerun(text: str, origin: str, root: ET.Element | None = None) -> tu
     if not repairs.changed:
         return text, ()
     return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n", repairs.notes()
+
+
+def rerun_depth_problem(depth: int) -> str | None:
+    """Why Rerun's loader cannot walk a tree `depth` joints deep (root link to deepest leaf), or None. Its stack is
+    Rust's default, or RUST_MIN_STACK when the person running the tool set it."""
+    text = os.environ.get(RUST_STACK_ENV, "").strip()
+    stack = int(text) if text.isdigit() and int(text) > 0 else RUST_DEFAULT_STACK
+    limit = stack // STACK_PER_LEVEL
+    if depth <= limit:
+        return None
+    needed = -(-depth * STACK_PER_LEVEL // (1 << 20)) << 20  # whole MiB
+    return (
+        f"Rerun's URDF loader walks the tree recursively, and with a {stack >> 10:,} KiB thread stack it would crash `run` "
+        f"beyond about {limit:,} levels; the person running the tool can give it a larger stack: {RUST_STACK_ENV}={needed} (bytes)"
+    )
 
 
 def rerun_loader_error(text: str) -> str | None:

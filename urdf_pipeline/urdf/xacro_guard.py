@@ -3,24 +3,35 @@
 The child gets no environment but ROS_PACKAGE_PATH / AMENT_PREFIX_PATH (and the loader's library path), runs with
 `-I -S` (no user site, no .pth files, no PYTHON* variables), is limited in address space, CPU seconds and output size,
 and is killed when the wall clock runs out. Every way it can fail ends in a UserError naming the xacro file.
+
+The wall clock is a budget of one config (or one init command), `XacroBudget`: every expansion it makes takes its time
+from the same URDF_PIPELINE_XACRO_TIMEOUT seconds, so ten robots naming a slow xacro cannot take ten times the bound,
+and an expansion the budget cannot pay for is refused, naming the budget. The same file with the same arguments,
+packages and read roots is expanded once per process: the text is kept with the sha256 of every file xacro read (and
+what each include pattern matched), and reused while they are unchanged; an edited file is expanded again.
 """
 
 from __future__ import annotations
 
+import glob
+import hashlib
 import importlib.util
 import json
 import os
 import signal
+import stat
 import subprocess
 import sys
 import tempfile
+import time
+from collections import OrderedDict
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
 from ..confine import Confinement
-from ..errors import UserError, Where
+from ..errors import UserError, Where, listing
 
 MEMORY_ENV = "URDF_PIPELINE_XACRO_MEMORY_MB"  # the runner may raise the bounds for a huge robot; a config cannot
 TIMEOUT_ENV = "URDF_PIPELINE_XACRO_TIMEOUT"
@@ -30,6 +41,9 @@ OUTPUT_BYTES = 64 << 20  # the expanded URDF text, at most
 SHOWN_STDERR = 16 << 10  # xacro's own warnings passed on, at most
 _PASSED_ENV = ("ROS_PACKAGE_PATH", "AMENT_PREFIX_PATH", "LD_LIBRARY_PATH", "DYLD_LIBRARY_PATH", "SYSTEMROOT")
 _BOOTSTRAP = "import sys; sys.path[:0] = sys.argv[1:]; from urdf_pipeline.urdf.xacro_sandbox import main; main()"
+CACHED_BYTES = 256 << 20  # expanded texts kept for reuse, at most
+SMALLEST_SLICE_S = 0.05  # an expansion the budget has less time left for is not started
+_HASHED_CHUNK = 1 << 20
 
 
 @dataclass(frozen=True)
@@ -61,6 +75,90 @@ class Limits:
         return Limits(int(number(MEMORY_ENV, DEFAULT_MEMORY_MB)), number(TIMEOUT_ENV, DEFAULT_TIMEOUT_S))
 
 
+@dataclass
+class XacroBudget:
+    """The wall-clock seconds all xacro expansions of one config (or of one init command) share: URDF_PIPELINE_XACRO_TIMEOUT,
+    read at the first expansion. `owner` names the budget in messages ("this config's")."""
+
+    owner: str = "this config's"
+    seconds: float | None = None
+    spent: float = 0.0
+    spenders: list[str] = field(default_factory=list)  # the expansions that took time from it, as the config names them
+    shown: set[tuple[Any, ...]] = field(default_factory=set)  # expansions whose xacro warnings this budget passed on
+
+    def left(self, limits: Limits) -> float:
+        if self.seconds is None:
+            self.seconds = limits.timeout_s
+        return self.seconds - self.spent
+
+    def charge(self, seconds: float, shown: str) -> None:
+        self.spent += seconds
+        self.spenders.append(shown)
+
+    def exhausted(self, request: XacroRequest) -> str:
+        return (
+            f"xacro expansion of {request.shown} was not started: {self.owner} xacro time budget of {self.seconds:g} s was used "
+            f"up by the expansions before it ({listing(self.spenders)}); expand fewer or faster xacro files (a xacro named "
+            f"again with the same args is expanded once), or the person running the tool can raise the budget with {TIMEOUT_ENV}"
+        )
+
+
+@dataclass(frozen=True)
+class _Expansion:
+    """A successful expansion, kept while every file it read holds the same bytes."""
+
+    text: str
+    files: tuple[tuple[str, str], ...]  # (absolute path, sha256) of every file xacro read
+    globs: tuple[tuple[str, tuple[str, ...]], ...]  # (absolute include pattern, the files it matched, sorted)
+    warnings: bytes  # what xacro printed on stderr, at most SHOWN_STDERR + 1 bytes
+
+    def unchanged(self) -> bool:
+        return all(_sha256(Path(file)) == digest for file, digest in self.files) and all(
+            tuple(sorted(glob.glob(pattern))) == matches for pattern, matches in self.globs
+        )
+
+
+_EXPANSIONS: OrderedDict[tuple[Any, ...], _Expansion] = OrderedDict()  # oldest first
+
+
+def _sha256(path: Path) -> str | None:
+    """The file's sha256; None when it is not a regular file (a FIFO would block) or cannot be read."""
+    digest = hashlib.sha256()
+    try:
+        if not stat.S_ISREG(path.stat().st_mode):
+            return None
+        with path.open("rb") as file:
+            while chunk := file.read(_HASHED_CHUNK):
+                digest.update(chunk)
+    except OSError:
+        return None
+    return digest.hexdigest()
+
+
+def _key(request: XacroRequest) -> tuple[Any, ...] | None:
+    """What an expansion depends on besides the files it includes; None when the xacro file cannot be read here."""
+    digest = _sha256(request.file)
+    if digest is None:
+        return None
+    return (
+        str(request.file),
+        digest,
+        tuple(sorted(request.args.items())),
+        tuple(sorted((name, str(path)) for name, path in request.package_paths.items())),
+        str(request.confinement.config_dir),
+        tuple(str(root) for root in request.confinement.read_roots),
+        tuple(os.environ.get(name) for name in _PASSED_ENV),
+    )
+
+
+def _remember(key: tuple[Any, ...], answer: Mapping[str, Any], warnings: bytes) -> None:
+    files = tuple((str(file), _sha256(Path(file)) or "") for file in answer.get("files", ()))
+    globs = tuple((str(pattern), tuple(sorted(map(str, matches)))) for pattern, matches in answer.get("globs", ()))
+    _EXPANSIONS[key] = _Expansion(str(answer["text"]), files, globs, warnings)
+    while sum(len(kept.text) for kept in _EXPANSIONS.values()) > CACHED_BYTES and len(_EXPANSIONS) > 1:
+        _EXPANSIONS.popitem(last=False)
+
+
 def _search_path() -> list[str]:
     """The folders the child imports urdf_pipeline, xacro and yaml from (it runs without site-packages)."""
     folders = [str(Path(__file__).resolve().parents[2])]  # the folder holding the urdf_pipeline package
@@ -72,9 +170,35 @@ def _search_path() -> list[str]:
     return list(dict.fromkeys(folders))
 
 
-def expand_xacro(request: XacroRequest, where: Where | None) -> str:
-    """The URDF text of `request.file` expanded with its args, or a UserError at `where` naming the xacro file."""
+def expand_xacro(request: XacroRequest, where: Where | None, budget: XacroBudget | None = None) -> str:
+    """The URDF text of `request.file` expanded with its args, or a UserError at `where` naming the xacro file. The time
+    comes from `budget` (a budget of its own when None); a text expanded before from unchanged files is reused."""
     limits = Limits.from_environment(where)
+    budget = budget if budget is not None else XacroBudget("this expansion's")
+    key = _key(request)
+    if key is not None and (kept := _EXPANSIONS.get(key)) is not None and kept.unchanged():
+        _EXPANSIONS.move_to_end(key)
+        if key not in budget.shown:  # xacro's warnings, once per config as if it had expanded the file
+            budget.shown.add(key)
+            _show_warnings(kept.warnings)
+        return kept.text
+    left = budget.left(limits)
+    if left < SMALLEST_SLICE_S:
+        raise UserError(budget.exhausted(request), where)
+    slice_limits = Limits(limits.memory_mb, min(limits.timeout_s, left))
+    started = time.monotonic()
+    try:
+        answer, warnings = _expand(request, slice_limits, budget, where)
+    finally:
+        budget.charge(time.monotonic() - started, request.shown)
+    if key is not None:
+        budget.shown.add(key)
+        _remember(key, answer, warnings)
+    return str(answer["text"])
+
+
+def _expand(request: XacroRequest, limits: Limits, budget: XacroBudget, where: Where | None) -> tuple[dict[str, Any], bytes]:
+    """The child's answer with a text, and what xacro printed; a UserError for any failure."""
     try:
         search = _search_path()
     except ImportError as exc:
@@ -93,27 +217,28 @@ def expand_xacro(request: XacroRequest, where: Where | None) -> str:
         },
     }
     try:
-        answer = _run([sys.executable, "-I", "-S", "-X", "utf8", "-c", _BOOTSTRAP, *search], payload, request, limits, where)
+        answer, warnings = _run(
+            [sys.executable, "-I", "-S", "-X", "utf8", "-c", _BOOTSTRAP, *search], payload, request, limits, budget, where
+        )
     except OSError as exc:  # no process, no temporary file: still about expanding this file
         raise UserError(f"cannot expand {request.shown}: {exc}", where) from None
     if "error" in answer:
         raise UserError(str(answer["error"]), where)
-    return str(answer["text"])
+    return answer, warnings
 
 
-def _run(command: list[str], payload: dict[str, Any], request: XacroRequest, limits: Limits, where: Where | None) -> dict[str, Any]:
-    """The child's answer; the child is gone when this returns or raises (killed at the time bound, or on Ctrl-C)."""
+def _run(
+    command: list[str], payload: dict[str, Any], request: XacroRequest, limits: Limits, budget: XacroBudget, where: Where | None
+) -> tuple[dict[str, Any], bytes]:
+    """The child's answer and its stderr; the child is gone when this returns or raises (killed at the time bound, or
+    on Ctrl-C)."""
     environment = {name: os.environ[name] for name in _PASSED_ENV if name in os.environ}
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
         child = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=out, stderr=err, env=environment, close_fds=True)
         try:
             child.communicate(json.dumps(payload).encode("utf-8"), timeout=limits.timeout_s)
         except subprocess.TimeoutExpired:
-            raise UserError(
-                f"xacro expansion of {request.shown} did not end within {limits.timeout_s:g} s and was stopped (a macro or "
-                f"expression that never ends?); the person running the tool can raise the bound with {TIMEOUT_ENV}",
-                where,
-            ) from None
+            raise UserError(_too_slow(request, limits, budget), where) from None
         except BrokenPipeError:
             pass  # the child ended before reading: its exit status says why
         finally:
@@ -122,9 +247,25 @@ def _run(command: list[str], payload: dict[str, Any], request: XacroRequest, lim
             child.wait()
         answer = _answer(out)
         if answer is None:
-            raise UserError(_failure(request, limits, child.returncode, err), where)
-        _pass_on(err)
-        return answer
+            raise UserError(_failure(request, limits, budget, child.returncode, err), where)
+        err.seek(0)
+        warnings = err.read(SHOWN_STDERR + 1)
+        _show_warnings(warnings)
+        return answer, warnings
+
+
+def _too_slow(request: XacroRequest, limits: Limits, budget: XacroBudget) -> str:
+    """Why an expansion was stopped at the time bound: its own slowness, or a budget the expansions before it used."""
+    if budget.spent > 0 and budget.spenders:
+        return (
+            f"xacro expansion of {request.shown} did not end within the {limits.timeout_s:.3g} s left of {budget.owner} xacro time "
+            f"budget of {budget.seconds:g} s and was stopped (the expansions before it took the rest: {listing(budget.spenders)}); "
+            f"the person running the tool can raise the budget with {TIMEOUT_ENV}"
+        )
+    return (
+        f"xacro expansion of {request.shown} did not end within {limits.timeout_s:g} s and was stopped (a macro or "
+        f"expression that never ends?); the person running the tool can raise the bound with {TIMEOUT_ENV}"
+    )
 
 
 def _answer(out: IO[bytes]) -> dict[str, Any] | None:
@@ -137,12 +278,14 @@ def _answer(out: IO[bytes]) -> dict[str, Any] | None:
     return answer if isinstance(answer, dict) and ("text" in answer or "error" in answer) else None
 
 
-def _failure(request: XacroRequest, limits: Limits, code: int, err: IO[bytes]) -> str:
+def _failure(request: XacroRequest, limits: Limits, budget: XacroBudget, code: int, err: IO[bytes]) -> str:
     """Why the child gave no answer, from its exit status and the last line it printed."""
     err.seek(0)
     lines = err.read(SHOWN_STDERR).decode("utf-8", "replace").strip().splitlines()
     last = f": {lines[-1][:500]}" if lines else ""
     if code in (-signal.SIGXCPU, -signal.SIGKILL):
+        if budget.spent > 0 and budget.spenders:
+            return _too_slow(request, limits, budget)
         return (
             f"xacro expansion of {request.shown} used more than {limits.timeout_s:g} s of CPU time and was stopped (a macro "
             f"or expression that never ends?); the person running the tool can raise the bound with {TIMEOUT_ENV}"
@@ -159,10 +302,8 @@ def _failure(request: XacroRequest, limits: Limits, code: int, err: IO[bytes]) -
     return f"xacro expansion of {request.shown} failed ({status}){last}"
 
 
-def _pass_on(err: IO[bytes]) -> None:
+def _show_warnings(data: bytes) -> None:
     """xacro's own warnings (deprecations, unknown attributes), as it would have printed them, shortened."""
-    err.seek(0)
-    data = err.read(SHOWN_STDERR + 1)
     if data:
         text = data[:SHOWN_STDERR].decode("utf-8", "replace")
         sys.stderr.write(text if text.endswith("\n") else text + "\n")

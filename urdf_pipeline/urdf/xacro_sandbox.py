@@ -8,7 +8,9 @@ internals; `**`, `*` and `<<` are checked against a size before they run. Every 
 and `$(optenv NAME DEFAULT)` gives its default, so no value of the runner's environment reaches the URDF text.
 Memory, CPU time and output size are bounded by rlimits set here; the wall clock by xacro_guard, which spawns this.
 
-Protocol: one JSON request on stdin, one JSON answer on stdout: {"text": URDF} or {"error": message}.
+Protocol: one JSON request on stdin, one JSON answer on stdout: {"text": URDF, "files": [...], "globs": [...]} (every
+file xacro read, every include pattern and what it matched: xacro_guard reuses the text while they are unchanged) or
+{"error": message}.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ import builtins
 import contextlib
 import glob
 import json
+import os
 import re
 import sys
 from collections.abc import Callable, Mapping
@@ -129,6 +132,8 @@ class Sandbox:
         self.packages = {name: Path(folder) for name, folder in request["packages"].items()}
         self.confinement = Confinement(Path(request["config_dir"]), tuple(Path(r) for r in request["read_roots"]), ())
         self.config_dir = Path(request["config_dir"])
+        self.read: dict[str, None] = {}  # every file xacro opened, absolute, in order
+        self.globs: dict[str, list[str]] = {}  # every include pattern and the files it matched
 
     def name(self, file: str | None) -> str:
         """A xacro file as the user knows it: as written in the config, relative to its folder, or absolute."""
@@ -214,6 +219,7 @@ class Sandbox:
             self.confinement.check_read(Path(file), "included or loaded file", None)
         except UserError as exc:
             raise Refused(f"xacro file {self.name(reader)}: {exc.message}") from None
+        self.read[os.path.abspath(file)] = None
         return open(file, mode, *args, **kwargs)
 
 
@@ -227,7 +233,9 @@ class _Glob:
         parts = Path(pattern).parts
         fixed = parts[: next((i for i, part in enumerate(parts) if glob.has_magic(part)), len(parts))]
         self.sandbox.check(Path(*fixed) if fixed else Path("."), "include pattern folder")
-        return glob.glob(pattern)
+        matches = glob.glob(pattern)
+        self.sandbox.globs[os.path.abspath(pattern)] = [os.path.abspath(match) for match in matches]
+        return matches
 
 
 def _chain(exc: BaseException) -> list[BaseException]:
@@ -299,13 +307,13 @@ def main() -> None:
 
     sandbox = Sandbox(request)
     sandbox.install()
-    answer: dict[str, str] | None = None
+    answer: dict[str, Any] | None = None
     try:
         with contextlib.redirect_stdout(sys.stderr):  # xacro's messages are not the answer
             xacro.init_stacks(sandbox.file)
             document = xacro.parse(None, sandbox.file)
             xacro.process_doc(document, mappings=dict(request["args"]))
-        answer = {"text": document.toprettyxml(indent="  ")}
+        answer = {"text": document.toprettyxml(indent="  "), "files": list(sandbox.read), "globs": list(sandbox.globs.items())}
     except MemoryError:
         pass  # answered below, once the frames holding the memory are gone
     except Exception as exc:  # whatever xacro raises is about the user's file

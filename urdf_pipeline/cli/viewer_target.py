@@ -1,0 +1,152 @@
+"""Where `run --connect URL` / `run --spawn` send the recordings, settled before any work: the URL's form, a viewer
+listening there (a TCP connect of a few seconds at most), or a viewer process started and seen to stay up.
+
+Without these checks Rerun's client would be handed an unreachable address after the run: it retries for 7 s, logs
+two ERROR lines of its own, and waits 5 s more at shutdown. A viewer that cannot start (no screen here) exits within
+milliseconds of opening its port, so a started viewer counts as up only once it has stayed up for `SETTLE_SECONDS`.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import re
+import shutil
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import IO
+from urllib.parse import urlsplit
+
+from ..errors import UserError, Where, shown
+
+EXPECTED_FORM = "rerun+http://HOST:PORT/proxy"
+DEFAULT_PORT = 9876  # where a viewer started with plain `rerun` listens, and where --spawn starts one
+SCHEMES = ("rerun+http", "rerun+https", "rerun")  # what Rerun's client takes (rerun:// is rerun+https://)
+CONNECT_SECONDS = 3.0  # the TCP connect to a --connect address
+STARTUP_SECONDS = 10.0  # a spawned viewer opens its port within this
+SETTLE_SECONDS = 1.0  # ... and is still running this long after
+POLL_SECONDS = 0.05
+LOG_TAIL_BYTES = 65_536  # of the viewer's log, read for the reason it stopped
+_ANSI = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
+CONNECT_OPTION = Where(Path("--connect"), 0)
+SPAWN_OPTION = Where(Path("--spawn"), 0)
+
+
+def viewer_address(url: str) -> tuple[str, int]:
+    """(host, port) of a viewer URL of the form Rerun's client takes; a located error naming the form otherwise."""
+    wrong = f"{shown(url)} is not a viewer address; expected {EXPECTED_FORM} (a viewer started with `rerun` listens at rerun+http://127.0.0.1:{DEFAULT_PORT}/proxy)"
+    try:
+        parts = urlsplit(url)
+        port = parts.port
+    except ValueError:  # a port that is no number, or out of range
+        raise UserError(wrong, CONNECT_OPTION) from None
+    if parts.scheme not in SCHEMES or not parts.hostname or port is None or parts.path != "/proxy" or parts.query or parts.fragment:
+        raise UserError(wrong, CONNECT_OPTION)
+    return parts.hostname, port
+
+
+def _listening(host: str, port: int, timeout: float) -> OSError | None:
+    """None when something accepts a TCP connection at host:port within `timeout` seconds, else why not."""
+    try:
+        socket.create_connection((host, port), timeout=timeout).close()
+    except OSError as error:
+        return error
+    return None
+
+
+def require_viewer(url: str) -> str:
+    """`--connect URL`: its form, then a viewer listening there (within `CONNECT_SECONDS`); returns the URL."""
+    host, port = viewer_address(url)
+    error = _listening(host, port, CONNECT_SECONDS)
+    if error is not None:
+        reason = "timed out" if isinstance(error, TimeoutError) else (error.strerror or str(error))
+        raise UserError(
+            f"no Rerun viewer at {shown(url)} ({host}:{port}: {reason}); start one there (`rerun --port {port}`), or use --spawn",
+            CONNECT_OPTION,
+        )
+    return url
+
+
+def viewer_executable() -> str | None:
+    """The viewer of the installed rerun-sdk (the `rerun_cli` package's binary: the same release as the SDK that sends),
+    else a `rerun` on PATH."""
+    spec = importlib.util.find_spec("rerun_cli")
+    if spec is not None and spec.origin is not None:
+        bundled = Path(spec.origin).parent / "rerun"
+        if bundled.is_file() and os.access(bundled, os.X_OK):
+            return str(bundled)
+    return shutil.which("rerun")
+
+
+def _no_screen() -> bool:
+    """Linux without a display server: the viewer's window cannot open (it exits at once, saying so)."""
+    return sys.platform.startswith("linux") and not any(os.environ.get(name) for name in ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET"))
+
+
+def spawn_viewer(port: int | None = None) -> str:
+    """`--spawn`: the URL of a viewer on this machine, one started now (detached: it stays when the run ends) unless one
+    already listens on `port` (default `DEFAULT_PORT`). A viewer that cannot start is a user error with its own reason,
+    in a few seconds."""
+    port = DEFAULT_PORT if port is None else port
+    url = f"rerun+http://127.0.0.1:{port}/proxy"
+    if _listening("127.0.0.1", port, CONNECT_SECONDS) is None:
+        return url  # a viewer already listening there is reused, as Rerun's own spawn does
+    if _no_screen():
+        raise UserError(
+            "cannot start the Rerun viewer: no screen here (neither DISPLAY nor WAYLAND_DISPLAY is set); run `rerun` where "
+            "there is one and send to it with --connect URL, or run without --spawn and open the written .rrd files there",
+            SPAWN_OPTION,
+        )
+    executable = viewer_executable()
+    if executable is None:
+        raise UserError("cannot start the Rerun viewer: no `rerun` executable (pip install rerun-sdk)", SPAWN_OPTION)
+    with tempfile.TemporaryFile() as log:  # unlinked already: the detached viewer's log leaves no file behind
+        try:
+            process = subprocess.Popen(
+                [executable, "--port", str(port), "--memory-limit", "75%", "--expect-data-soon"],
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL,
+                stderr=log,
+                env={**os.environ, "RERUN_APP_ONLY": "true"},
+                start_new_session=True,  # not stopped by a Ctrl-C of the run: the viewer is the user's now
+            )
+        except OSError as error:
+            raise UserError(f"cannot start the Rerun viewer {shown(executable)}: {error.strerror or error}", SPAWN_OPTION) from None
+        _wait_until_up(process, port, log)
+    return url
+
+
+def _wait_until_up(process: subprocess.Popen[bytes], port: int, log: IO[bytes]) -> None:
+    """Up: its port accepts and the process is still running `SETTLE_SECONDS` later. Else it is stopped (when still
+    running) and the reason is its last error line."""
+    deadline = time.monotonic() + STARTUP_SECONDS
+    opened: float | None = None
+    while process.poll() is None:
+        now = time.monotonic()
+        if opened is None and _listening("127.0.0.1", port, POLL_SECONDS) is None:
+            opened = now
+        if opened is not None and now - opened >= SETTLE_SECONDS:
+            return
+        if now > deadline:
+            process.kill()
+            process.wait()
+            raise UserError(
+                f"the Rerun viewer did not start listening on port {port} within {STARTUP_SECONDS:.0f} s{_last_error(log)}", SPAWN_OPTION
+            )
+        time.sleep(POLL_SECONDS)
+    raise UserError(f"the Rerun viewer stopped at its start (exit status {process.returncode}){_last_error(log)}", SPAWN_OPTION)
+
+
+def _last_error(log: IO[bytes]) -> str:
+    """`: REASON` from the viewer's log: its `Error:` line, else its last ERROR log line, else its last line."""
+    log.seek(0, os.SEEK_END)
+    log.seek(max(log.tell() - LOG_TAIL_BYTES, 0))
+    lines = [_ANSI.sub("", line).strip() for line in log.read(LOG_TAIL_BYTES).decode("utf-8", "replace").splitlines()]
+    lines = [line for line in lines if line]
+    chosen = next((line for line in reversed(lines) if line.startswith("Error:")), None)
+    chosen = chosen or next((line for line in reversed(lines) if " ERROR " in line), None) or (lines[-1] if lines else "")
+    return f": {shown(chosen.removeprefix('Error:').strip(), 300)}" if chosen else ""

@@ -1,0 +1,151 @@
+"""A URDF text as XML, read as ROS reads it, with every element's line; what no URDF reader would read is refused here.
+
+- Leading blank lines or spaces before `<?xml ...?>` are accepted (ROS, pinocchio and pybullet accept them; expat alone
+  would not): they and the declaration are blanked, so every line and column stays the file's.
+- xacro content (an element in the xacro namespace, `${...}` or `$(arg ...)` in an attribute) is refused: a URDF
+  reader keeps only what lies outside the xacro elements, often just the root link, and says nothing.
+- A `<link>` or `<joint>` that is not a direct child of `<robot>` is refused: URDF readers drop it silently. Only the
+  extensions that hold their own `<joint>` elements (`<transmission>`, `<gazebo>`, `<ros2_control>`) may nest them.
+"""
+
+from __future__ import annotations
+
+import re
+import xml.etree.ElementTree as ET
+from xml.parsers.expat import ExpatError, ParserCreate
+
+MAX_DEPTH = 100  # element nesting; a URDF needs about six levels
+XACRO_NAMESPACE = "ros.org/wiki/xacro"  # http://www.ros.org/wiki/xacro, with or without www, http or https
+# Extensions that hold elements named <joint> (a transmission's joint, ros2_control's interfaces) or SDF of their own.
+FOREIGN_CONTAINERS = frozenset({"transmission", "gazebo", "ros2_control"})
+SHOWN_VALUE = 60  # characters of an attribute value quoted in a message
+_LEADING = re.compile(r"\ufeff?[ \t\r\n]+(?=<\?xml[ \t\r\n?])")
+_DECLARATION_END = "?>"
+# xacro's substitutions in attribute values: ${expression} and $(arg|find|eval|env|optenv|dirname|cwd ...).
+_XACRO_EXPRESSION = re.compile(r"\$\{|\$\((?:arg|find|eval|env|optenv|dirname|cwd)\b")
+
+
+class UrdfParseError(Exception):
+    """The file is not a usable URDF; the caller turns each message into a user error at the config line."""
+
+    def __init__(self, *messages: str) -> None:
+        super().__init__("; ".join(messages))
+        self.messages = messages
+
+
+class XacroContent(UrdfParseError):
+    """A text given as URDF that holds xacro: `found` (`<xacro:include filename="arm.xacro">`) at `line` of `origin`.
+    `advice(fix)` is the user's message with the fix of the form at hand (the config's xacro form, init's --xacro)."""
+
+    def __init__(self, origin: str, line: int, found: str) -> None:
+        self.origin, self.line, self.found = origin, line, found
+        super().__init__(self.advice(f"expand it as xacro: urdf: {{xacro: {origin}}}"))
+
+    def advice(self, fix: str, what: str = "this file") -> str:
+        return (
+            f"{self.origin}:{self.line}: {self.found} is xacro: {what} is a xacro file, not a URDF, and a URDF reader would "
+            f"keep only what lies outside its xacro elements (often just the root link); {fix}"
+        )
+
+
+def without_leading_space(text: str) -> str:
+    """`text` without the blank lines and spaces (and byte order mark) before its `<?xml ...?>`, else `text` itself."""
+    match = _LEADING.match(text)
+    return text[match.end() :] if match else text
+
+
+def _blank_leading_declaration(text: str) -> str:
+    """The leading space and the declaration after it replaced by spaces (line breaks kept): lines and columns stay."""
+    match = _LEADING.match(text)
+    if match is None:
+        return text
+    end = text.find(_DECLARATION_END, match.end())
+    if end < 0:
+        return text  # an unclosed declaration: expat says so
+    end += len(_DECLARATION_END)
+    return re.sub(r"[^\n]", " ", text[:end]) + text[end:]
+
+
+def _shown(tag: str, attributes: dict[str, str], attribute: str | None = None) -> str:
+    """`<tag name="value">` for a message: the attribute at fault (else the first), its value shortened."""
+    name = attribute if attribute is not None else next(iter(attributes), None)
+    if name is None:
+        return f"<{tag}>"
+    value = attributes[name]
+    value = value if len(value) <= SHOWN_VALUE else value[:SHOWN_VALUE] + "..."
+    return f'<{tag} {name}="{value}">'
+
+
+class _Scan:
+    """The checks made on each element as expat reads it (so a 20,000-link file is read once): depth, xacro, nesting."""
+
+    def __init__(self, origin: str, source_lines: bool) -> None:
+        self.origin = origin
+        self.source_lines = source_lines
+        self.xacro_prefixes = {"xacro"}
+        self.open: list[tuple[str, int]] = []  # the elements enclosing this one: tag, line
+        self.foreign = 0  # how many enclosing elements are FOREIGN_CONTAINERS
+
+    def at(self, line: int) -> str:
+        return f"{self.origin}:{line}" if self.source_lines else f"{self.origin} (line {line} of the expanded text)"
+
+    def start(self, tag: str, attributes: dict[str, str], line: int) -> None:
+        if len(self.open) >= MAX_DEPTH:  # a URDF is a few levels deep; thousands would exhaust recursion further on
+            raise UrdfParseError(f"{self.at(line)}: elements nested more than {MAX_DEPTH} levels deep")
+        self._xacro(tag, attributes, line)
+        if tag in ("link", "joint") and len(self.open) > 1 and not self.foreign:  # depth 1 is <robot>'s own
+            parent, parent_line = self.open[-1]
+            raise UrdfParseError(
+                f"{self.at(line)}: {_shown(tag, attributes)} is inside <{parent}> (line {parent_line}), not directly inside "
+                f"<robot>: URDF readers (ROS, pinocchio, Rerun) ignore a <{tag}> anywhere else, so the robot would silently "
+                f"lose it; move it to the top level of <robot>"
+            )
+        self.open.append((tag, line))
+        self.foreign += tag in FOREIGN_CONTAINERS
+
+    def end(self, tag: str) -> None:
+        self.open.pop()
+        self.foreign -= tag in FOREIGN_CONTAINERS
+
+    def _xacro(self, tag: str, attributes: dict[str, str], line: int) -> None:
+        expression = None
+        for name, value in attributes.items():
+            if "$" in value and _XACRO_EXPRESSION.search(value):
+                expression = expression or name
+            elif name.startswith("xmlns:") and XACRO_NAMESPACE in value:
+                self.xacro_prefixes.add(name[len("xmlns:") :])
+        prefix, colon, _ = tag.partition(":")
+        if colon and prefix in self.xacro_prefixes:
+            raise XacroContent(self.origin, line, _shown(tag, attributes))
+        if expression is not None:
+            raise XacroContent(self.origin, line, _shown(tag, attributes, expression))
+
+
+def parse_root(text: str, origin: str, source_lines: bool = True) -> tuple[ET.Element, dict[int, int]]:
+    """The <robot> element and the line of each element (by id). Like ROS's parser (tinyxml2), namespace-unaware:
+    `<robot xmlns="...">` is a <robot>. UrdfParseError (XacroContent for xacro) for what no URDF reader reads;
+    `source_lines` says whether the text is the file itself (else lines are named as the expanded text's)."""
+    builder, lines = ET.TreeBuilder(), {}
+    parser = ParserCreate()
+    scan = _Scan(origin, source_lines)
+
+    def start(tag: str, attributes: dict[str, str]) -> None:
+        line = parser.CurrentLineNumber
+        scan.start(tag, attributes, line)
+        lines[id(builder.start(tag, attributes))] = line
+
+    def end(tag: str) -> None:
+        scan.end(tag)
+        builder.end(tag)
+
+    parser.StartElementHandler = start
+    parser.EndElementHandler = end
+    parser.CharacterDataHandler = builder.data
+    try:
+        parser.Parse(_blank_leading_declaration(text), True)
+    except ExpatError as exc:
+        raise UrdfParseError(f"{origin} is not valid XML: {exc}") from None
+    robot = builder.close()
+    if robot.tag != "robot":
+        raise UrdfParseError(f"{origin}: root element is <{robot.tag}>, not <robot>")
+    return robot, lines
