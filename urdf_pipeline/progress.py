@@ -14,6 +14,7 @@ import logging
 import os
 import sys
 import time
+import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Protocol, TextIO
@@ -171,3 +172,18 @@ class SegmentResultLike(Protocol):
     def seconds(self) -> float: ...
     @property
     def reason(self) -> str: ...
+
+
+def _log_warning(
+    message: Warning | str, category: type[Warning], filename: str, lineno: int, file: TextIO | None = None, line: str | None = None
+) -> None:
+    LOGGER.debug("urdf-pipeline: %s", neutral_line(f"python warning: {filename}:{lineno}: {category.__name__}: {message}"))
+
+
+@contextmanager
+def warnings_logged() -> Iterator[None]:
+    """Python's warnings (numpy's on NaN values, an overflowing cast) as DEBUG lines of the `urdf_pipeline` logger, not
+    on stderr (`-q` means quiet; `-v` shows them): for a command (cli), and in a pool worker or a Ray task (execute)."""
+    with warnings.catch_warnings():
+        warnings.showwarning = _log_warning
+        yield

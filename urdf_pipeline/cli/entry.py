@@ -12,9 +12,9 @@ from collections.abc import Callable, Sequence
 
 from .. import PandasLeftOut
 from ..errors import ExitCode, UserError, neutral_text
-from ..progress import command_logging
+from ..progress import command_logging, warnings_logged
 from .parser import build_parser
-from .stderr_relay import stderr_through_logger, warnings_through_logger
+from .stderr_relay import stderr_through_logger
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -37,7 +37,7 @@ def _main(argv: Sequence[str] | None) -> int:
     # Python's warnings reach stderr through our logger (stderr_relay.py), as everything else the command says.
     os.environ.setdefault("RUST_LOG", "warn" if args.verbose else "error")
     level = logging.WARNING if args.quiet else logging.DEBUG if args.verbose else logging.INFO
-    with command_logging(level), stderr_through_logger(), warnings_through_logger():
+    with command_logging(level), stderr_through_logger(), warnings_logged():
         return _handle(handler, args)
 
 

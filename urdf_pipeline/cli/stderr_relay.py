@@ -1,7 +1,7 @@
 """Everything a command prints on stderr goes through the `urdf_pipeline` logger, at the level of `-q`/`-v`.
 
 Two things write there around the logger. Python's warnings (numpy's `RuntimeWarning: invalid value encountered`
-on NaN data, an overflowing cast): `warnings_through_logger` sends them to the logger at DEBUG, so only `-v` shows
+on NaN data, an overflowing cast): `progress.warnings_logged` sends them to the logger at DEBUG, so only `-v` shows
 them. Rerun's Rust side (and any other native code, and the pool's worker processes) writes to file descriptor 2
 itself, past `sys.stderr`: `stderr_through_logger` points fd 2 at a pipe whose lines a thread relays to the logger
 while Python's own stderr (`sys.stderr`: tracebacks of bugs, error lines) keeps the original stream.
@@ -26,7 +26,6 @@ import os
 import re
 import sys
 import threading
-import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import TextIO
@@ -164,17 +163,3 @@ def stderr_through_logger() -> Iterator[None]:
             sys.stderr.close()
             sys.stderr = previous
         os.close(saved)
-
-
-def _log_warning(
-    message: Warning | str, category: type[Warning], filename: str, lineno: int, file: TextIO | None = None, line: str | None = None
-) -> None:
-    LOGGER.debug("urdf-pipeline: %s", neutral_line(f"python warning: {filename}:{lineno}: {category.__name__}: {message}"))
-
-
-@contextmanager
-def warnings_through_logger() -> Iterator[None]:
-    """For one command: Python's warnings go to the logger at DEBUG (shown by -v), not to stderr."""
-    with warnings.catch_warnings():
-        warnings.showwarning = _log_warning
-        yield

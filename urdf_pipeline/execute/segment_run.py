@@ -10,16 +10,13 @@ import logging
 import resource
 import time
 import traceback
-import warnings
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Literal, TextIO
+from typing import Literal
 
-from ..errors import UserError, neutral_line
+from ..errors import UserError
 from ..plan import Plan, Segment
-from ..progress import note, process_identity, worker_logging
+from ..progress import note, process_identity, warnings_logged, worker_logging
 from .progress_meter import finish_meters
 from .segment import Parts
 
@@ -97,23 +94,6 @@ def run_segment(job: SegmentJob) -> SegmentResult:
     frames = max(result.rows.values(), default=0)
     written = replace(failed, status="written", frames=frames, bytes=result.output.stat().st_size, notes=tuple(notes))
     return _finished(written, started)
-
-
-def _log_warning(
-    message: Warning | str, category: type[Warning], filename: str, lineno: int, file: TextIO | None = None, line: str | None = None
-) -> None:
-    logging.getLogger("urdf_pipeline").debug(
-        "urdf-pipeline: %s", neutral_line(f"python warning: {filename}:{lineno}: {category.__name__}: {message}")
-    )
-
-
-@contextmanager
-def warnings_logged() -> Iterator[None]:
-    """Python's warnings (numpy's on NaN values, ...) as DEBUG lines of the `urdf_pipeline` logger, not on stderr: in a
-    pool worker or a Ray task as in the command's own process (where the command line does the same)."""
-    with warnings.catch_warnings():
-        warnings.showwarning = _log_warning
-        yield
 
 
 def _finished(result: SegmentResult, started: float) -> SegmentResult:
