@@ -7,10 +7,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 from ..config import Document, expand_edge_specs, load_document, require_schema_valid
-from ..confine import Unresolvable, os_cause, resolved
 from ..errors import UserError, UserErrors, Where
 from ..plan import EdgePlan, OutputPlan, Plan, RobotPlan, SourcePlan, TemporalEdgePlan
 from ..sources import kind_of
@@ -117,16 +115,7 @@ def _compile_model(ctx: CompileContext, sources: SourceNames) -> _Model:
     robots: list[RobotPlan] = []
     models: dict[str, UrdfModel] = {}  # parsed once, for the edges that walk a URDF (fixed_chain)
     for key, spec in data["robots"].items():
-        if not _robot_paths_followed(ctx, key, spec):
-            continue
-        try:
-            compiled = compile_robot(ctx, key, spec, sources)
-        except OSError as exc:  # a file the URDF names (a mesh) that the OS refuses: a name too long, no permission
-            named = f" {exc.filename}" if exc.filename else ""
-            problems.add(
-                f"a file robot '{key}' reads{named} cannot be read: {os_cause(exc, exc.filename)}", ctx.where("robots", key, "urdf")
-            )
-            continue
+        compiled = compile_robot(ctx, key, spec, sources)
         if compiled is not None:
             robots.append(compiled.plan)
             models[key] = compiled.model
@@ -155,37 +144,6 @@ def _compile_model(ctx: CompileContext, sources: SourceNames) -> _Model:
         graph += frame_edges([], identity, [], models)
         check_frame_graph(ctx, graph, urdf_frames(robots), root, ctx.where("frames", "root"))
     return _Model(tuple(robots), tuple(edges), tuple(temporal), root)
-
-
-def _robot_paths_followed(ctx: CompileContext, key: str, spec: dict[str, Any]) -> bool:
-    """The robot's URDF or xacro file and its package folders are paths the OS can follow (no symlink loop, no name
-    too long, no file where a folder is expected, no FIFO) before robots.py and urdf/load.py resolve and open them:
-    each that is not is a user error at its key, and the robot is not compiled. A path that resolves outside the
-    config's roots is left to them: they refuse it by the read rule, and go on with what they can check."""
-    named: list[tuple[str, str, tuple[str | int, ...]]] = []
-    urdf = spec["urdf"]
-    if isinstance(urdf, str):
-        named.append((urdf, "URDF file", ("robots", key, "urdf")))
-    elif "xacro" in urdf:
-        named.append((urdf["xacro"], "xacro file", ("robots", key, "urdf", "xacro")))
-    packages = spec.get("package_paths", {}).items()
-    named += [(folder, f"package '{name}' folder", ("robots", key, "package_paths", name)) for name, folder in packages]
-    followed = True
-    for path, what, here in named:
-        try:
-            real = resolved(ctx.config_dir / path)
-            if ctx.confinement.may_read(real):  # shown resolved, as robots.py and urdf/load.py show it
-                ctx.confinement.check_read(real, what, ctx.where(*here))
-        except Unresolvable:
-            try:
-                ctx.confinement.check_read(ctx.config_dir / path, what, ctx.where(*here))  # the rule or the cause
-            except UserError as exc:
-                ctx.problems.extend(exc)
-            followed = False
-        except UserError as exc:
-            ctx.problems.extend(exc)
-            followed = False
-    return followed
 
 
 def _check_unique_prefixes(ctx: CompileContext) -> bool:

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ..confine import Confinement, Unresolvable, resolved
 from ..errors import UserError, UserErrors, Where, listing, warn
 from ..plan import RobotPlan
 from ..urdf import (
@@ -90,6 +91,15 @@ def load_urdf(ctx: CompileContext, key: str, spec: dict[str, Any], package_paths
     return RobotUrdf(loaded, model, text)
 
 
+def _refused_by_the_os(confinement: Confinement, path: Path) -> bool:
+    """Whether `check_read` refused `path` for what the OS says of it (a symlink loop, a name too long, a FIFO, a file
+    where a folder is expected) rather than for its place: a path it cannot follow leaves the robot nothing to read."""
+    try:
+        return confinement.may_read(resolved(path))
+    except Unresolvable:
+        return True
+
+
 def compile_robot(ctx: CompileContext, key: str, spec: dict[str, Any], sources: SourceNames) -> CompiledRobot | None:
     """The robot's plan and parsed URDF. `sources` names the values of each source that compiled (a source the config
     defines but that failed is reported once, by itself); None: only its data knows them (`validate --no-data`)."""
@@ -97,17 +107,30 @@ def compile_robot(ctx: CompileContext, key: str, spec: dict[str, Any], sources: 
     here = ("robots", key)
     confinement = ctx.confinement
     package_paths: dict[str, Path] = {}
+    followed = True  # every folder and the xacro file are paths the OS can follow; else nothing below them is read
     for name, written in spec.get("package_paths", {}).items():
         where = ctx.where(*here, "package_paths", name)
-        try:  # resolved by the read rule, which turns what the OS cannot follow into a user error at this key
-            written_path = Path(os.path.abspath(ctx.config_dir / written))  # as named, `..` folded; resolved by check_read
-            folder = package_paths[name] = confinement.check_read(written_path, f"package '{name}' folder", where)
+        named = Path(os.path.abspath(ctx.config_dir / written))  # as written, `..` folded; check_read resolves it
+        try:
+            folder = package_paths[name] = confinement.check_read(named, f"package '{name}' folder", where)
         except UserError as exc:  # kept, unresolved: xacro and mesh lookups check each file they read, and say which one
             problems.extend(exc)
-            package_paths[name] = Path(os.path.abspath(ctx.config_dir / written))
+            package_paths[name] = named
+            followed = followed and not _refused_by_the_os(confinement, named)
             continue
         if not folder.is_dir():
             problems.add(f"package '{name}' directory not found: {folder}", where)
+    urdf_spec = spec["urdf"]
+    if isinstance(urdf_spec, dict) and "xacro" in urdf_spec:  # what the OS says of the file, at its own key
+        named = Path(os.path.abspath(ctx.config_dir / urdf_spec["xacro"]))
+        try:
+            confinement.check_read(named, "xacro file", ctx.where(*here, "urdf", "xacro"))
+        except UserError as exc:
+            if _refused_by_the_os(confinement, named):  # refused by its place: urdf/load.py says so, at the urdf key
+                problems.extend(exc)
+                followed = False
+    if not followed:
+        return None
     try:
         urdf = load_urdf(ctx, key, spec, package_paths)
     except UserError as exc:
