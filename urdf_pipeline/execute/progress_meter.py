@@ -6,7 +6,8 @@ On a terminal the line is redrawn in place (`\\r`, at most every `REDRAW_SECONDS
 done; otherwise a plain line goes to the `urdf_pipeline` logger every `METER_SECONDS`, so a CI log shows a long run
 moving without a line per batch. Nothing under `-q` (the logger's level is above INFO). Only the run's one segment
 has a meter: in a many-segment run the run's own progress says how far it is (a redrawn bar from several parallel
-workers' meters would garble each other), see `segment_run.run_segment`.
+workers' meters would garble each other), see `segment_run.run_segment`. The pass that reads a source makes its
+meter and finishes it when the pass ends, written, failed or interrupted (segment.py).
 """
 
 from __future__ import annotations
@@ -24,8 +25,6 @@ from ..sources import module_for
 LOGGER = logging.getLogger("urdf_pipeline")
 METER_SECONDS = 5.0  # a plain line this often when stderr is not a terminal (tests set it to 0)
 REDRAW_SECONDS = 0.2  # a terminal's line is redrawn at most this often
-_ACTIVE: list[RowMeter] = []
-_ACTIVE_LOCK = threading.Lock()
 
 
 def _clock(seconds: float) -> str:
@@ -137,18 +136,8 @@ def _topic(topic: str) -> str:
 
 
 def source_meter(plan: Plan, source: SourcePlan, rows_expected: int | None) -> RowMeter:
-    """The meter of one source of a segment, named after the segment (and the source, when several drive robots)."""
+    """The meter of one source of a segment, named after the segment (and the source, when several drive robots);
+    the pass that reads the source finishes it (segment.py)."""
     driving = [s for s in plan.sources if plan.robots_for(s.name)]
     label = plan.output.recording_id if len(driving) <= 1 else f"{plan.output.recording_id} ({source.name})"
-    meter = RowMeter(label, known_rows(source, rows_expected))
-    with _ACTIVE_LOCK:
-        _ACTIVE.append(meter)
-    return meter
-
-
-def finish_meters() -> None:
-    """At the end of a segment (written, failed or interrupted): every meter made for it is finished and let go."""
-    with _ACTIVE_LOCK:
-        meters, _ACTIVE[:] = list(_ACTIVE), []
-    for meter in meters:
-        meter.finish()
+    return RowMeter(label, known_rows(source, rows_expected))

@@ -18,7 +18,7 @@ from .edges_stream import calibration_stream
 from .fk_stream import JointTransformBatches, fk_stream
 from .limits_report import check_joint_statistics
 from .model_stream import cached_tree, robot_model_stream
-from .progress_meter import source_meter
+from .progress_meter import RowMeter, source_meter
 from .provenance import provenance_stream
 from .stream_writer import drain_streams
 from .temporal_stream import TemporalEdgeValues, check_temporal_edges, temporal_edge_streams
@@ -74,6 +74,15 @@ class _Pass:
     errors: CallbackErrors
     mappers: list[JointValueMapper]
     temporal_values: list[TemporalEdgeValues]
+    meters: list[RowMeter]  # one per source read, cleared when the pass ends (a terminal's redrawn line)
+
+    def drain(self, sink: Callable[[LazyChunkStream], None]) -> None:
+        """The streams into `sink`; the meters are finished however the pass ends (written, failed, interrupted)."""
+        try:
+            drain_streams(self.streams, sink, self.errors)
+        finally:
+            for meter in self.meters:
+                meter.finish()
 
     def check(self, on_note: Callable[[str], None]) -> tuple[str, ...]:
         """After the pass: limits, NaN, zero rows, temporal edges. Notes go to `on_note`; problems raise, all at once."""
@@ -94,6 +103,7 @@ def _open(plan: Plan, parts: Parts, provenance: dict[str, str] | None, quiet: bo
     `provenance` None: no properties entity (a user's own recording, see `log_segment`)."""
     errors = CallbackErrors()
     mappers: list[JointValueMapper] = []
+    meters: list[RowMeter] = []
     streams = []
     trees = {robot.key: cached_tree(robot) for robot in plan.robots}
     if parts != "layer":
@@ -103,6 +113,7 @@ def _open(plan: Plan, parts: Parts, provenance: dict[str, str] | None, quiet: bo
         for source in plan.sources:
             driven: list[tuple[str, str, JointTransformBatches]] = []
             meter = None if quiet else source_meter(plan, source, rows_expected)  # its rows counted once, by the first robot
+            meters += [meter] if meter is not None else []
             for robot in plan.robots_for(source.name):
                 mapper = JointValueMapper(robot, source)
                 mappers.append(mapper)
@@ -115,7 +126,7 @@ def _open(plan: Plan, parts: Parts, provenance: dict[str, str] | None, quiet: bo
         streams.append(provenance_stream(plan, parts, provenance))
     # Temporal edges (a mobile base, a floating pelvis): their sources are opened again, see temporal_edges.py.
     temporal_streams, temporal_values = temporal_edge_streams(plan, errors) if parts != "model" else ([], [])
-    return _Pass(streams + temporal_streams, errors, mappers, temporal_values)
+    return _Pass(streams + temporal_streams, errors, mappers, temporal_values, meters)
 
 
 def _write(
@@ -128,11 +139,7 @@ def _write(
     def write(partial: Path) -> None:
         """The streams into the partial file, then the checks of what the pass found: a failed check leaves no file."""
         application_id, recording_id = plan.output.application_id, plan.output.recording_id
-        drain_streams(
-            opened.streams,
-            lambda merged: merged.write_rrd(partial, application_id=application_id, recording_id=recording_id),
-            opened.errors,
-        )
+        opened.drain(lambda merged: merged.write_rrd(partial, application_id=application_id, recording_id=recording_id))
         notes.extend(opened.check(on_note))
 
     written = write_file_atomically(plan.output.path, write, "recording", plan.output.where)
@@ -146,7 +153,7 @@ def log_segment(plan: Plan, recording: RecordingStream, on_note: Callable[[str],
 
     def attempt() -> dict[str, int]:
         opened = _open(plan, "all", None, True, None)
-        drain_streams(opened.streams, recording.send_chunks, opened.errors)
+        opened.drain(recording.send_chunks)
         opened.check(on_note)
         return opened.rows()
 

@@ -17,7 +17,6 @@ from typing import Literal
 from ..errors import UserError
 from ..plan import Plan, Segment
 from ..progress import note, process_identity, warnings_logged, worker_logging
-from .progress_meter import finish_meters
 from .segment import Parts
 
 Status = Literal["written", "skipped", "failed", "bug", "interrupted"]
@@ -89,8 +88,6 @@ def run_segment(job: SegmentJob) -> SegmentResult:
         return _finished(replace(failed, reason="\n".join(exc.lines()), notes=tuple(notes)), started)
     except Exception:
         return _finished(replace(failed, status="bug", reason=traceback.format_exc(), notes=tuple(notes)), started)
-    finally:
-        finish_meters()
     frames = max(result.rows.values(), default=0)
     written = replace(failed, status="written", frames=frames, bytes=result.output.stat().st_size, notes=tuple(notes))
     return _finished(written, started)
