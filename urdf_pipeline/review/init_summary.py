@@ -37,11 +37,6 @@ class Scaffold(Protocol):
     def mismatch(self) -> str: ...
 
 
-def remaining_problems(document: Document) -> list[str]:
-    """What `validate` would still refuse (expected: the TODO stubs), as messages without the file location."""
-    return compiled(document)[1]
-
-
 def compiled(document: Document) -> tuple[Plan | None, list[str]]:
     """The plan, or what `validate` would refuse (as messages without the file location)."""
     from ..compile import compile_document

@@ -259,15 +259,18 @@ class ScaffoldInputs:
 
     @property
     def key(self) -> str:
-        model = self.description.model
-        return _identifier(model.name, _identifier(self.description.file.stem.split(".")[0], "robot"))
+        return _robot_key(self.description)
+
+
+def _robot_key(description: InitUrdf) -> str:
+    """The robot's key in the config: its URDF name, else its file's, as a YAML-safe identifier."""
+    return _identifier(description.model.name, _identifier(description.file.stem.split(".")[0], "robot"))
 
 
 def load_inputs(urdf: UrdfArgument, source: str | None, out_file: Path) -> ScaffoldInputs:
     description = load_robot(urdf, out_file)
-    inputs = ScaffoldInputs(description, stub_source("", []), source, out_file)
     joint_names = [j.name for j in description.model.joints if j.moving and j.mimic is None]
-    key = inputs.key
+    key = _robot_key(description)
     info = stub_source(key, joint_names) if source is None else read_source(source, f"{key}_state", out_file)
     return ScaffoldInputs(description, info, source, out_file)
 
