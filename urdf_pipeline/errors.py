@@ -55,9 +55,12 @@ class Where:
 # logger's formatter, the renderers).
 NAME_LIMIT = 200  # characters of one name in a message; a longer one is shortened, with its length
 LINE_LIMIT = 2000  # characters of one output line; a longer one is shortened, with its length
-# C0, DEL, C1, bidi embeddings/overrides/isolates and marks, line/paragraph separators, BOM, lone surrogates (an
-# undecodable file name: printing one raw would fail on a strict stdout)
-_CONTROL = re.compile("[\x00-\x1f\x7f-\x9f\u061c\u200e\u200f\u2028\u2029\u202a-\u202e\u2066-\u2069\ufeff\ud800-\udfff]")
+# C0, DEL, C1, bidi embeddings/overrides/isolates and marks, line/paragraph separators, BOM: what no name from input may
+# show raw, and what a file name that becomes a segment id may not hold (`has_control_character`)
+_CONTROL_CHARACTERS = "\x00-\x1f\x7f-\x9f\u061c\u200e\u200f\u2028\u2029\u202a-\u202e\u2066-\u2069\ufeff"
+_CONTROL_IN_NAME = re.compile(f"[{_CONTROL_CHARACTERS}]")
+# escaped for output: those, and lone surrogates (an undecodable file name: printing one raw would fail on a strict stdout)
+_CONTROL = re.compile(f"[{_CONTROL_CHARACTERS}\ud800-\udfff]")
 _NAMED_ESCAPES = {"\n": "\\n", "\r": "\\r", "\t": "\\t"}
 # Lines a GitHub Actions runner reads as a workflow command (`::error ...`, the older `##[error]...`), after it trims
 # leading whitespace. A line of ours that would start so gets COMMAND_GUARD in front.
@@ -74,6 +77,12 @@ def escaped(text: str) -> str:
     """Control characters made visible (`\\n`, `\\x1b`, `\\u202e`): text from input never moves the cursor, colours a
     terminal, reorders what a reviewer reads or splits one line in two. Backslashes stay as they are."""
     return _CONTROL.sub(_escape, text)
+
+
+def has_control_character(text: str) -> bool:
+    """Whether `text` holds a character `escaped` would show escaped (lone surrogates aside: undecodable bytes of a
+    file name are not control characters)."""
+    return _CONTROL_IN_NAME.search(text) is not None
 
 
 def _keep(limit: int) -> int:

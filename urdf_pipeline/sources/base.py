@@ -11,23 +11,20 @@ from typing import Any, Protocol
 
 from ..config import Document
 from ..confine import Unresolvable, confinement_for, file_state, resolved
-from ..errors import UserError, Where
+from ..errors import UserError, Where, escaped, has_control_character
 from .stream import SourceStream
 
 GLOB = re.compile(r"[*?\[]")
-# Characters a file name must not hold: it becomes a segment id, a recording id, an output file name and a line of
-# review output (a newline would start a forged `::error::` line). C0 and C1 controls, DEL, line and paragraph
-# separators and the bidirectional overrides that make text read otherwise than it is.
-CONTROL = re.compile("[\x00-\x1f\x7f-\x9f\u2028\u2029\u200e\u200f\u202a-\u202e\u2066-\u2069]")
 
 
 def refuse_control_characters(path: str | Path, what: str, where: Where | None, fix: str = "rename the file") -> None:
-    """A name that holds a control character is refused, shown escaped (`repr`-like): see CONTROL."""
+    """A name holding a control character (errors.has_control_character: a newline, an escape, a direction override)
+    is refused, shown escaped: it becomes a segment id, a recording id, an output file name and a line of review
+    output (a newline would start a forged `::error::` line)."""
     text = str(path)
-    if CONTROL.search(text):
-        shown = text.encode("unicode_escape").decode("ascii")
+    if has_control_character(text):
         raise UserError(
-            f"{what} '{shown}' holds a control character (a newline, a tab, an escape, a direction override); "
+            f"{what} '{escaped(text)}' holds a control character (a newline, a tab, an escape, a direction override); "
             f"it would become a segment id, a recording id and an output file name: {fix}",
             where,
         )
