@@ -17,6 +17,8 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import UserError, Where
+from ..plan import IndexPlan
+from .time_range import index_problem
 
 
 def _reason(exc: BaseException) -> str:
@@ -46,10 +48,13 @@ HDF5_BLOCK_ROWS = 65_536  # rows decoded at a time when checking an HDF5 dataset
 CHECK_BATCH_ROWS = 65_536
 
 
-def check_parquet_pages(path: Path, columns: Sequence[str], where: Where | None) -> None:
+def check_parquet_pages(
+    path: Path, columns: Sequence[str], where: Where | None, index: IndexPlan | None = None, index_where: Where | None = None
+) -> None:
     """Every data page of `columns` decodes (page checksums verified when the writer stored them), in batches of
     CHECK_BATCH_ROWS rows dropped as they come (a whole row group, 2^20 rows by pyarrow's default, took 600 MB for a
-    29-joint humanoid); a corrupt page names its row group."""
+    29-joint humanoid); a corrupt page names its row group. `index` (one of `columns`): its values are checked in the
+    same pass as times a timeline can hold (time_range.py), refused at `index_where` once every page has decoded."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -58,16 +63,21 @@ def check_parquet_pages(path: Path, columns: Sequence[str], where: Where | None)
     except (pa.ArrowException, OSError, ValueError) as exc:
         raise UserError(f"cannot read parquet file {path}: {_reason(exc)}", where) from None
     groups = file.metadata.num_row_groups
+    row, index_problem_found = 0, None
     for group in range(groups):  # one iteration per row group, not per row
         try:
-            for _ in file.iter_batches(batch_size=CHECK_BATCH_ROWS, row_groups=[group], columns=list(columns)):
-                pass  # decoded, checked, dropped
+            for batch in file.iter_batches(batch_size=CHECK_BATCH_ROWS, row_groups=[group], columns=list(columns)):
+                if index is not None and index_problem_found is None:  # decoded, checked, dropped
+                    index_problem_found = index_problem(batch.column(index.column), index, row, f"index column '{index.column}' of {path}")
+                row += batch.num_rows
         except (pa.ArrowException, OSError, ValueError) as exc:
             raise UserError(
                 f"parquet file {path} is corrupt: row group {group} of {groups} ({', '.join(columns)}) cannot be decoded: "
                 f"{_reason(exc)}; re-export or replace the file",
                 where,
             ) from None
+    if index_problem_found is not None:
+        raise UserError(index_problem_found, index_where)
 
 
 def check_hdf5_datasets(path: Path, datasets: Sequence[str], where: Where | None) -> None:

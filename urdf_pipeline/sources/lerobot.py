@@ -19,7 +19,6 @@ from .base import EntryField, SourceDescription, resolve_input
 from .integrity import check_parquet_pages
 from .ordering import in_time_order, with_duplicates
 from .stream import SourceStream
-from .time_range import check_parquet_index
 
 if TYPE_CHECKING:
     from rerun.chunk import Chunk
@@ -250,9 +249,8 @@ def check_episode_data(plan: LeRobotSourcePlan, where: Where | None) -> None:
             raise UserError(f"episode {plan.episode}: cannot read parquet file {file}: {exc}", where) from None
         columns = [c for c in (plan.feature, "frame_index", "episode_index") if c in present]
         try:
-            check_parquet_pages(file, columns, where)
-            if "frame_index" in present:  # the timeline Rerun's reader makes: values beyond int64 would wrap
-                check_parquet_index(file, FRAME_INDEX, where)
+            # the timeline Rerun's reader makes, frame_index, checked in the same pass: values beyond int64 would wrap
+            check_parquet_pages(file, columns, where, FRAME_INDEX if "frame_index" in present else None, where)
         except UserError as exc:
             raise UserError(f"episode {plan.episode}: {exc.message}", where) from None
 

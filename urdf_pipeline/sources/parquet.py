@@ -69,8 +69,8 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
     if problem is not None:
         raise UserError(problem, document.where(*here, "index"))
     refuse_empty_parquet(path, document.where(*here, "parquet"))  # from the footer, before any data page
-    check_parquet_pages(path, [column, index.column], document.where(*here, "parquet"))  # corrupt pages: a user error here
-    check_parquet_index(path, index, document.where(*here, "index"))  # Rerun's reader would wrap a time beyond int64 ns
+    # corrupt pages: a user error here; in the same pass, index values beyond int64 ns (Rerun's reader would wrap them)
+    check_parquet_pages(path, [column, index.column], document.where(*here, "parquet"), index, document.where(*here, "index"))
     return with_duplicates(ParquetSourcePlan(name, path, column, index, names, document.where(*here)), spec)
 
 
