@@ -33,7 +33,7 @@ from typing import TextIO
 from ..errors import neutral_line
 
 LOGGER = logging.getLogger("urdf_pipeline")
-_ANSI = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
+ANSI_ESCAPE = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")  # colours and cursor moves in a native program's lines
 # tracing's format (`TIME LEVEL target: message`) and env_logger's (`[TIME LEVEL target] message`)
 _RERUN_LINE = re.compile(
     r"^\[?\d{4}-\d\d-\d\dT[0-9:.]+Z?\s+(?P<level>TRACE|DEBUG|INFO|WARN|WARNING|ERROR)\s+(?P<target>[\w.-]+(?:::[\w.-]+)*)\]?:?\s?(?P<message>.*)$"
@@ -57,7 +57,7 @@ def relayed(line: str, continuing: int | None = None) -> tuple[int, str, bool] |
     """The level and text a line written to fd 2 is logged with, and whether it is Rerun's; None for a blank line.
     `continuing`: the level of a Rerun line just before it in the same read (a multi-line event, such as an error
     and its `- metadata: ...` line), which a line that starts as such continuations do continues."""
-    text = _ANSI.sub("", line).rstrip()
+    text = ANSI_ESCAPE.sub("", line).rstrip()
     if not text.strip():
         return None
     match = _RERUN_LINE.match(text)

@@ -8,10 +8,7 @@ milliseconds of opening its port, so a started viewer counts as up only once it 
 
 from __future__ import annotations
 
-import importlib.util
 import os
-import re
-import shutil
 import socket
 import subprocess
 import sys
@@ -22,6 +19,7 @@ from typing import IO
 from urllib.parse import urlsplit
 
 from ..errors import UserError, Where, shown
+from .stderr_relay import ANSI_ESCAPE
 
 EXPECTED_FORM = "rerun+http://HOST:PORT/proxy"
 DEFAULT_PORT = 9876  # where a viewer started with plain `rerun` listens, and where --spawn starts one
@@ -31,7 +29,6 @@ STARTUP_SECONDS = 10.0  # a spawned viewer opens its port within this
 SETTLE_SECONDS = 1.0  # ... and is still running this long after
 POLL_SECONDS = 0.05
 LOG_TAIL_BYTES = 65_536  # of the viewer's log, read for the reason it stopped
-_ANSI = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
 CONNECT_OPTION = Where(Path("--connect"), 0)
 SPAWN_OPTION = Where(Path("--spawn"), 0)
 
@@ -71,17 +68,6 @@ def require_viewer(url: str) -> str:
     return url
 
 
-def viewer_executable() -> str | None:
-    """The viewer of the installed rerun-sdk (the `rerun_cli` package's binary: the same release as the SDK that sends),
-    else a `rerun` on PATH."""
-    spec = importlib.util.find_spec("rerun_cli")
-    if spec is not None and spec.origin is not None:
-        bundled = Path(spec.origin).parent / "rerun"
-        if bundled.is_file() and os.access(bundled, os.X_OK):
-            return str(bundled)
-    return shutil.which("rerun")
-
-
 def _no_screen() -> bool:
     """Linux without a display server: the viewer's window cannot open (it exits at once, saying so)."""
     return sys.platform.startswith("linux") and not any(os.environ.get(name) for name in ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET"))
@@ -101,7 +87,9 @@ def spawn_viewer(port: int | None = None) -> str:
             "there is one and send to it with --connect URL, or run without --spawn and open the written .rrd files there",
             SPAWN_OPTION,
         )
-    executable = viewer_executable()
+    from ..execute import viewer_binary  # here: execute's modules are not what validate or plan import
+
+    executable = viewer_binary()
     if executable is None:
         raise UserError("cannot start the Rerun viewer: no `rerun` executable (pip install rerun-sdk)", SPAWN_OPTION)
     with tempfile.TemporaryFile() as log:  # unlinked already: the detached viewer's log leaves no file behind
@@ -145,7 +133,7 @@ def _last_error(log: IO[bytes]) -> str:
     """`: REASON` from the viewer's log: its `Error:` line, else its last ERROR log line, else its last line."""
     log.seek(0, os.SEEK_END)
     log.seek(max(log.tell() - LOG_TAIL_BYTES, 0))
-    lines = [_ANSI.sub("", line).strip() for line in log.read(LOG_TAIL_BYTES).decode("utf-8", "replace").splitlines()]
+    lines = [ANSI_ESCAPE.sub("", line).strip() for line in log.read(LOG_TAIL_BYTES).decode("utf-8", "replace").splitlines()]
     lines = [line for line in lines if line]
     chosen = next((line for line in reversed(lines) if line.startswith("Error:")), None)
     chosen = chosen or next((line for line in reversed(lines) if " ERROR " in line), None) or (lines[-1] if lines else "")

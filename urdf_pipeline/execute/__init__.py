@@ -19,7 +19,7 @@ if TYPE_CHECKING:
     from .provenance import stored_content_hash
     from .segment import Parts, RunResult, execute, log_segment
     from .segment_run import SegmentJob, SegmentResult, install_run_plan, run_segment
-    from .viewer import send_to_viewer
+    from .viewer import send_to_viewer, viewer_binary
     from .writer import process_alive, remove_stale_partials, require_ours, require_writable, write_file_atomically
 
 __all__ = [
@@ -45,6 +45,7 @@ __all__ = [
     "run_segment",
     "segment_kinematics",
     "send_to_viewer",
+    "viewer_binary",
     "stored_content_hash",
     "write_blueprint",
     "write_file_atomically",
@@ -75,6 +76,7 @@ __getattr__ = lazy_surface(
         "RobotKinematics": "kinematics",
         "segment_kinematics": "kinematics",
         "send_to_viewer": "viewer",
+        "viewer_binary": "viewer",
         "stored_content_hash": "provenance",
         "write_blueprint": "blueprint",
         "write_file_atomically": "writer",

@@ -8,12 +8,31 @@ the split layout the model's chunks are sent with every segment: each episode sh
 
 from __future__ import annotations
 
+import importlib.util
+import os
+import shutil
+import sys
+from pathlib import Path
+
 from ..errors import UserError
 from ..plan import Plan
 from .blueprint import recording_blueprint
 from .segment_run import SegmentResult
 
 DEFAULT_VIEWER_URL = "rerun+http://127.0.0.1:9876/proxy"
+
+
+def viewer_binary() -> str | None:
+    """The viewer that ships in rerun-sdk (rerun_cli's binary: the release of the SDK that sends, not the Python shim
+    that would start it), else a `rerun` beside this Python, else one on PATH; None when there is none."""
+    executable = "rerun.exe" if sys.platform.startswith("win") else "rerun"
+    spec = importlib.util.find_spec("rerun_cli")
+    candidates = [Path(spec.origin).parent / executable] if spec is not None and spec.origin else []
+    candidates.append(Path(sys.executable).parent / executable)
+    for candidate in candidates:
+        if candidate.is_file() and os.access(candidate, os.X_OK):
+            return str(candidate)
+    return shutil.which(executable)
 
 
 def send_to_viewer(plan: Plan, results: tuple[SegmentResult, ...], url: str | None) -> int:

@@ -16,7 +16,6 @@ the view must be the one on screen and its eye the one asked for.
 from __future__ import annotations
 
 import atexit
-import importlib.util
 import io
 import os
 import shutil
@@ -292,15 +291,10 @@ def _escaped(application_id: str) -> str:
 
 
 def _binary() -> str:
-    """The viewer that ships in rerun-sdk (rerun_cli's binary, not the Python shim that would start it)."""
-    executable = "rerun.exe" if sys.platform.startswith("win") else "rerun"
-    spec = importlib.util.find_spec("rerun_cli")
-    candidates = [Path(spec.origin).parent / executable] if spec is not None and spec.origin else []
-    candidates.append(Path(sys.executable).parent / executable)
-    for candidate in candidates:
-        if candidate.is_file():
-            return str(candidate)
-    found = shutil.which(executable)
+    """The viewer that ships in rerun-sdk (execute.viewer_binary: the one `run --spawn` starts too)."""
+    from ..execute import viewer_binary
+
+    found = viewer_binary()
     if found is None:
         raise UserError("cannot draw pictures: the Rerun viewer is not installed (pip install 'rerun-sdk==0.41.*')")
     return found
