@@ -48,6 +48,15 @@ class JointReport:
     unit_fits: str | None = None  # the simplest advice changes the unit only, to this one
     robot_advice: str | None = None  # every joint of this kind fits in another unit: the robot's joints.unit to paste
 
+    def limits_text(self) -> str:
+        """`-166 .. 166`, the limits in source units as check and init show them, or `none`."""
+        limits = self.limits_in_source_unit
+        return f"{limits[0]:.6g} .. {limits[1]:.6g}" if limits else "none"
+
+    def values_text(self) -> str:
+        """`-12.5 .. 171`, the sampled raw range, or `no values`."""
+        return f"{self.raw_min:.6g} .. {self.raw_max:.6g}" if self.raw_min is not None and self.raw_max is not None else "no values"
+
 
 def _current_values(channel: JointChannel, raw: np.ndarray) -> np.ndarray:
     if channel.wrap:
@@ -210,10 +219,9 @@ def as_text(reports: Sequence[JointReport]) -> str:
             robot = r.robot
             lines.append(f"robot {shown(robot)}: {r.rows} sampled rows")
         status = "ok" if r.current_fits else "DOES NOT FIT"
-        limits = f"{r.limits_in_source_unit[0]:.6g} .. {r.limits_in_source_unit[1]:.6g}" if r.limits_in_source_unit else "none"
-        raw = f"{r.raw_min:.6g} .. {r.raw_max:.6g}" if r.raw_min is not None else "no values"
         lines.append(
-            f"  {shown(r.source_name)} -> {shown(r.joint)} [{r.source_unit}]: values {raw}; URDF limits {limits}; with the config's corrections: {status}"
+            f"  {shown(r.source_name)} -> {shown(r.joint)} [{r.source_unit}]: values {r.values_text()}; URDF limits {r.limits_text()}; "
+            f"with the config's corrections: {status}"
         )
         if r.slack_rows:
             lines.append(

@@ -177,12 +177,21 @@ def looks_like_a_bigger_unit(channel: JointChannel, raw: np.ndarray) -> str | No
     if channel.source_range is not None or channel.wrap or channel.lower is None or channel.upper is None or not raw.size:
         return None
     units = ANGLES if angular(channel) else LENGTHS
-    width = channel.upper - channel.lower
     for unit in sorted(units, key=lambda u: -FACTORS[u]):
         if FACTORS[unit] <= FACTORS[channel.source_unit]:
             break
-        candidate = unit_only(channel, unit)
-        reach = float(np.max(np.abs(raw))) * FACTORS[unit] * abs(channel.scale)
-        if width > 0 and reach >= 0.1 * width and fits(candidate.values(channel, raw), channel):
+        if reaches(channel, raw, unit) and fits(unit_only(channel, unit).values(channel, raw), channel):
             return unit
     return None
+
+
+REACH_SHARE = 0.1  # values that reach this share of the joint's range in a unit look like that unit; below, near zero
+
+
+def reaches(channel: JointChannel, raw: np.ndarray, unit: str) -> bool:
+    """Whether the raw values, read in `unit`, reach at least REACH_SHARE of the joint's range from zero (where in a
+    smaller unit they would barely leave it): check's "clearly ambiguous" and init's choice of unit."""
+    assert channel.lower is not None and channel.upper is not None
+    width = channel.upper - channel.lower
+    reach = float(np.max(np.abs(raw))) * FACTORS[unit] * abs(channel.scale)
+    return width > 0 and reach >= REACH_SHARE * width

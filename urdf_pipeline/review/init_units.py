@@ -20,7 +20,7 @@ from ..compile import FACTORS, UNIT_NAMES
 from ..errors import UserError
 from ..plan import JointChannel, Plan
 from .check import check_plan, read_sample
-from .check_candidates import ANGLES, LENGTHS, fits, fitting, unit_only
+from .check_candidates import ANGLES, LENGTHS, fits, fitting, reaches, unit_only
 
 
 @dataclass(frozen=True)
@@ -71,13 +71,7 @@ def choose_unit(channel: JointChannel, raw: np.ndarray) -> UnitChoice | None:
     if len(in_units) == 1:
         return UnitChoice(in_units[0], f"sampled values {span} fit the limits only in {UNIT_NAMES[in_units[0]]}", True)
     if in_units:
-        width = channel.upper - channel.lower
-        reach = float(np.max(np.abs(finite)))
-
-        def share(unit: str) -> float:  # how far from zero the values reach in `unit`, as a share of the joint's range
-            return reach * FACTORS[unit] * abs(channel.scale) / width if width > 0 else 0.0
-
-        looks = [u for u in sorted(in_units, key=lambda u: -FACTORS[u]) if share(u) >= 0.1]
+        looks = [u for u in sorted(in_units, key=lambda u: -FACTORS[u]) if reaches(channel, finite, u)]
         others = [u for u in in_units if looks and u != looks[0]]
         if looks and all(FACTORS[looks[0]] >= 20 * FACTORS[u] for u in others):  # in the others they would barely leave zero
             smaller = " or ".join(UNIT_NAMES[u] for u in others)
@@ -121,10 +115,10 @@ def refused_by_check(plan: Plan, sample: dict[str, np.ndarray]) -> list[str]:
     for r in check_plan(plan, sample):
         if r.current_fits:
             continue
-        limits = f"{r.limits_in_source_unit[0]:.6g} .. {r.limits_in_source_unit[1]:.6g}" if r.limits_in_source_unit else "none"
-        raw = f"{r.raw_min:.6g} .. {r.raw_max:.6g}" if r.raw_min is not None and r.raw_max is not None else "no values"
         advice = f"; paste: {r.paste}" if r.paste else ""
-        lines.append(f"{r.source_name} -> {r.joint} [{r.source_unit}]: values {raw} outside the limits {limits}: {r.message}{advice}")
+        lines.append(
+            f"{r.source_name} -> {r.joint} [{r.source_unit}]: values {r.values_text()} outside the limits {r.limits_text()}: {r.message}{advice}"
+        )
     return lines
 
 
