@@ -153,6 +153,11 @@ def _inside_git(path: Path) -> bool:
     return ".git" in path.parts
 
 
+def _allows(real: Path, roots: tuple[Path, ...]) -> bool:
+    """The rule on a path already resolved (or, when the OS cannot follow it, as written): under a root, not in .git."""
+    return not _inside_git(real) and any(real.is_relative_to(root) for root in roots)
+
+
 def _work_tree(folder: Path) -> Path | None:
     """The top of the git work tree holding `folder` (the nearest ancestor with a `.git` entry), if any."""
     for candidate in (folder, *folder.parents):
@@ -183,14 +188,14 @@ class Confinement:
             real = resolved(path)
         except Unresolvable:
             return False
-        return not _inside_git(real) and any(real.is_relative_to(root) for root in roots)
+        return _allows(real, roots)
 
     def check_read(self, path: Path, what: str, where: Where | None) -> Path:
         """`path` resolved, or a user error naming it: `what` says which file it is ("mesh", "URDF file", ...). What the
         OS says of the file (a loop, a name too long, a FIFO) is told only for a place the rule allows: a config learns
         nothing of files outside its roots. A missing file passes: the caller says "not found" in its own words."""
         real = self._followed(path, what, where, self.read_roots, writing=False)
-        if not self.may_read(real):
+        if not _allows(real, self.read_roots):
             raise UserError(f"{what} {path}{self._outside(path, real)}", where)
         file_state(real, what, where)
         return real
@@ -199,7 +204,7 @@ class Confinement:
         """`path` resolved, or a user error: outside the write roots, a folder or a file in the way of its folder, a name
         too long for the file system (with room for the partial file written first), or a path the OS cannot follow."""
         real = self._followed(path, what, where, self.write_roots, writing=True)
-        if not self.may_write(real):
+        if not _allows(real, self.write_roots):
             raise UserError(f"{what} {path}{self._outside(path, real, writing=True)}", where)
         long = [part for part in real.parts if len(os.fsencode(part)) > NAME_MAX]
         if long or len(os.fsencode(real.name)) + PARTIAL_ROOM > NAME_MAX:
@@ -229,7 +234,7 @@ class Confinement:
             return resolved(path)
         except Unresolvable as exc:
             lexical = _lexical(path)
-            if _inside_git(lexical) or not any(lexical.is_relative_to(root) for root in roots):
+            if not _allows(lexical, roots):
                 raise UserError(f"{what} {path}{self._outside(path, lexical, writing)}", where) from None
             raise UserError(f"{what} {path} cannot be {'written' if writing else 'read'}: {exc.cause}", where) from None
 
