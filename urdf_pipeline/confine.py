@@ -92,6 +92,15 @@ def _lexical(path: Path) -> Path:
     return Path(os.path.abspath(path.expanduser()))
 
 
+def resolved_or_written(path: Path) -> Path:
+    """`path` resolved; as written (absolute, `..` folded) when the OS cannot follow it: for a path that is only
+    compared or named (an output, a manifest entry), whose checks then refuse it with the cause."""
+    try:
+        return resolved(path)
+    except Unresolvable:
+        return _lexical(path)
+
+
 FileState = Literal["missing", "file", "folder"]
 
 
@@ -260,8 +269,5 @@ def _confinement(config_dir: Path, environment: tuple[Path, ...], allowed: tuple
 
 def confinement_for(config_file: Path) -> Confinement:
     """The roots of the config at `config_file` under the current environment."""
-    try:
-        folder = resolved(config_file).parent
-    except Unresolvable:  # the config was read, so this is rare (a link replaced meanwhile): its folder as named
-        folder = _lexical(config_file).parent
+    folder = resolved_or_written(config_file).parent  # the config was read: as named only if a link changed meanwhile
     return _confinement(folder, _environment_roots(), _allowed_by_user())

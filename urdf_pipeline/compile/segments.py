@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from ..confine import Unresolvable, file_state, resolved
+from ..confine import Unresolvable, file_state, resolved, resolved_or_written
 from ..errors import UserError, Where, listing
 from ..plan import DatasetPlan, LeRobotSourcePlan, Segment, SourcePlan
 from ..sources import KINDS, kind_of, refuse_control_characters
@@ -312,7 +312,7 @@ def _output_paths(ctx: CompileContext, template: str, ids: list[str]) -> list[Pa
     if len(ids) > 1 and "segment" not in fields:
         problems.add(f"{len(ids)} segments would all be written to '{template}'; put {{segment}} in output.path", where)
         return None
-    return [_output_path(ctx.config_dir / template.format(segment=i)) for i in ids]
+    return [resolved_or_written(ctx.config_dir / template.format(segment=i)) for i in ids]
 
 
 def _source_for(plan: SourcePlan, sources: CompiledSources, episode: int | None, stem: str | None) -> SourcePlan:
@@ -351,7 +351,7 @@ def _dataset_plan(ctx: CompileContext, segments: tuple[Segment, ...]) -> Dataset
         if "{" in output["model"]:
             problems.add("output.model is written once for all segments: it takes no placeholder", ctx.where("output", "model"))
             return None
-        model = _output_path(config_dir / output["model"])
+        model = resolved_or_written(config_dir / output["model"])
         if any(s.output == model for s in segments):
             problems.add(f"output.model {model} is also a segment's output path", ctx.where("output", "model"))
             return None
@@ -359,7 +359,7 @@ def _dataset_plan(ctx: CompileContext, segments: tuple[Segment, ...]) -> Dataset
         problems.add("output.model is only used with layout: split; remove it or set layout: split", ctx.where("output", "model"))
         return None
     if "manifest" in output:
-        manifest = _output_path(config_dir / output["manifest"])
+        manifest = resolved_or_written(config_dir / output["manifest"])
     else:
         directory = _fixed_directory(output["path"], config_dir)
         manifest = directory / f"{ctx.document.file.stem}.manifest.json"
@@ -391,13 +391,4 @@ def _outputs_confined(ctx: CompileContext, segments: tuple[Segment, ...], model:
 def _fixed_directory(template: str, base: Path) -> Path:
     """The deepest directory of output.path before any placeholder: where the manifest goes by default."""
     fixed = itertools.takewhile(lambda part: "{" not in part, Path(template).parent.parts)
-    return _output_path(base.joinpath(*fixed))
-
-
-def _output_path(path: Path) -> Path:
-    """An output path resolved; as written (made absolute) when the OS cannot follow it: `_outputs_confined` refuses
-    it then, at its key, with the cause."""
-    try:
-        return resolved(path)
-    except Unresolvable:
-        return Path(os.path.abspath(path))
+    return resolved_or_written(base.joinpath(*fixed))

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from .. import __version__
-from ..confine import Unresolvable, resolved
+from ..confine import resolved_or_written
 from ..errors import Where
 from ..execute import require_ours, write_file_atomically
 
@@ -101,10 +101,7 @@ class Manifest:
     def resolve(self, relative: str) -> Path:
         """An entry's path, resolved; as written when the OS cannot follow it (a loop, a name too long: the manifest may
         come from a pull request), which then matches no output and names no file."""
-        try:
-            return resolved(self.path.parent / relative)
-        except Unresolvable:
-            return Path(os.path.abspath(self.path.parent / relative))
+        return resolved_or_written(self.path.parent / relative)
 
     def outputs(self) -> list[tuple[str, Path]]:
         """(segment id, layer or recording path) of every segment the manifest lists whose file exists."""
