@@ -163,6 +163,16 @@ def test_the_refusal_names_the_included_file(tmp_path: Path, run_cli) -> None:
     assert_user_error(run_cli("validate", str(config)), config, "xacro file parts/inner.xacro: expression '().__class__' is refused")
 
 
+def test_xacro_s_warnings_quoting_the_file_are_neutral(tmp_path: Path, run_cli) -> None:
+    """xacro's warning on an include that matches nothing quotes the filename, which a pull request writes: a newline
+    in it must not start a line GitHub reads as a workflow command."""
+    config = write_robot(tmp_path, "r", '<xacro:include filename="nothing*&#10;::error file=x::forged"/>')
+    result = run_cli("validate", str(config))
+    assert result.code == 0, result.err
+    assert "matched no files" in result.err
+    assert not [line for line in result.err.splitlines() if line.lstrip().startswith("::")], result.err
+
+
 # --- environment ----------------------------------------------------------------------------------------------------
 
 

@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from ..confine import Confinement
-from ..errors import UserError, Where, listing
+from ..errors import UserError, Where, listing, neutral_text
 
 MEMORY_ENV = "URDF_PIPELINE_XACRO_MEMORY_MB"  # the runner may raise the bounds for a huge robot; a config cannot
 TIMEOUT_ENV = "URDF_PIPELINE_XACRO_TIMEOUT"
@@ -303,9 +303,11 @@ def _failure(request: XacroRequest, limits: Limits, budget: XacroBudget, code: i
 
 
 def _show_warnings(data: bytes) -> None:
-    """xacro's own warnings (deprecations, unknown attributes), as it would have printed them, shortened."""
+    """xacro's own warnings (deprecations, unknown attributes), as it would have printed them, shortened, and each line
+    neutral: they quote the xacro file's own text (an include's filename), which may hold a newline and a workflow
+    command."""
     if data:
         text = data[:SHOWN_STDERR].decode("utf-8", "replace")
-        sys.stderr.write(text if text.endswith("\n") else text + "\n")
+        sys.stderr.write(neutral_text(text if text.endswith("\n") else text + "\n"))
         if len(data) > SHOWN_STDERR:
             sys.stderr.write(f"(xacro printed more; the first {SHOWN_STDERR >> 10} KB are shown)\n")
