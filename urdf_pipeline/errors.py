@@ -238,3 +238,23 @@ def did_you_mean(name: str, choices: Iterable[str]) -> str:
     """` (did you mean 'x'?)` to append to a message, or nothing."""
     close = closest(name, choices)
     return f" (did you mean {quoted(close)}?)" if close is not None else ""
+
+
+HINTED = 20  # misspelled names of one check that get a "did you mean"
+
+
+class Hints:
+    """ "Did you mean" for the first HINTED misspelled names of one check, then nothing: each hint compares a name with
+    every choice, so a file or config of 20,000 wrong names must not ask for all of them (that is quadratic)."""
+
+    def __init__(self, limit: int = HINTED) -> None:
+        self.left = limit
+
+    def allowed(self) -> bool:
+        """Whether this problem still gets a hint (counts it): for a check with a rule of its own (a looser cutoff)."""
+        self.left -= 1
+        return self.left >= 0
+
+    def __call__(self, name: str, choices: Iterable[str]) -> str:
+        """`did_you_mean(name, choices)` while hints are allowed, else nothing."""
+        return did_you_mean(name, choices) if self.allowed() else ""

@@ -15,10 +15,10 @@ import pytest
 import yaml
 
 from urdf_pipeline.compile.frame_graph import FrameEdge, tops
-from urdf_pipeline.errors import Where
+from urdf_pipeline.errors import HINTED, Where
 from urdf_pipeline.examples import write_joint_parquet
 from urdf_pipeline.urdf.fixed_chain import find_fixed_chain
-from urdf_pipeline.urdf.model import HINTED, UrdfParseError, parse_urdf_text
+from urdf_pipeline.urdf.model import UrdfParseError, parse_urdf_text
 from urdf_pipeline.urdf.repair import RUST_STACK_ENV
 
 LINKS = 20_000

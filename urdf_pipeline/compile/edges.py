@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..config import EdgeSpec
-from ..errors import warn
+from ..errors import Hints, warn
 from ..plan import EdgePlan, FixedChain, RobotPlan, TemporalEdgePlan
 from ..urdf import NoFixedChain, UrdfModel, compose_chain, find_fixed_chain, normalized_quaternion, quaternion_from_rpy
 from .context import CompileContext, SourceNames
@@ -82,19 +82,16 @@ class _Owners:
     """Which robot's URDF emits a frame (a link name with its frame_prefix applied): the first robot, in config order,
     that has it. Made once for all edges, so each look-up is a dict's, whatever the robots' size."""
 
-    HINTED = 20  # unknown frames that get a "did you mean" hint: each compares the name with every link
-
     def __init__(self, robots: list[RobotPlan]) -> None:
         self.by_frame: dict[str, RobotPlan] = {}
         for robot in robots:
             for link in robot.links:
                 self.by_frame.setdefault(robot.frame_prefix + link, robot)
-        self.hints = self.HINTED
+        self.hints = Hints()  # "did you mean", for the first unknown frames (with the looser cutoff of fixed chains)
         self.sorted: list[str] | None = None
 
     def hint(self, frame: str) -> str:
-        self.hints -= 1
-        if self.hints < 0:
+        if not self.hints.allowed():
             return ""
         if self.sorted is None:
             self.sorted = sorted(self.by_frame)

@@ -9,10 +9,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..errors import Where, closest, did_you_mean
+from ..errors import Hints, Where, closest, did_you_mean
 from .context import CompileContext
-
-HINTED = 20  # disconnected frames that get a "did you mean" hint; each hint compares a name with every frame
 
 
 @dataclass(frozen=True)
@@ -101,13 +99,12 @@ class _Hints:
         for edge in edges:
             if edge.configured:
                 self.parent_edge.setdefault(edge.parent, edge)
-        self.left = HINTED
+        self.hints = Hints()
         self.sorted_frames: list[str] | None = None
 
     def disconnected_message(self, frame: str, root: str) -> str:
         message = f"no edge connects frame '{frame}' to root '{root}'"
-        hinted = self.left > 0
-        self.left -= 1
+        hinted = self.hints.allowed()
         if frame in self.urdf_frames:
             message += f"; add a calibration edge with parent: {root} (or a frame that reaches it) and child: {frame}"
             stray = closest(frame, self.strays) if hinted else None
@@ -140,15 +137,14 @@ def check_assume_identity(
         parent_of.setdefault(edge.child, edge)
     named = set(urdf_frames) | {e.parent for e in edges} | {e.child for e in edges}
     ends = tops(parent_of, [frame for frame, _ in frames if frame in parent_of])
-    hinted = HINTED
+    hint = Hints()
     accepted: list[str] = []
     for frame, where in frames:
         if frame == root:
             problems.add(f"'{frame}' is the root frame; frames.assume_identity lists frames to hang from it", where)
         elif frame not in named:
-            hint = did_you_mean(frame, sorted(named)) if hinted > 0 else ""
-            hinted -= 1
-            problems.add(f"frame '{frame}' is named by no URDF and no edge; remove it from frames.assume_identity{hint}", where)
+            said = hint(frame, named)
+            problems.add(f"frame '{frame}' is named by no URDF and no edge; remove it from frames.assume_identity{said}", where)
         elif frame in parent_of:
             edge, top = parent_of[frame], ends[frame]
             if top == root:

@@ -9,11 +9,10 @@ value is its entry's `unit`, else the robot's `joints.unit` for the joint's kind
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
-from ..errors import Where, listing, quoted
+from ..errors import Hints, Where, listing, quoted
 from ..errors import did_you_mean as _hint
 from ..plan import HeldJoint, JointChannel, MimicJoint, OnViolation
 from ..urdf import UrdfModel
@@ -63,7 +62,7 @@ def compile_joints(
     all_joints = [j.name for j in model.joints]
     mimic_joints = {j.name for j in model.joints if j.mimic is not None}
     positions = {name: i for i, name in enumerate(names)} if names is not None else None  # linear in a wide source
-    hint = _Hints()
+    hint = Hints()
 
     channels: list[JointChannel] = []
     covered: dict[str, str] = {}  # joint -> how ("map entry 'j1'", "hold")
@@ -160,20 +159,6 @@ def _corrections_consistent(ctx: CompileContext, entry: _MapEntry) -> bool:
             problems.add(f"source_range [{low}, {high}] is empty", where)
             return False
     return True
-
-
-class _Hints:
-    """ "Did you mean" for the first few misspelled names of one robot: each hint compares with every name, so a config
-    with thousands of wrong names would be quadratic; after the first 20 the message names the culprit alone."""
-
-    def __init__(self, limit: int = 20) -> None:
-        self.left = limit
-
-    def __call__(self, name: str, choices: Sequence[str]) -> str:
-        if self.left <= 0:
-            return ""
-        self.left -= 1
-        return _hint(name, choices)
 
 
 def _channel(ctx: CompileContext, robot: _RobotJoints, entry: _MapEntry, joint_name: str) -> JointChannel | None:

@@ -16,13 +16,12 @@ from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 
-from ..errors import did_you_mean, listing
+from ..errors import Hints, listing
 from .xml_text import UrdfParseError, parse_root
 
 MOVING_TYPES = ("revolute", "continuous", "prismatic")
 ANGULAR_TYPES = ("revolute", "continuous")
 JOINT_TYPES = (*MOVING_TYPES, "fixed", "floating", "planar")
-HINTED = 20  # problems per file that get a "did you mean" hint: each compares a name with every link or joint
 # A decimal number as urdfdom reads it (no "inf", "nan", hex or "1_0", which Python's float() would take).
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
 
@@ -150,17 +149,11 @@ class _Problems:
     origin: str
     lines: dict[int, int] | None
     messages: list[str] = field(default_factory=list)
-    hints: int = HINTED  # "did you mean" hints left
+    hint: Hints = field(default_factory=Hints)  # "did you mean", for the first problems of the file
 
     def add(self, message: str, element: ET.Element | None = None) -> None:
         line = self.lines.get(id(element)) if self.lines is not None and element is not None else None
         self.messages.append(f"{self.origin}:{line}: {message}" if line else f"{self.origin}: {message}")
-
-    def hint(self, name: str, choices: list[str]) -> str:
-        """` (did you mean 'x'?)` (the one rule of errors.did_you_mean) for the first HINTED problems, then nothing:
-        each hint compares `name` with every choice, so a file of 20,000 wrong names must not ask for all of them."""
-        self.hints -= 1
-        return did_you_mean(name, choices) if self.hints >= 0 else ""
 
 
 def _joint(element: ET.Element, problems: _Problems) -> Joint | None:
