@@ -341,6 +341,21 @@ def test_git_errors_name_the_revision(run_cli, workspace: Path) -> None:
     assert not [p for p in workspace.iterdir() if p.name.startswith(".broken")]
 
 
+def test_a_huge_config_at_the_revision_is_refused_as_in_the_working_tree(run_cli, workspace: Path) -> None:
+    """The old text is copied only up to one byte past what the YAML reader takes, which then refuses it by its size."""
+    from urdf_pipeline.config import MAX_BYTES
+
+    config = workspace / "demo.yaml"
+    _git(workspace, "init", "-q")
+    config.write_text(config.read_text() + "# padding\n" * (MAX_BYTES // 10 + 1))
+    _git(workspace, "add", "demo.yaml")
+    _git(workspace, "commit", "-q", "-m", "huge")
+    config.write_text(config.read_text()[: -10 * (MAX_BYTES // 10 + 1)])
+    result = run_cli("diff", str(config), "--git", "HEAD")
+    assert result.code == 1 and "is larger than 4 MB" in result.err, result.err
+    assert not [p for p in workspace.iterdir() if p.name.startswith(".demo")]
+
+
 @pytest.mark.parametrize(
     "revision", ["--output={pwned}", "-n", "-c core.pager=touch {pwned}", "--no-such-rev", "HEAD~5", "nope", "HEAD:demo.yaml"]
 )

@@ -11,11 +11,12 @@ from typing import TYPE_CHECKING
 from .. import lazy_surface
 
 if TYPE_CHECKING:
-    from .document import Document, format_path, load_document, parse_document
+    from .document import MAX_BYTES, Document, format_path, load_document, parse_document
     from .schema import SCHEMA_RESOURCE, require_schema_valid, schema_text, validate_document
     from .sidecar import EdgeSpec, expand_edge_specs
 
 __all__ = [
+    "MAX_BYTES",
     "Document",
     "EdgeSpec",
     "SCHEMA_RESOURCE",
@@ -31,6 +32,7 @@ __all__ = [
 __getattr__ = lazy_surface(
     __name__,
     {
+        "MAX_BYTES": "document",
         "Document": "document",
         "EdgeSpec": "sidecar",
         "SCHEMA_RESOURCE": "schema",

@@ -19,6 +19,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
 
+from ..config import MAX_BYTES
 from ..errors import UserError, UserErrors, Where, collect_warnings, quoted, shown
 from ..plan import Plan
 from .diff import diff_plans
@@ -89,9 +90,6 @@ def _as_if_named(plan: Plan, copy: Path, config: Path) -> Plan:
     return plan
 
 
-GIT_COPY_BYTES = 8 * 2**20  # more of the old config's text than the YAML reader accepts: it refuses a larger copy itself
-
-
 def _git(arguments: list[str], config: Path, revision: str, **kwargs: Any) -> subprocess.Popen[bytes]:
     """git, started in the config's folder (as compile_config sees it: relative paths start from here). The caller puts
     `--end-of-options` before any argument that holds user data, so none can be read as an option."""
@@ -136,7 +134,7 @@ def verified_revision(config: Path, revision: str) -> str:
 @contextmanager
 def git_revision_copy(config: Path, revision: str) -> Iterator[Path]:
     """The config's text at `revision` (`git cat-file blob COMMIT:./NAME` in the config's folder) in a hidden file
-    beside the config (so relative paths resolve alike), removed afterwards. At most GIT_COPY_BYTES are copied: the
+    beside the config (so relative paths resolve alike), removed afterwards. At most MAX_BYTES + 1 are copied: the
     YAML reader refuses a copy that large, as it refuses such a file in the working tree."""
     commit = verified_revision(config, revision)
     folder = config.absolute().parent  # as compile_config sees it: relative paths start from here
@@ -151,10 +149,10 @@ def git_revision_copy(config: Path, revision: str) -> Iterator[Path]:
 
 
 def _copy_blob(config: Path, revision: str, spec: str, stream: IO[bytes]) -> None:
-    """The blob's bytes into `stream`, at most GIT_COPY_BYTES; a user error naming REV when git cannot give it."""
+    """The blob's bytes into `stream`, at most MAX_BYTES + 1; a user error naming REV when git cannot give it."""
     child = _git(["cat-file", "blob", "--end-of-options", spec], config, revision, stdout=subprocess.PIPE)
     assert child.stdout is not None and child.stderr is not None
-    left = GIT_COPY_BYTES
+    left = MAX_BYTES + 1  # one byte more than the YAML reader accepts: it refuses the copy as it refuses such a file
     while left > 0 and (chunk := child.stdout.read(min(left, 1 << 16))):
         stream.write(chunk)
         left -= len(chunk)
