@@ -11,10 +11,13 @@ import numpy as np
 import pytest
 import yaml
 
+from urdf_pipeline.confine import ALLOW_ENV
 from urdf_pipeline.errors import Where
 from urdf_pipeline.examples import write_joint_parquet
 from urdf_pipeline.plan import JointChannel
 from urdf_pipeline.review.check import check_channel
+
+from ..conftest import SHARED
 
 HERE = Where(Path("c.yaml"), 1)
 
@@ -185,3 +188,33 @@ def test_lerobot_degrees_configured_as_radians_get_the_robot_unit(examples_dir: 
     reports = json.loads(run_cli("check", str(config), "--format", "json").out)
     assert {r["unit_fits"] for r in reports} == {"deg"} and all("unit: deg" in r["robot_advice"] for r in reports)
     assert run_cli("check", str(examples_dir / "so101_lerobot.yaml")).out.count("fits: fits as configured") == 6
+
+
+G1_DATA = SHARED / "data" / "lerobot_g1_inspire_v21"
+G1_CONFIG = Path(__file__).resolve().parents[1] / "configs" / "valid" / "g1_inspire_lerobot.yaml"
+
+
+@pytest.mark.skipif(not G1_DATA.is_dir(), reason=f"{G1_DATA} is absent (shared data is not part of a fresh clone)")
+def test_the_real_g1_recording_configured_in_degrees_hears_radians_for_the_robot(
+    examples_dir: Path, run_cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The real G1 recording (radians) near its rest pose: configured as `deg`, every arm joint still fits, most barely
+    leave zero. The robot hears that its joints look like radians, with the line to paste; configured as `rad`, nothing
+    to say."""
+    monkeypatch.setenv(ALLOW_ENV, str(G1_DATA))
+    (tmp_path / "data").mkdir()
+    (tmp_path / "data" / G1_DATA.name).symlink_to(G1_DATA, target_is_directory=True)
+    (tmp_path / "robots").symlink_to(examples_dir / "robots", target_is_directory=True)
+    text = G1_CONFIG.read_text()
+    assert "      unit: rad\n" in text
+    (tmp_path / "g1.yaml").write_text(text)
+    (tmp_path / "g1_deg.yaml").write_text(text.replace("      unit: rad\n", "      unit: deg\n"))
+    as_rad = run_cli("check", str(tmp_path / "g1.yaml"))
+    assert as_rad.code == 0 and "whole robot" not in as_rad.out and as_rad.out.count("fits: fits as configured") == 14, as_rad.out
+    as_deg = run_cli("check", str(tmp_path / "g1_deg.yaml"))
+    assert as_deg.code == 0, as_deg.err
+    assert (
+        "  whole robot: every revolute and continuous joint of robot g1 fits as configured and also if its values are radians" in as_deg.out
+    )
+    assert "write `unit: rad` under robots.g1.joints; settle against a known pose" in as_deg.out
+    assert as_deg.out.count("ambiguous: fits as configured, but the values also fit if they are radians") >= 1

@@ -46,6 +46,7 @@ class JointReport:
     slack_worst: float | None = None
     message: str = ""
     unit_fits: str | None = None  # the simplest advice changes the unit only, to this one
+    bigger_unit: str | None = None  # fits as configured, but its values look like this bigger unit (deg -> rad)
     robot_advice: str | None = None  # every joint of this kind fits in another unit: the robot's joints.unit to paste
 
     def limits_text(self) -> str:
@@ -100,7 +101,7 @@ def check_channel(robot: RobotPlan, channel: JointChannel, raw: np.ndarray) -> J
             f"{channel.source_unit} they all stay within {reach:.3g} {channel.source_unit} of zero on a joint whose limits span "
             f"{(upper - lower) / abs(channel.gain):.4g} {channel.source_unit}; settle against a known pose"
         )
-        return replace(report, verdict="ambiguous", message=message)
+        return replace(report, verdict="ambiguous", message=message, bigger_unit=bigger)
     if not kept:
         message = "no correction fits: the column is probably another joint, or the name order is off"
         return replace(report, verdict="none", message=message)
@@ -125,10 +126,14 @@ def check_channel(robot: RobotPlan, channel: JointChannel, raw: np.ndarray) -> J
 
 def _robot_advice(robot: RobotPlan, reports: list[JointReport], raw: np.ndarray) -> list[JointReport]:
     """When some joint's advice is another unit and every mapped joint of that kind fits in it (with its own sign,
-    offset and wrap), the robot's `joints.unit` is the one line to change: say it on each of the robot's reports."""
+    offset and wrap), the robot's `joints.unit` is the one line to change: say it on each of the robot's reports.
+    Likewise when the values fit as configured but some joint's look like a bigger unit (radians configured as `deg`)
+    and every joint of that kind fits in it too: a robot near its rest pose leaves most joints near zero in either
+    unit, so one joint's doubt is the robot's."""
     by_channel = {(r.source_name, r.joint): r for r in reports}
     advised = {r.unit_fits for r in reports if r.unit_fits is not None}
-    for unit in sorted(advised):
+    suspected = {r.bigger_unit for r in reports if r.bigger_unit is not None} - advised
+    for unit in sorted(advised | suspected):
         kind = [c for c in robot.channels if c.source_range is None and angular(c) == (unit in ANGLES)]
         agree = all(
             np.isfinite(raw[:, c.source_index]).any() and fits(unit_only(c, unit).values(c, _finite(raw[:, c.source_index])), c)
@@ -137,22 +142,31 @@ def _robot_advice(robot: RobotPlan, reports: list[JointReport], raw: np.ndarray)
         )
         if not agree:
             continue
-        others = {c.source_unit for c in robot.channels if c.source_range is None and angular(c) != (unit in ANGLES)}
-        other = next(iter(others)) if len(others) == 1 else None
-        if unit in ANGLES:
-            written = f"{{angle: {unit}, length: {other}}}" if other not in (None, "m") else unit
-        else:
-            written = f"{{angle: {other}, length: {unit}}}" if other not in (None, "rad") else unit
         what = "revolute and continuous" if unit in ANGLES else "prismatic"
-        advice = (
-            f"every {what} joint of robot {robot.key} fits if its values are {UNIT_NAMES[unit]}: "
-            f"write `unit: {written}` under robots.{robot.key}.joints"
-        )
+        written = f"write `unit: {_robot_unit(robot, unit)}` under robots.{robot.key}.joints"
+        if unit in advised:
+            advice = f"every {what} joint of robot {robot.key} fits if its values are {UNIT_NAMES[unit]}: {written}"
+        else:
+            looking = sum(1 for r in reports if r.bigger_unit == unit)
+            advice = (
+                f"every {what} joint of robot {robot.key} fits as configured and also if its values are {UNIT_NAMES[unit]}, "
+                f"and {looking} of them look like {UNIT_NAMES[unit]} (as configured they barely leave zero): if they are, "
+                f"{written}; settle against a known pose"
+            )
         for c in kind:
             report = by_channel.get((c.source_name, c.joint))
-            if report is not None:
+            if report is not None and report.robot_advice is None:
                 by_channel[(c.source_name, c.joint)] = replace(report, robot_advice=advice)
     return [by_channel[(r.source_name, r.joint)] for r in reports]
+
+
+def _robot_unit(robot: RobotPlan, unit: str) -> str:
+    """The robot's `joints.unit` with `unit` for its kind, the other kind's unit kept (`{angle: deg, length: mm}`)."""
+    others = {c.source_unit for c in robot.channels if c.source_range is None and angular(c) != (unit in ANGLES)}
+    other = next(iter(others)) if len(others) == 1 else None
+    if unit in ANGLES:
+        return f"{{angle: {unit}, length: {other}}}" if other not in (None, "m") else unit
+    return f"{{angle: {other}, length: {unit}}}" if other not in (None, "rad") else unit
 
 
 def _finite(column: np.ndarray) -> np.ndarray:
