@@ -3,7 +3,7 @@ PYTHON ?= python3.11
 VENV := .venv
 BIN := $(VENV)/bin
 
-.PHONY: demo test clean bytecode renderer
+.PHONY: demo test lint clean bytecode renderer
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -41,7 +41,14 @@ renderer:
 	  echo "note: could not install mesa-vulkan-drivers: the renderer tests will skip"; \
 	else echo "note: no Vulkan driver: the renderer tests will skip; install one: sudo apt-get install mesa-vulkan-drivers"; fi
 
-test: $(VENV)/.test-installed bytecode renderer
+# The checks CI runs before the tests (and .pre-commit-config.yaml before a commit): lint, format, types
+# (configured in pyproject.toml; mccabe complexity at most 12).
+lint: $(VENV)/.test-installed
+	$(BIN)/ruff check urdf_pipeline tests benchmarks
+	$(BIN)/ruff format --check urdf_pipeline tests benchmarks
+	$(BIN)/mypy
+
+test: lint bytecode renderer
 	$(BIN)/python -m pytest
 
 clean:

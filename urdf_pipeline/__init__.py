@@ -12,16 +12,22 @@ Every call raises `urdf_pipeline.ConfigError` with the command line's located me
 
 from __future__ import annotations
 
+import ast
 import importlib
 import sys
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 __version__ = "0.3.0"
 
 
-def lazy_surface(package: str, names: Mapping[str, str]) -> Callable[[str], object]:
-    """A package's `__getattr__` for its public names (name -> private module): a module is imported when one of its
-    names is first used, so `validate` does not import Rerun, and the xacro child imports nothing it does not run."""
+def lazy_surface(package: str, init_file: str) -> tuple[list[str], Callable[[str], object]]:
+    """A package's `__all__` and lazy `__getattr__`, from its one list of public names: the imports under
+    `if TYPE_CHECKING:` in its `__init__.py` (`init_file`), which type checkers and editors read as written. A name's
+    module is imported when the name is first used, so `validate` does not import Rerun, and the xacro child imports
+    nothing it does not run. (Scientific Python's SPEC 1, `lazy_loader.attach_stub`, without a separate stub file.)"""
+    names = surface_imports(Path(init_file).read_text(encoding="utf-8"))
 
     def __getattr__(name: str) -> object:
         module = names.get(name)
@@ -29,7 +35,21 @@ def lazy_surface(package: str, names: Mapping[str, str]) -> Callable[[str], obje
             raise AttributeError(f"module {package!r} has no attribute {name!r}")
         return getattr(importlib.import_module(f"{package}.{module}"), name)
 
-    return __getattr__
+    return list(names), __getattr__
+
+
+def surface_imports(source: str) -> dict[str, str]:
+    """Public name -> the package's module that defines it, from the `from .MODULE import NAME` lines of the
+    source's top-level `if TYPE_CHECKING:` block."""
+    names: dict[str, str] = {}
+    for node in ast.parse(source).body:
+        if isinstance(node, ast.If) and isinstance(node.test, ast.Name) and node.test.id == "TYPE_CHECKING":
+            for statement in node.body:
+                assert isinstance(statement, ast.ImportFrom) and statement.level == 1 and statement.module, (
+                    "a package surface lists `from .module import name` lines only"
+                )
+                names.update({alias.asname or alias.name: statement.module for alias in statement.names})
+    return names
 
 
 class PandasLeftOut:
@@ -49,14 +69,11 @@ class PandasLeftOut:
         return any(isinstance(finder, PandasLeftOut) for finder in sys.meta_path)
 
 
-API = {
-    "ConfigError": "api",
-    "Plan": "plan",
-    "RobotKinematics": "execute",
-    "forward_kinematics": "api",
-    "load": "api",
-    "log": "api",
-    "run": "api",
-}
-__all__ = ["PandasLeftOut", "__version__", "lazy_surface", *API]
-__getattr__ = lazy_surface(__name__, API)  # nothing heavy is imported until a name is used
+if TYPE_CHECKING:  # the public API, the one list: lazy_surface reads these lines
+    from .api import ConfigError, forward_kinematics, load, log, run
+    from .execute import RobotKinematics
+    from .plan import Plan
+
+if not TYPE_CHECKING:  # nothing heavy is imported until a name is used
+    _API, __getattr__ = lazy_surface(__name__, __file__)
+    __all__ = ["PandasLeftOut", "__version__", "lazy_surface", "surface_imports", *_API]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ast
 import importlib
+import re
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[2] / "urdf_pipeline"
@@ -54,44 +55,81 @@ def test_no_import_cycle() -> None:
     assert not cycles, "import cycles: " + "; ".join(" -> ".join(c) for c in cycles)
 
 
-# The stages, lowest first: a module may import its own stage and the stages before it, never a later one.
-LAYERS = (
-    ("urdf_pipeline", "urdf_pipeline.errors", "urdf_pipeline.plan", "urdf_pipeline.confine", "urdf_pipeline.progress"),
-    ("urdf_pipeline.config",),
-    ("urdf_pipeline.urdf",),
-    ("urdf_pipeline.sources",),
-    ("urdf_pipeline.compile",),
-    ("urdf_pipeline.execute",),
-    ("urdf_pipeline.dataset",),
-    ("urdf_pipeline.render",),
-    ("urdf_pipeline.review",),
-    ("urdf_pipeline.api",),
-    ("urdf_pipeline.cli", "urdf_pipeline.examples", "urdf_pipeline.__main__"),
-)
+ARCHITECTURE = PACKAGE.parent / "ARCHITECTURE.md"
+TABLE_HEADING = "## What each package may import"
 TOP_LEVEL_MODULES = 8
 
 
-def _layer(module: str) -> int:
-    """The stage of `module`: the longest layer prefix that names it or its package."""
+def _member(span: str) -> str:
+    """`config/` or `errors.py` (a table cell's code span) as a module name: urdf_pipeline.config, urdf_pipeline.errors."""
+    return "urdf_pipeline" if span == "__init__.py" else "urdf_pipeline." + span.removesuffix("/").removesuffix(".py")
+
+
+def may_import_table() -> list[tuple[tuple[str, ...], set[str]]]:
+    """ARCHITECTURE.md's table, the one statement of the rule: each row's members (the code spans of its first cell)
+    and the members it may import, from its second cell: code spans, `top level` (the first row's members), or
+    `every row above`. A row may import its own members."""
+    text = ARCHITECTURE.read_text(encoding="utf-8")
+    assert TABLE_HEADING in text, f"ARCHITECTURE.md has no section {TABLE_HEADING!r}"
+    rows: list[tuple[tuple[str, ...], set[str]]] = []
+    for line in text.split(TABLE_HEADING, 1)[1].splitlines()[1:]:
+        if line.startswith("## "):
+            break
+        cells = [cell.strip() for cell in line.strip().strip("|").split("|")]
+        if not line.startswith("|") or len(cells) < 2 or set(cells[0]) <= {"-", " "} or cells[0] == "package":
+            continue
+        members = tuple(_member(span) for span in re.findall(r"`([^`]+)`", cells[0]))
+        allowed = {_member(span) for span in re.findall(r"`([^`]+)`", cells[1])}
+        if "top level" in cells[1]:
+            allowed |= set(rows[0][0] if rows else members)
+        if "every row above" in cells[1]:
+            allowed |= {name for earlier, _ in rows for name in earlier}
+        assert members, f"ARCHITECTURE.md: a row of {TABLE_HEADING!r} names no module: {line}"
+        rows.append((members, allowed | set(members)))
+    return rows
+
+
+def _row(module: str, rows: list[tuple[tuple[str, ...], set[str]]]) -> int:
+    """The row of `module`: the longest member that names it or its package."""
     best = (-1, 0)
-    for index, names in enumerate(LAYERS):
-        for name in names:
-            if (module == name or module.startswith(name + ".")) and len(name) > best[1]:
+    for index, (members, _) in enumerate(rows):
+        for name in members:
+            if (module == name or (module.startswith(name + ".") and name != "urdf_pipeline")) and len(name) > best[1]:
                 best = (index, len(name))
-    assert best[0] >= 0, f"{module} is in no layer: add it to LAYERS and to ARCHITECTURE.md"
+    assert best[0] >= 0, f"{module} is in no row of ARCHITECTURE.md's {TABLE_HEADING!r}: add it there"
     return best[0]
 
 
-def test_no_upward_import() -> None:
+def test_the_may_import_table_only_looks_up() -> None:
+    """A row may import only rows above it, so the rule itself has no cycle."""
+    rows = may_import_table()
+    downward = [
+        f"{', '.join(members)} may import {target}"
+        for index, (members, allowed) in enumerate(rows)
+        for target in sorted(allowed - set(members))
+        if _row(target, rows) >= index
+    ]
+    assert not downward, "ARCHITECTURE.md's table lets a row import one below it: " + "; ".join(downward)
+
+
+def _within(target: str, names: set[str]) -> bool:
+    """`target` is one of `names` or inside one of the packages among them (the root package names only itself)."""
+    return any(target == name or (name != "urdf_pipeline" and target.startswith(name + ".")) for name in names)
+
+
+def test_every_import_is_allowed_by_the_table() -> None:
+    """Each module imports only what its row of ARCHITECTURE.md's table allows; the root package, which Python imports
+    before any of its modules (`lazy_surface` is there), is everyone's."""
+    rows = may_import_table()
     files = sorted(PACKAGE.rglob("*.py"))
     modules = {_module_name(f) for f in files}
-    upward = [
+    refused = [
         f"{_module_name(f)} -> {target}"
         for f in files
         for target in sorted(_imports(f, modules))
-        if target != "urdf_pipeline" and _layer(target) > _layer(_module_name(f))
+        if target != "urdf_pipeline" and not _within(target, rows[_row(_module_name(f), rows)][1])
     ]
-    assert not upward, "imports of a later stage: " + "; ".join(upward)
+    assert not refused, "imports ARCHITECTURE.md's table does not allow (change the import, or the table): " + "; ".join(refused)
 
 
 def test_the_top_level_stays_small() -> None:
@@ -111,7 +149,13 @@ def test_no_module_is_too_long() -> None:
     assert not long, f"modules over {MAX_MODULE_LINES} lines (split them by what they own): " + "; ".join(long)
 
 
-STAGE_PACKAGES = ("config", "urdf", "sources", "compile", "execute", "dataset", "render", "review", "api")
+# The packages whose `__init__` is a surface: every package of the table but `cli/` (the command line, which no one imports).
+STAGE_PACKAGES = tuple(
+    name.removeprefix("urdf_pipeline.")
+    for members, _ in may_import_table()
+    for name in members
+    if (PACKAGE / name.removeprefix("urdf_pipeline.")).is_dir() and name != "urdf_pipeline.cli"
+)
 
 
 def _absolute_imports(path: Path) -> list[tuple[str, list[str]]]:
@@ -183,14 +227,3 @@ def test_no_surface_name_is_also_a_module_name() -> None:
         module = importlib.import_module(f"urdf_pipeline.{package}")
         clashes += [f"urdf_pipeline.{package}.{name}" for name in module.__all__ if (folder / f"{name}.py").exists()]
     assert not clashes, "exported names that are also module names: " + ", ".join(clashes)
-
-
-def test_urdf_knows_nothing_of_configs() -> None:
-    """`urdf/` reads robot descriptions for anyone (init, tests, users' scripts): locations come in as `Where`s."""
-    reaching = [
-        f"{_module_name(path)} imports {target}"
-        for path in sorted((PACKAGE / "urdf").rglob("*.py"))
-        for target, _ in _absolute_imports(path)
-        if _stage_package(target) == "config"
-    ]
-    assert not reaching, "; ".join(reaching)

@@ -10,9 +10,8 @@ from typing import TYPE_CHECKING
 
 from .. import lazy_surface
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
     from .calls import ConfigError, forward_kinematics, load, log, run
 
-__all__ = ["ConfigError", "forward_kinematics", "load", "log", "run"]
-
-__getattr__ = lazy_surface(__name__, dict.fromkeys(__all__, "calls"))
+if not TYPE_CHECKING:  # the names above, imported when first used
+    __all__, __getattr__ = lazy_surface(__name__, __file__)

@@ -11,40 +11,10 @@ from typing import TYPE_CHECKING
 
 from .. import lazy_surface
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
     from .compiler import DatalessCheck, DataNote, check_config_without_data, compile_config, compile_document
     from .temporal_edges import describe_temporal_edge
     from .units import ANGULAR_UNITS, FACTORS, LINEAR_UNITS, UNIT_NAMES, unit_hint, units_that_fit
 
-__all__ = [
-    "DataNote",
-    "DatalessCheck",
-    "check_config_without_data",
-    "compile_config",
-    "compile_document",
-    "describe_temporal_edge",
-    "ANGULAR_UNITS",
-    "FACTORS",
-    "LINEAR_UNITS",
-    "UNIT_NAMES",
-    "unit_hint",
-    "units_that_fit",
-]
-
-__getattr__ = lazy_surface(
-    __name__,
-    {
-        "DataNote": "compiler",
-        "DatalessCheck": "compiler",
-        "check_config_without_data": "compiler",
-        "compile_config": "compiler",
-        "compile_document": "compiler",
-        "describe_temporal_edge": "temporal_edges",
-        "ANGULAR_UNITS": "units",
-        "FACTORS": "units",
-        "LINEAR_UNITS": "units",
-        "UNIT_NAMES": "units",
-        "unit_hint": "units",
-        "units_that_fit": "units",
-    },
-)
+if not TYPE_CHECKING:  # the names above, imported when first used
+    __all__, __getattr__ = lazy_surface(__name__, __file__)

@@ -10,38 +10,10 @@ from typing import TYPE_CHECKING
 
 from .. import lazy_surface
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
     from .document import MAX_BYTES, Document, format_path, load_document, parse_document
     from .schema import SCHEMA_RESOURCE, require_schema_valid, schema_text, validate_document
     from .sidecar import EdgeSpec, expand_edge_specs
 
-__all__ = [
-    "MAX_BYTES",
-    "Document",
-    "EdgeSpec",
-    "SCHEMA_RESOURCE",
-    "expand_edge_specs",
-    "format_path",
-    "load_document",
-    "parse_document",
-    "require_schema_valid",
-    "schema_text",
-    "validate_document",
-]
-
-__getattr__ = lazy_surface(
-    __name__,
-    {
-        "MAX_BYTES": "document",
-        "Document": "document",
-        "EdgeSpec": "sidecar",
-        "SCHEMA_RESOURCE": "schema",
-        "expand_edge_specs": "sidecar",
-        "format_path": "document",
-        "load_document": "document",
-        "parse_document": "document",
-        "require_schema_valid": "schema",
-        "schema_text": "schema",
-        "validate_document": "schema",
-    },
-)
+if not TYPE_CHECKING:  # the names above, imported when first used
+    __all__, __getattr__ = lazy_surface(__name__, __file__)

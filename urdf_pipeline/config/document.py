@@ -316,6 +316,7 @@ def _convert(node: yaml.Node, path: PathKey, lines: Lines, file: Path, construct
             lines.mark((*path, index), item.start_mark)
             items.append(_convert(item, (*path, index), lines, file, constructor))
         return items
+    assert isinstance(node, yaml.ScalarNode), f"a YAML node is a mapping, a sequence or a scalar, not {type(node).__name__}"
     return _scalar(node, path, file, constructor)
 
 

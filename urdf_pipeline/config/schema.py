@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import difflib
 import json
+from collections.abc import Mapping
 from functools import lru_cache
 from importlib import resources
 from typing import Any
@@ -58,8 +59,9 @@ def _explain(error: ValidationError) -> tuple[tuple[str | int, ...], str]:
         if error.context:
             return _explain(best_match(_branches_of_the_right_type(error)))
     path = tuple(error.absolute_path)
+    node = error.schema if isinstance(error.schema, Mapping) else {}  # the failing subschema (a bool or unset for some errors)
     if error.validator == "additionalProperties" and isinstance(error.instance, dict):
-        allowed = set(error.schema.get("properties", {}))
+        allowed = set(node.get("properties", {}))
         extras = [key for key in error.instance if key not in allowed]
         if extras:
             key = extras[0]
@@ -71,7 +73,7 @@ def _explain(error: ValidationError) -> tuple[tuple[str | int, ...], str]:
     if error.validator == "const":
         return path, f"must be {json.dumps(error.validator_value)}, got {json.dumps(error.instance)}"
     if error.validator == "enum":
-        choices = ", ".join(json.dumps(v) for v in error.validator_value)
+        choices = ", ".join(json.dumps(v) for v in error.validator_value) if isinstance(error.validator_value, list) else ""
         return path, f"{json.dumps(error.instance)} is not one of {choices}"
     if error.validator == "type":
         return (
@@ -80,8 +82,8 @@ def _explain(error: ValidationError) -> tuple[tuple[str | int, ...], str]:
         )
     if error.validator == "pattern" and error.validator_value == "\\.rrd$":
         return path, f"{json.dumps(error.instance)} must end in .rrd"
-    if error.validator == "pattern" and error.schema.get("description"):
-        return path, f"{json.dumps(error.instance)} is not valid here: {error.schema['description']}"
+    if error.validator == "pattern" and node.get("description"):
+        return path, f"{json.dumps(error.instance)} is not valid here: {node['description']}"
     return path, error.message
 
 

@@ -11,36 +11,10 @@ from typing import TYPE_CHECKING
 
 from .. import lazy_surface
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
     from .pictures import DEFAULT_SIZE, Picture, announce, render_diff, render_plan
     from .segment_pictures import SCENE, SnapshotRequest, snapshot
     from .viewer import NO_RENDERER, Size
 
-__all__ = [
-    "DEFAULT_SIZE",
-    "NO_RENDERER",
-    "SCENE",
-    "Picture",
-    "Size",
-    "SnapshotRequest",
-    "announce",
-    "render_diff",
-    "render_plan",
-    "snapshot",
-]
-
-__getattr__ = lazy_surface(
-    __name__,
-    {
-        "DEFAULT_SIZE": "pictures",
-        "NO_RENDERER": "viewer",
-        "SCENE": "segment_pictures",
-        "Picture": "pictures",
-        "Size": "viewer",
-        "SnapshotRequest": "segment_pictures",
-        "announce": "pictures",
-        "render_diff": "pictures",
-        "render_plan": "pictures",
-        "snapshot": "segment_pictures",
-    },
-)
+if not TYPE_CHECKING:  # the names above, imported when first used
+    __all__, __getattr__ = lazy_surface(__name__, __file__)

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 from .. import lazy_surface
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
     from .annotations import render_annotations, render_text_errors, render_text_progress, validate_config
     from .check import check_config, check_exit_code, render_check
     from .diff_inputs import diff_files, diff_git
@@ -19,41 +19,5 @@ if TYPE_CHECKING:
     from .report import plan_command
     from .scaffold import init_config, schema_reference, write_schema
 
-__all__ = [
-    "check_config",
-    "check_exit_code",
-    "diff_files",
-    "diff_git",
-    "init_config",
-    "plan_command",
-    "render_annotations",
-    "render_check",
-    "render_diff",
-    "render_text_errors",
-    "render_text_progress",
-    "schema_reference",
-    "urdf_argument",
-    "validate_config",
-    "write_schema",
-]
-
-__getattr__ = lazy_surface(
-    __name__,
-    {
-        "check_config": "check",
-        "check_exit_code": "check",
-        "diff_files": "diff_inputs",
-        "diff_git": "diff_inputs",
-        "init_config": "scaffold",
-        "plan_command": "report",
-        "render_annotations": "annotations",
-        "render_check": "check",
-        "render_diff": "diff_render",
-        "render_text_errors": "annotations",
-        "render_text_progress": "annotations",
-        "schema_reference": "scaffold",
-        "urdf_argument": "init_urdf",
-        "validate_config": "annotations",
-        "write_schema": "scaffold",
-    },
-)
+if not TYPE_CHECKING:  # the names above, imported when first used
+    __all__, __getattr__ = lazy_surface(__name__, __file__)

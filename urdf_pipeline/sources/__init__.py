@@ -9,36 +9,18 @@ siblings, never this package's __init__.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from .. import lazy_surface
 from ..plan import SourcePlan
 from . import csv, hdf5, lerobot, mcap, parquet, rrd
-from .base import GLOB, EntryField, SourceDescription, SourceKind, refuse_control_characters, resolve_input
-from .callbacks import CallbackErrors
-from .joint_values import JointValueMapper, raw_matrix, wrapped
-from .ordering import NeedsSorting, sorted_in_memory, with_sorting_retry
-from .stream import SourceStream
 
-__all__ = [
-    "GLOB",
-    "KINDS",
-    "CallbackErrors",
-    "EntryField",
-    "JointValueMapper",
-    "NeedsSorting",
-    "SourceDescription",
-    "SourceKind",
-    "SourceStream",
-    "kind_for_path",
-    "kind_of",
-    "module_for",
-    "raw_matrix",
-    "refuse_control_characters",
-    "resolve_input",
-    "sorted_in_memory",
-    "with_sorting_retry",
-    "wrapped",
-]
+if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it), with the names defined below
+    from .base import GLOB, EntryField, SourceDescription, SourceKind, refuse_control_characters, resolve_input
+    from .callbacks import CallbackErrors
+    from .joint_values import JointValueMapper, raw_matrix, wrapped
+    from .ordering import NeedsSorting, sorted_in_memory, with_sorting_retry
+    from .stream import SourceStream
 
 KINDS: dict[str, SourceKind] = {"lerobot": lerobot, "parquet": parquet, "mcap": mcap, "hdf5": hdf5, "rrd": rrd, "csv": csv}
 
@@ -58,3 +40,8 @@ def kind_for_path(path: str) -> str | None:
     if suffix in by_suffix:
         return by_suffix[suffix]
     return "lerobot" if lerobot.is_dataset(Path(path)) else None
+
+
+if not TYPE_CHECKING:
+    _SURFACE, __getattr__ = lazy_surface(__name__, __file__)
+    __all__ = [*_SURFACE, "KINDS", "kind_for_path", "kind_of", "module_for"]

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 from .. import lazy_surface
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
     from .fixed_chain import NoFixedChain, compose_chain, find_fixed_chain
     from .geometry import Quaternion, Vector, normalized_quaternion, quaternion_from_rpy, quaternion_multiply
     from .load import LoadedUrdf, load_urdf_source
@@ -22,61 +22,5 @@ if TYPE_CHECKING:
     from .xacro_guard import XacroBudget
     from .xml_text import XacroContent
 
-__all__ = [
-    "Joint",
-    "LoadedUrdf",
-    "NoFixedChain",
-    "Quaternion",
-    "UrdfModel",
-    "UrdfParseError",
-    "Vector",
-    "XacroBudget",
-    "XacroContent",
-    "compose_chain",
-    "find_fixed_chain",
-    "garbage_meshes",
-    "load_urdf_source",
-    "normalized_quaternion",
-    "package_roots",
-    "parse_urdf",
-    "parse_urdf_text",
-    "quaternion_from_rpy",
-    "quaternion_multiply",
-    "read_urdf",
-    "rerun_depth_problem",
-    "rerun_loader_error",
-    "resolve_meshes",
-    "rewrite_mesh_uris",
-    "text_for_rerun",
-]
-
-__getattr__ = lazy_surface(
-    __name__,
-    {
-        "Joint": "model",
-        "LoadedUrdf": "load",
-        "NoFixedChain": "fixed_chain",
-        "Quaternion": "geometry",
-        "UrdfModel": "model",
-        "UrdfParseError": "model",
-        "Vector": "geometry",
-        "XacroBudget": "xacro_guard",
-        "XacroContent": "xml_text",
-        "compose_chain": "fixed_chain",
-        "find_fixed_chain": "fixed_chain",
-        "garbage_meshes": "meshes",
-        "load_urdf_source": "load",
-        "normalized_quaternion": "geometry",
-        "package_roots": "meshes",
-        "parse_urdf": "model",
-        "parse_urdf_text": "model",
-        "quaternion_from_rpy": "geometry",
-        "quaternion_multiply": "geometry",
-        "read_urdf": "model",
-        "rerun_depth_problem": "repair",
-        "rerun_loader_error": "repair",
-        "resolve_meshes": "meshes",
-        "rewrite_mesh_uris": "meshes",
-        "text_for_rerun": "repair",
-    },
-)
+if not TYPE_CHECKING:  # the names above, imported when first used
+    __all__, __getattr__ = lazy_surface(__name__, __file__)
