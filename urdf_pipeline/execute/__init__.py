@@ -15,11 +15,11 @@ if TYPE_CHECKING:
     from .edges_stream import CALIBRATION_ENTITY, calibration_stream
     from .joint_fk import rotation_matrices
     from .kinematics import RobotKinematics, segment_kinematics
+    from .live_viewer import send_to_viewer, viewer_binary
     from .model_stream import cached_tree, robot_model_stream
     from .provenance import stored_content_hash
     from .segment import Parts, RunResult, execute, log_segment
     from .segment_run import SegmentJob, SegmentResult, install_run_plan, run_segment
-    from .viewer import send_to_viewer, viewer_binary
     from .writer import process_alive, remove_stale_partials, require_ours, require_writable, write_file_atomically
 
 __all__ = [
@@ -75,8 +75,8 @@ __getattr__ = lazy_surface(
         "run_segment": "segment_run",
         "RobotKinematics": "kinematics",
         "segment_kinematics": "kinematics",
-        "send_to_viewer": "viewer",
-        "viewer_binary": "viewer",
+        "send_to_viewer": "live_viewer",
+        "viewer_binary": "live_viewer",
         "stored_content_hash": "provenance",
         "write_blueprint": "blueprint",
         "write_file_atomically": "writer",

@@ -12,9 +12,9 @@ from typing import TYPE_CHECKING
 from .. import lazy_surface
 
 if TYPE_CHECKING:
-    from .pictures import DEFAULT_SIZE, Picture, announce, render_diff, render_plan
+    from .headless_viewer import NO_RENDERER, Size
+    from .plan_pictures import DEFAULT_SIZE, Picture, announce, render_diff, render_plan
     from .segment_pictures import SCENE, SnapshotRequest, snapshot
-    from .viewer import NO_RENDERER, Size
 
 __all__ = [
     "DEFAULT_SIZE",
@@ -32,15 +32,15 @@ __all__ = [
 __getattr__ = lazy_surface(
     __name__,
     {
-        "DEFAULT_SIZE": "pictures",
-        "NO_RENDERER": "viewer",
+        "DEFAULT_SIZE": "plan_pictures",
+        "NO_RENDERER": "headless_viewer",
         "SCENE": "segment_pictures",
-        "Picture": "pictures",
-        "Size": "viewer",
+        "Picture": "plan_pictures",
+        "Size": "headless_viewer",
         "SnapshotRequest": "segment_pictures",
-        "announce": "pictures",
-        "render_diff": "pictures",
-        "render_plan": "pictures",
+        "announce": "plan_pictures",
+        "render_diff": "plan_pictures",
+        "render_plan": "plan_pictures",
         "snapshot": "segment_pictures",
     },
 )
