@@ -303,7 +303,7 @@ def copy_configs(directory: Path) -> list[str]:
     """Write the example configs (`EXAMPLE_CONFIGS`, nothing else) into `directory`, their schema line pointing where
     it resolves from there. A config already there and edited is kept (the lines say which); nothing to do when
     `directory` is their own folder."""
-    from .review import schema_reference
+    from .scaffold import schema_reference
 
     source = example_configs()
     if directory.resolve() == source.resolve():

@@ -149,6 +149,25 @@ def test_no_module_is_too_long() -> None:
     assert not long, f"modules over {MAX_MODULE_LINES} lines (split them by what they own): " + "; ".join(long)
 
 
+# Module and package names that may repeat in different packages, each with why a reader cannot take one for the
+# other. Empty: a shared name (two `viewer.py`, two `pictures.py`) made a reader guess which one an import meant.
+SHARED_NAMES: frozenset[str] = frozenset()
+
+
+def test_no_two_modules_share_a_name() -> None:
+    """A module's or subpackage's name says what it does across the whole package (`render/headless_viewer.py`,
+    `execute/live_viewer.py`; `review/plan_report/`, not a `plan` beside `plan.py`), so a traceback, an editor tab or a
+    grep names one thing; `__init__.py` aside."""
+    by_name: dict[str, list[str]] = {}
+    for path in sorted(PACKAGE.rglob("*.py")):
+        named = path.parent if path.name == "__init__.py" else path
+        if named != PACKAGE:
+            by_name.setdefault(named.stem, []).append(str(named.relative_to(PACKAGE.parent)))
+    shared = [", ".join(paths) for name, paths in sorted(by_name.items()) if len(paths) > 1 and name not in SHARED_NAMES]
+    assert not shared, "modules or packages sharing a name (rename one to say what it does): " + "; ".join(shared)
+
+
+
 # The packages whose `__init__` is a surface: every package of the table but `cli/` (the command line, which no one imports).
 STAGE_PACKAGES = tuple(
     name.removeprefix("urdf_pipeline.")
@@ -225,5 +244,9 @@ def test_no_surface_name_is_also_a_module_name() -> None:
     for package in STAGE_PACKAGES:
         folder = PACKAGE / package
         module = importlib.import_module(f"urdf_pipeline.{package}")
-        clashes += [f"urdf_pipeline.{package}.{name}" for name in module.__all__ if (folder / f"{name}.py").exists()]
+        clashes += [
+            f"urdf_pipeline.{package}.{name}"
+            for name in module.__all__
+            if (folder / f"{name}.py").exists() or (folder / name / "__init__.py").exists()
+        ]
     assert not clashes, "exported names that are also module names: " + ", ".join(clashes)

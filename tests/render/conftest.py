@@ -11,7 +11,7 @@ import pytest
 
 from urdf_pipeline import cli
 from urdf_pipeline.errors import UserError
-from urdf_pipeline.render.viewer import NO_RENDERER, HeadlessViewer, Size
+from urdf_pipeline.render.headless_viewer import NO_RENDERER, HeadlessViewer, Size
 
 SMALL = Size(320, 240)
 

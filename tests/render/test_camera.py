@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from urdf_pipeline.render.camera import FIELD_OF_VIEW_Y, FILL, LINK_PADDING, UP, framing, view_axes
-from urdf_pipeline.render.viewer import Size
+from urdf_pipeline.render.headless_viewer import Size
 
 
 def _image_coordinates(points: np.ndarray, camera, width: int, height: int) -> np.ndarray:

@@ -15,7 +15,7 @@ import numpy as np
 import psutil
 import pytest
 
-from urdf_pipeline.render.viewer import HeadlessViewer
+from urdf_pipeline.render.headless_viewer import HeadlessViewer
 
 from ..dataset_helpers import isolated_examples
 from .conftest import SMALL

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from urdf_pipeline.render.viewer import HeadlessViewer
+from urdf_pipeline.render.headless_viewer import HeadlessViewer
 
 from ..dataset_helpers import isolated_examples
 

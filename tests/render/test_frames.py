@@ -12,7 +12,7 @@ from rerun.chunk import RrdReader
 from urdf_pipeline.compile import compile_config
 from urdf_pipeline.render import frames
 from urdf_pipeline.render.frames import Timeline, read_transforms, transform_timelines
-from urdf_pipeline.render.pictures import robot_frames
+from urdf_pipeline.render.plan_pictures import robot_frames
 
 from ..rrd_frames import read_frames
 

@@ -15,7 +15,7 @@ from urdf_pipeline.confine import ALLOW_ENV
 from urdf_pipeline.errors import Where
 from urdf_pipeline.examples import write_joint_parquet
 from urdf_pipeline.plan import JointChannel
-from urdf_pipeline.review.check import check_channel
+from urdf_pipeline.review.check.check_joints import check_channel
 
 from ..conftest import SHARED
 

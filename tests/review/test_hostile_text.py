@@ -19,8 +19,8 @@ from urdf_pipeline.errors import LINE_LIMIT, Where, escaped, listing, located, n
 from urdf_pipeline.examples import write_joint_parquet
 from urdf_pipeline.execute import SegmentResult
 from urdf_pipeline.progress import LOGGER, command_logging
-from urdf_pipeline.review.annotations import Annotation
 from urdf_pipeline.review.markdown_text import cell, code, plain
+from urdf_pipeline.review.validate.annotations import Annotation
 
 # Names an attacker would try: Markdown and HTML that breaks out of a PR comment, workflow commands, a newline and a
 # CR (the runner reads a CR as a line end too), a direction override, a mention.

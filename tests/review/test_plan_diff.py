@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from urdf_pipeline.examples import write_joint_parquet
-from urdf_pipeline.review.diff_base import rotation_angle_deg
+from urdf_pipeline.review.diff.diff_base import rotation_angle_deg
 
 from ..edge_helpers import rig_config, write_config, write_rig
 

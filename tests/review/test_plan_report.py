@@ -233,7 +233,7 @@ def test_markdown_escapes_names(rich_config: Path, run_cli) -> None:
 
 def test_sample_adds_the_observed_range(examples_dir: Path, run_cli) -> None:
     from urdf_pipeline.compile.compiler import compile_config
-    from urdf_pipeline.review.check import read_sample
+    from urdf_pipeline.review.check.check_joints import read_sample
 
     result = run_cli("plan", str(examples_dir / "demo.yaml"), "--format", "json", "--sample", "--rows", "40")
     assert result.code == 0, result.err

@@ -16,7 +16,7 @@ import yaml
 
 from urdf_pipeline.config.document import Document, parse_document
 from urdf_pipeline.errors import Where
-from urdf_pipeline.review.annotations import Annotation
+from urdf_pipeline.review.validate.annotations import Annotation
 
 from ..compile.test_invalid_configs import CASES, MISSING_MESH_URI
 

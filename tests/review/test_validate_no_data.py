@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 from urdf_pipeline.compile import check_config_without_data
-from urdf_pipeline.review.annotations import ConfigResult, validate_config
+from urdf_pipeline.review.validate.annotations import ConfigResult, validate_config
 from urdf_pipeline.sources import KINDS, lerobot
 
 from ..compile import test_invalid_configs

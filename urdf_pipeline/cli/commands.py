@@ -156,7 +156,7 @@ def cmd_snapshot(args: argparse.Namespace) -> int:
 
 def cmd_schema(args: argparse.Namespace) -> int:
     from ..config import schema_text
-    from ..review import write_schema
+    from ..scaffold import write_schema
 
     if args.output:
         write_schema(Path(args.output))
@@ -166,7 +166,7 @@ def cmd_schema(args: argparse.Namespace) -> int:
 
 
 def cmd_init(args: argparse.Namespace) -> int:
-    from ..review import init_config, urdf_argument
+    from ..scaffold import init_config, urdf_argument
 
     try:
         urdf = urdf_argument(args.urdf, args.xacro, args.arg, args.robot_descriptions)

@@ -12,9 +12,9 @@ from typing import TYPE_CHECKING
 from .. import lazy_surface
 
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
-    from .pictures import DEFAULT_SIZE, Picture, announce, render_diff, render_plan
+    from .headless_viewer import NO_RENDERER, Size
+    from .plan_pictures import DEFAULT_SIZE, Picture, announce, render_diff, render_plan
     from .segment_pictures import SCENE, SnapshotRequest, snapshot
-    from .viewer import NO_RENDERER, Size
 
 if not TYPE_CHECKING:  # the names above, imported when first used
     __all__, __getattr__ = lazy_surface(__name__, __file__)

@@ -17,8 +17,8 @@ from ..errors import UserError, Where, did_you_mean, listing
 from ..plan import Plan
 from .camera import framing
 from .frames import Timeline, read_transforms, transform_timelines
-from .pictures import DEFAULT_SIZE, Picture, require_picture_path, robot_frames, view_contents
-from .viewer import HeadlessViewer, Shot, Size
+from .headless_viewer import HeadlessViewer, Shot, Size
+from .plan_pictures import DEFAULT_SIZE, Picture, require_picture_path, robot_frames, view_contents
 
 SCENE = "scene"
 KEYWORDS = ("first", "middle", "last")

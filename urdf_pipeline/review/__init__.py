@@ -1,7 +1,9 @@
-"""The review commands: validate (annotations), check, plan (report), diff, init (scaffold). Each builds one typed
-report model that text, markdown and json render. May import: everything below it.
+"""The review commands, one subpackage each: `validate/`, `check/`, `plan_report/` (`plan`), `diff/`; what two of them
+share stays here (`markdown_text.py`, `picture_entries.py`). Each builds one typed report model that text, markdown and
+json render. May import: everything below it.
 
 The names below are the package's public surface; other packages import them from here, never from its modules.
+check's sample and candidates are on it for `scaffold/` (init chooses each joint's unit as check judges it).
 """
 
 from __future__ import annotations
@@ -11,13 +13,12 @@ from typing import TYPE_CHECKING
 from .. import lazy_surface
 
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
-    from .annotations import render_annotations, render_text_errors, render_text_progress, validate_config
-    from .check import check_config, check_exit_code, render_check
-    from .diff_inputs import diff_files, diff_git
-    from .diff_render import render_diff
-    from .init_urdf import urdf_argument
-    from .report import plan_command
-    from .scaffold import init_config, schema_reference, write_schema
+    from .check.check_candidates import ANGLES, LENGTHS, fits, fitting, reaches, unit_only
+    from .check.check_joints import check_config, check_exit_code, check_plan, read_sample, render_check
+    from .diff.diff_inputs import diff_files, diff_git
+    from .diff.diff_render import render_diff
+    from .plan_report.report import plan_command
+    from .validate.annotations import render_annotations, render_text_errors, render_text_progress, validate_config
 
 if not TYPE_CHECKING:  # the names above, imported when first used
     __all__, __getattr__ = lazy_surface(__name__, __file__)

@@ -1,5 +1,5 @@
 """What every source kind shares: the protocol a kind module follows, how a config's input path is resolved, and the
-typed description a kind gives `init` (plain data: `review/` turns it into YAML, `sources/` never imports `review/`)."""
+typed description a kind gives `init` (plain data: `scaffold/` turns it into YAML, `sources/` never imports `scaffold/`)."""
 
 from __future__ import annotations
 

@@ -6,7 +6,7 @@ import json
 from collections.abc import Sequence
 from typing import Any
 
-from ..plan import IndexPlan
+from ...plan import IndexPlan
 from .report_model import REPORT_VERSION, EdgeEntry, JointRow, OutputEntry, PlanReport, RobotEntry, SourceEntry, rounded
 
 

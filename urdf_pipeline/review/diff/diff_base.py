@@ -10,8 +10,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..urdf import Quaternion, Vector, normalized_quaternion, quaternion_multiply
-from .report_model import PictureEntry
+from ...urdf import Quaternion, Vector, normalized_quaternion, quaternion_multiply
+from ..plan_report.report_model import PictureEntry
 
 TOLERANCE = 1e-9
 

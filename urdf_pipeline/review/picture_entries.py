@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..plan import Plan
-from .report_model import PictureEntry
+from .plan_report.report_model import PictureEntry
 
 if TYPE_CHECKING:
     from ..render import Picture, Size

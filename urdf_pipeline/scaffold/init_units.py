@@ -19,8 +19,7 @@ import numpy as np
 from ..compile import FACTORS, UNIT_NAMES
 from ..errors import UserError
 from ..plan import JointChannel, Plan
-from .check import check_plan, read_sample
-from .check_candidates import ANGLES, LENGTHS, fits, fitting, reaches, unit_only
+from ..review import ANGLES, LENGTHS, check_plan, fits, fitting, reaches, read_sample, unit_only
 
 
 @dataclass(frozen=True)

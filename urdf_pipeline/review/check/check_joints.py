@@ -17,10 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..compile import UNIT_NAMES, compile_config
-from ..errors import ExitCode, shown
-from ..plan import JointChannel, Plan, RobotPlan, SourcePlan
-from ..sources import wrapped
+from ...compile import UNIT_NAMES, compile_config
+from ...errors import ExitCode, shown
+from ...plan import JointChannel, Plan, RobotPlan, SourcePlan
+from ...sources import wrapped
 from .check_candidates import ANGLES, angular, fits, fitting, looks_like_a_bigger_unit, unit_only
 
 SAMPLE_ROWS = 100_000
@@ -187,7 +187,7 @@ def check_plan(plan: Plan, sample: dict[str, np.ndarray]) -> list[JointReport]:
 
 def read_sample(source: SourcePlan, rows: int = SAMPLE_ROWS) -> np.ndarray:
     """The first `rows` rows of a source, as a (rows x names) matrix, read with the same Rerun reader as a run."""
-    from ..sources import module_for, raw_matrix, sorted_in_memory
+    from ...sources import module_for, raw_matrix, sorted_in_memory
 
     with sorted_in_memory():  # the first rows in time order, every repeat seen: as a run reads the source
         opened = module_for(source).open_stream(source)

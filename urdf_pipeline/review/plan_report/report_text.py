@@ -7,8 +7,8 @@ from dataclasses import fields, is_dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from ..errors import neutral_text, shown
-from .markdown_text import PATH_LIMIT
+from ...errors import neutral_text, shown
+from ..markdown_text import PATH_LIMIT
 from .report_model import EdgeEntry, JointRow, OutputEntry, PlanReport, RobotEntry, SampleEntry, number
 
 
@@ -99,7 +99,7 @@ def _output_lines(output: OutputEntry) -> list[str]:
 
 
 def _sample_text(sample: SampleEntry) -> str:
-    from .check import as_text  # check's own rendering of its verdicts (imports numpy: only with --sample)
+    from ..check.check_joints import as_text  # check's own rendering of its verdicts (imports numpy: only with --sample)
 
     read = ", ".join(f"{name}: {rows}" for name, rows in sample.read)
     return f"sample (at most {sample.rows} rows of each source; read {read}):\n" + as_text(sample.reports)

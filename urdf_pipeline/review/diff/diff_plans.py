@@ -18,8 +18,8 @@ from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
-from ..errors import listing
-from ..plan import EdgePlan, IndexPlan, LeRobotSourcePlan, Plan, SourcePlan, TemporalEdgePlan
+from ...errors import listing
+from ...plan import EdgePlan, IndexPlan, LeRobotSourcePlan, Plan, SourcePlan, TemporalEdgePlan
 from .diff_base import Change, PathValue, _moved, _Report, _rounded, _same, _text
 from .diff_robots import robot_changes
 

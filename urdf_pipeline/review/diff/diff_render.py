@@ -6,10 +6,10 @@ from __future__ import annotations
 import json
 from typing import Any, Literal
 
-from ..errors import LINE_LIMIT, neutral_text, shown
+from ...errors import LINE_LIMIT, neutral_text, shown
+from ..markdown_text import code, code_path
+from ..plan_report.report_markdown import pictures_markdown
 from .diff_base import Change, DiffReport
-from .markdown_text import code, code_path
-from .report_markdown import pictures_markdown
 
 DiffFormat = Literal["text", "json", "markdown"]
 

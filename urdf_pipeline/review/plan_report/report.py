@@ -15,10 +15,10 @@ from dataclasses import fields, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
-from ..errors import ConfigWarning, collect_warnings, show_warning, shown
-from ..plan import IndexPlan, Plan, RobotPlan, SourcePlan
-from ..urdf import Joint, UrdfModel, parse_urdf_text
-from .pictures import plan_pictures
+from ...errors import ConfigWarning, collect_warnings, show_warning, shown
+from ...plan import IndexPlan, Plan, RobotPlan, SourcePlan
+from ...urdf import Joint, UrdfModel, parse_urdf_text
+from ..picture_entries import plan_pictures
 from .report_json import render_json
 from .report_markdown import render_markdown
 from .report_model import (
@@ -45,8 +45,8 @@ from .report_model import (
 from .report_text import render_text
 
 if TYPE_CHECKING:
-    from ..render import Size
-    from .check import JointReport
+    from ...render import Size
+    from ..check.check_joints import JointReport
 
 PlanFormat = Literal["text", "markdown", "json"]
 ARROWS = {  # mermaid link per edge origin
@@ -66,7 +66,7 @@ def plan_command(
 ) -> str:
     """The bytes `urdf-pipeline plan` prints. Warnings go to stderr as usual, and into the report. With `render`, the
     Rerun viewer draws the rest pose into that folder first, and the report links the pictures."""
-    from ..compile import compile_config
+    from ...compile import compile_config
 
     warnings: list[ConfigWarning] = []
     try:
@@ -84,7 +84,7 @@ def plan_command(
 
 def read_plan_sample(plan: Plan, rows: int) -> SampleEntry:
     """check.read_sample on every robot source of the plan (the first segment's), then check's per-joint verdict."""
-    from .check import check_plan, read_sample
+    from ..check.check_joints import check_plan, read_sample
 
     matrices = {source.name: read_sample(source, rows) for source in plan.sources if plan.robots_for(source.name)}
     read = tuple(sorted((name, len(matrix)) for name, matrix in matrices.items()))

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from ..errors import LINE_LIMIT, neutral_text
-from ..plan import IndexPlan
-from .markdown_text import cell, code, code_path, fence_for, link_target, plain
+from ...errors import LINE_LIMIT, neutral_text
+from ...plan import IndexPlan
+from ..markdown_text import cell, code, code_path, fence_for, link_target, plain
 from .report_model import (
     JOINT_TYPES,
     EdgeEntry,

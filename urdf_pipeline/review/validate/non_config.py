@@ -12,8 +12,8 @@ import json
 from functools import lru_cache
 from pathlib import Path
 
-from ..config import load_document, schema_text
-from ..errors import UserError, closest, listing
+from ...config import load_document, schema_text
+from ...errors import UserError, closest, listing
 
 
 @lru_cache(maxsize=1)

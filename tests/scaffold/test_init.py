@@ -15,8 +15,8 @@ import yaml
 from urdf_pipeline.compile.compiler import compile_config
 from urdf_pipeline.errors import UserError, UserErrors
 from urdf_pipeline.examples import write_joint_parquet, write_lerobot_dataset
-from urdf_pipeline.review.name_match import match_names
-from urdf_pipeline.review.source_probe import parse_source_spec
+from urdf_pipeline.scaffold.name_match import match_names
+from urdf_pipeline.scaffold.source_probe import parse_source_spec
 from urdf_pipeline.urdf.model import read_urdf
 
 pytestmark = pytest.mark.usefixtures("allow_examples")  # configs elsewhere read the session's examples

@@ -19,9 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..compile import ANGULAR_UNITS, FACTORS, LINEAR_UNITS, UNIT_NAMES
-from ..plan import JointChannel
-from ..sources import wrapped
+from ...compile import ANGULAR_UNITS, FACTORS, LINEAR_UNITS, UNIT_NAMES
+from ...plan import JointChannel
+from ...sources import wrapped
 
 ANGLES: tuple[str, ...] = ANGULAR_UNITS
 LENGTHS: tuple[str, ...] = LINEAR_UNITS

@@ -12,10 +12,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
-from ..plan import FixedChain, IndexPlan
+from ...plan import FixedChain, IndexPlan
 
 if TYPE_CHECKING:
-    from .check import JointReport
+    from ..check.check_joints import JointReport
 
 REPORT_VERSION = 1
 JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")

@@ -14,7 +14,7 @@ import yaml
 
 from urdf_pipeline.compile.compiler import compile_config
 from urdf_pipeline.examples import write_joint_parquet, write_lerobot_dataset
-from urdf_pipeline.review.init_urdf import parse_xacro_args
+from urdf_pipeline.scaffold.init_urdf import parse_xacro_args
 from urdf_pipeline.urdf.model import read_urdf
 
 from ..urdf.test_urdf_sources import SO101_JOINTS, offline_git, so101_description_cache  # noqa: F401 (a fixture)

@@ -19,20 +19,20 @@ from dataclasses import replace
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
 
-from ..config import MAX_BYTES
-from ..errors import UserError, UserErrors, Where, collect_warnings, quoted, shown
-from ..plan import Plan
-from .diff import diff_plans
+from ...config import MAX_BYTES
+from ...errors import UserError, UserErrors, Where, collect_warnings, quoted, shown
+from ...plan import Plan
+from ..picture_entries import diff_pictures
 from .diff_base import DiffReport
-from .pictures import diff_pictures
+from .diff_plans import diff_plans
 
 if TYPE_CHECKING:
-    from ..render import Size
+    from ...render import Size
 
 
 def compile_quietly(config: Path) -> Plan:
     """compile_config without printing warnings: the diff is about what differs, not what each config does."""
-    from ..compile import compile_config
+    from ...compile import compile_config
 
     with collect_warnings():
         return compile_config(config)

@@ -15,8 +15,8 @@ from ..plan import Plan, RobotPlan
 from ..progress import say
 from .camera import framing
 from .frames import RecordedTransforms, read_transforms
+from .headless_viewer import HeadlessViewer, Shot, Size, write_png
 from .scene import AXES_ENTITY, REST_POSE, rest_values, scene_chunks, shared_values
-from .viewer import HeadlessViewer, Shot, Size, write_png
 
 DEFAULT_SIZE = Size(1024, 768)
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"

@@ -12,8 +12,8 @@ from rerun.chunk import RrdReader
 from urdf_pipeline.compile import compile_config
 from urdf_pipeline.render.camera import Camera, framing
 from urdf_pipeline.render.frames import read_transforms, transform_timelines
-from urdf_pipeline.render.pictures import robot_frames
-from urdf_pipeline.render.viewer import HeadlessViewer, Shot
+from urdf_pipeline.render.headless_viewer import HeadlessViewer, Shot
+from urdf_pipeline.render.plan_pictures import robot_frames
 
 from .conftest import SMALL
 from .pixels import assert_framed, grey, robot

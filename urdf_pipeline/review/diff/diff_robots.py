@@ -6,9 +6,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-from ..errors import listing
-from ..plan import JointChannel, Plan, RobotPlan
-from ..urdf import Joint, UrdfModel, UrdfParseError, parse_urdf_text, quaternion_from_rpy
+from ...errors import listing
+from ...plan import JointChannel, Plan, RobotPlan
+from ...urdf import Joint, UrdfModel, UrdfParseError, parse_urdf_text, quaternion_from_rpy
 from .diff_base import PathValue, _moved, _path_value, _Report, _same, _text
 
 

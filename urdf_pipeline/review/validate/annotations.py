@@ -18,7 +18,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Literal
 
-from ..errors import LINE_LIMIT, ConfigWarning, UserError, UserErrors, Where, collect_warnings, located, neutral_line, shortened, shown
+from ...errors import LINE_LIMIT, ConfigWarning, UserError, UserErrors, Where, collect_warnings, located, neutral_line, shortened, shown
 from .non_config import not_a_config
 
 Severity = Literal["error", "warning", "note"]
@@ -111,7 +111,7 @@ def validate_config(config: str, *, data: bool = True, skip_non_configs: bool = 
     """Compile the config as `validate` does, collecting its errors and warnings instead of printing them. `data`
     False (`--no-data`): every check that opens no source file, and a note per source whose names only its data
     holds. `skip_non_configs`: a YAML file that is no config (non_config.py) is skipped rather than refused."""
-    from ..compile import check_config_without_data, compile_config
+    from ...compile import check_config_without_data, compile_config
 
     if skip_non_configs:
         reason = not_a_config(Path(config))
