@@ -1,5 +1,4 @@
-"""The Python API (`urdf_pipeline.load`, `run`, `log`, `forward_kinematics`): the last stage, beside the command
-line. May import every stage before it.
+"""The Python API (`urdf_pipeline.load`, `run`, `log`, `forward_kinematics`), beside the command line.
 
 The names below are the package's public surface; `urdf_pipeline/__init__.py` re-exports them.
 """

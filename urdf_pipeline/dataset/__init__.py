@@ -1,5 +1,5 @@
 """Whole datasets: segments run on executors (local processes, Ray), manifest, fingerprints, catalog, summary,
-signals. May import: everything below it (base, config, urdf, sources, compile, execute).
+signals.
 
 The names below are the package's public surface; other packages import them from here, never from its modules.
 """

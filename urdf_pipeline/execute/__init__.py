@@ -1,5 +1,5 @@
-"""Stage 3, one segment of a Plan -> one recording: lazy Rerun streams (model, FK, edges), provenance, blueprint,
-viewer, atomic writing. May import: the top-level base, config, urdf, sources, compile.
+"""One segment of a Plan -> one recording: lazy Rerun streams (model, FK, edges), provenance, blueprint,
+viewer, atomic writing.
 
 The names below are the package's public surface; other packages import them from here, never from its modules.
 """

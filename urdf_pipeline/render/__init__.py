@@ -1,6 +1,5 @@
 """Pictures drawn by the real Rerun viewer (headless): `snapshot` of written recordings, `plan --render` and
-`diff --render` of plans at their rest pose. May import: everything below it (base, config, urdf, sources, compile,
-execute, dataset); it uses none of execute's or dataset's modules, only Rerun and the plan.
+`diff --render` of plans at their rest pose.
 
 The names below are the package's public surface; other packages import them from here, never from its modules.
 """

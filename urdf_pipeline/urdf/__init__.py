@@ -1,7 +1,6 @@
 """The robot description: URDF text (a file, xacro in a bounded child process, robot_descriptions), read as XML with
 what no URDF reader reads refused (xacro content, misplaced links and joints), the light model (joints, links, limits,
 mimics), repairs for Rerun's loader, meshes, fixed chains, geometry.
-May import: the top-level base (errors, plan, confine) only: it knows nothing of configs.
 
 The names below are the package's public surface; other packages import them from here, never from its modules.
 """
