@@ -60,7 +60,7 @@ class _Section:
     spec: dict[str, Any]
     robot: _RobotJoints
     names: tuple[str, ...] | None
-    positions: dict[str, int] | None  # each source name's index; None with the names (only the data knows them)
+    positions: dict[str, int] | None  # each source name's index; None when names is (only the data knows them)
     hint: Hints = field(default_factory=Hints)
     covered: dict[str, str] = field(default_factory=dict)  # joint -> how ("map entry 'j1'", "hold")
     attempted: set[str] = field(default_factory=set)  # joints named by a rejected entry: already reported, not "not driven" too
