@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, NoReturn
 
 from .commands import cmd_check, cmd_diff, cmd_init, cmd_plan, cmd_run, cmd_schema, cmd_snapshot, cmd_validate
@@ -50,14 +51,16 @@ def _verbosity(parser: argparse.ArgumentParser, default: object) -> None:
 
 
 class _Commands:
-    """Subparsers that all take -q / -v (their defaults suppressed, so the main parser's value stays when not given)."""
+    """Subparsers that all take -q / -v (their defaults suppressed, so the main parser's value stays when not given) and
+    name their handler, so `main` finds the function and the parser (for `parser.error`) of the command it was given."""
 
     def __init__(self, parser: argparse.ArgumentParser) -> None:
         self.actions = parser.add_subparsers(dest="command", required=True)
 
-    def add_parser(self, name: str, **kwargs: Any) -> argparse.ArgumentParser:
+    def add_parser(self, name: str, handler: Callable[[argparse.Namespace], int], **kwargs: Any) -> argparse.ArgumentParser:
         sub = self.actions.add_parser(name, **kwargs)
         _verbosity(sub, argparse.SUPPRESS)
+        sub.set_defaults(handler=handler, parser=sub)
         return sub
 
 
@@ -73,11 +76,19 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The main parser (--version, -q / -v) and one subparser per command, in the order `--help` lists them."""
     parser = _Parser(prog="urdf-pipeline", description="A robot config file becomes one validated Rerun recording.")
     parser.add_argument("--version", action="version", version=_version())
     _verbosity(parser, False)
     commands = _Commands(parser)
-    run = commands.add_parser("run", help="validate CONFIG, compute forward kinematics and write the .rrd of every segment")
+    for add_command in (_add_run, _add_validate, _add_check, _add_plan, _add_snapshot, _add_schema, _add_init, _add_diff):
+        add_command(commands)
+    return parser
+
+
+def _add_run(commands: _Commands) -> None:
+    """run: the segments to write and where they go (executor, catalog, a viewer, a report)."""
+    run = commands.add_parser("run", cmd_run, help="validate CONFIG, compute forward kinematics and write the .rrd of every segment")
     run.add_argument("config")
     run.add_argument("--episodes", metavar="SPEC", help="override output.episodes: all, 0,3,7 or 10:20")
     run.add_argument("--jobs", type=_positive, default=os.cpu_count() or 1, help="segments written in parallel (default: number of cores)")
@@ -98,8 +109,13 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument(
         "--report", metavar="FILE.json", help="write what the run did per segment (status, frames, seconds, worker, peak memory)"
     )
-    run.set_defaults(handler=cmd_run, parser=run)
-    validate = commands.add_parser("validate", help="check configs against the schema, URDFs and source metadata (no joint values read)")
+
+
+def _add_validate(commands: _Commands) -> None:
+    """validate: many configs at once, the output form for CI, and what to skip (the data, files that are no config)."""
+    validate = commands.add_parser(
+        "validate", cmd_validate, help="check configs against the schema, URDFs and source metadata (no joint values read)"
+    )
     validate.add_argument("configs", nargs="+", metavar="CONFIG")
     validate.add_argument(
         "--format",
@@ -119,15 +135,21 @@ def build_parser() -> argparse.ArgumentParser:
         help="skip a YAML file that is not a config (a top-level list such as a sidecar edges file, or a mapping with "
         "none of a config's top-level keys), with a `skipped:` line on stderr; for the pre-commit hook",
     )
-    validate.set_defaults(handler=cmd_validate, parser=validate)
+
+
+def _add_check(commands: _Commands) -> None:
+    """check: how much of each source it samples."""
     check = commands.add_parser(
-        "check", help="read a sample of each source and say which corrections put every mapped joint inside its URDF limits"
+        "check", cmd_check, help="read a sample of each source and say which corrections put every mapped joint inside its URDF limits"
     )
     check.add_argument("config")
     check.add_argument("--format", choices=("text", "json"), default="text")
     check.add_argument("--rows", type=_positive, default=100_000, help="rows to sample from the start of each source (default 100000)")
-    check.set_defaults(handler=cmd_check, parser=check)
-    plan = commands.add_parser("plan", help="validate CONFIG and print what a run would do")
+
+
+def _add_plan(commands: _Commands) -> None:
+    """plan: the report's form, an optional sample of the data and optional pictures."""
+    plan = commands.add_parser("plan", cmd_plan, help="validate CONFIG and print what a run would do")
     plan.add_argument("config")
     plan.add_argument(
         "--format",
@@ -137,11 +159,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     plan.add_argument("--sample", action="store_true", help="read a sample of each source and add the observed range per value")
     plan.add_argument("--rows", type=_positive, help="with --sample: rows read from the start of each source (default 100000)")
-    plan.add_argument("--render", metavar="DIR", help="draw each robot at its rest pose into DIR (PNGs, by the Rerun viewer) and link them")
-    plan.add_argument("--size", type=_size, metavar="WxH", help="with --render: the pictures' size in pixels (default 1024x768)")
-    plan.set_defaults(handler=cmd_plan, parser=plan)
+    _render_options(plan, "draw each robot at its rest pose into DIR (PNGs, by the Rerun viewer) and link them")
+
+
+def _add_snapshot(commands: _Commands) -> None:
+    """snapshot: which segment, at which times, of what, how big and where the pictures go."""
     snapshot = commands.add_parser(
         "snapshot",
+        cmd_snapshot,
         help="draw PNGs of a written recording with the Rerun viewer (headless) and print their paths",
         description="Draw pictures of a segment's recording (written by `run`) at times on its timeline, 3D view only, "
         "from a three-quarter camera that frames the robots' links over the whole segment. Needs a Vulkan driver "
@@ -158,11 +183,19 @@ def build_parser() -> argparse.ArgumentParser:
     snapshot.add_argument("--view", default="scene", metavar="scene|ROBOT", help="the whole scene (default) or one robot's key")
     snapshot.add_argument("--size", type=_size, default=None, metavar="WxH", help="the pictures' size in pixels (default 1024x768)")
     snapshot.add_argument("-o", "--output", metavar="DIR", help="where the PNGs go (default: pictures/ beside the recording)")
-    snapshot.set_defaults(handler=cmd_snapshot, parser=snapshot)
-    schema = commands.add_parser("schema", help="print the config's JSON Schema")
+
+
+def _add_schema(commands: _Commands) -> None:
+    """schema: where the JSON Schema goes."""
+    schema = commands.add_parser("schema", cmd_schema, help="print the config's JSON Schema")
     schema.add_argument("-o", "--output", metavar="FILE", help="write it to FILE (schemas/urdf-pipeline.schema.json: init finds it)")
-    schema.set_defaults(handler=cmd_schema, parser=schema)
-    init = commands.add_parser("init", help="scaffold a config from a URDF, pre-matched to a source's names when --source is given")
+
+
+def _add_init(commands: _Commands) -> None:
+    """init: exactly one form of URDF (as run loads it), an optional source to match names against, the output file."""
+    init = commands.add_parser(
+        "init", cmd_init, help="scaffold a config from a URDF, pre-matched to a source's names when --source is given"
+    )
     robot = init.add_mutually_exclusive_group(required=True)
     robot.add_argument("--urdf", metavar="PATH", help="a plain URDF file")
     robot.add_argument("--xacro", metavar="FILE", help="a xacro file, expanded as run expands it, with each --arg NAME=VALUE")
@@ -175,9 +208,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     init.add_argument("-o", "--output", metavar="CONFIG", help="write the config here (default: stdout); paths in it are relative to it")
     init.add_argument("--force", action="store_true", help="overwrite an existing output file")
-    init.set_defaults(handler=cmd_init, parser=init)
+
+
+def _add_diff(commands: _Commands) -> None:
+    """diff: two configs (or one and a git revision), the output form, diff(1)'s exit code and optional pictures."""
     diff = commands.add_parser(
         "diff",
+        cmd_diff,
         help="print the semantic difference of two configs' compiled plans (OLD NEW, or CONFIG --git REV)",
         description="Compile both configs and print what differs in their plans, one line per change (nothing when they are "
         "equivalent: key order, comments and equal spellings do not count). With --git REV, CONFIG's text at REV is compared "
@@ -192,11 +229,12 @@ def build_parser() -> argparse.ArgumentParser:
     diff.add_argument(
         "--exit-code", action="store_true", help="exit 0 when the plans are equal, 1 when they differ, 2 on any error (as diff(1) does)"
     )
-    diff.add_argument(
-        "--render",
-        metavar="DIR",
-        help="draw the old and the new plan at the same joint values from one camera into DIR (PNGs, and the two side by side)",
+    _render_options(
+        diff, "draw the old and the new plan at the same joint values from one camera into DIR (PNGs, and the two side by side)"
     )
-    diff.add_argument("--size", type=_size, metavar="WxH", help="with --render: the pictures' size in pixels (default 1024x768)")
-    diff.set_defaults(handler=cmd_diff, parser=diff)
-    return parser
+
+
+def _render_options(parser: argparse.ArgumentParser, render_help: str) -> None:
+    """--render DIR and its --size, the same pair for plan and diff (both draw through render/, at one default size)."""
+    parser.add_argument("--render", metavar="DIR", help=render_help)
+    parser.add_argument("--size", type=_size, metavar="WxH", help="with --render: the pictures' size in pixels (default 1024x768)")

@@ -9,7 +9,7 @@ value is its entry's `unit`, else the robot's `joints.unit` for the joint's kind
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from ..errors import Hints, Where, listing, quoted
@@ -49,95 +49,154 @@ class _MapEntry:
     where: Where
 
 
+@dataclass(frozen=True)
+class _Section:
+    """One robot's `joints` section while it compiles. map and hold share what they have claimed, so a joint driven
+    twice, or held and driven, is reported at the second claim, and a joint a refused entry named is not also reported
+    as not driven; map, hold and ignore share one bounded "did you mean"."""
+
+    ctx: CompileContext
+    here: tuple[str, ...]
+    spec: dict[str, Any]
+    robot: _RobotJoints
+    names: tuple[str, ...] | None
+    positions: dict[str, int] | None  # each source name's index; None when names is (only the data knows them)
+    hint: Hints = field(default_factory=Hints)
+    covered: dict[str, str] = field(default_factory=dict)  # joint -> how ("map entry 'j1'", "hold")
+    attempted: set[str] = field(default_factory=set)  # joints named by a rejected entry: already reported, not "not driven" too
+
+    def where(self, *path: str | int) -> Where:
+        return self.ctx.where(*self.here, *path)
+
+
 def compile_joints(
     ctx: CompileContext, robot_key: str, joints_spec: dict[str, Any], names: tuple[str, ...] | None, model: UrdfModel
 ) -> JointMapping:
-    problems = ctx.problems
+    """The robot's joint mapping, every problem of its `joints` section reported in the order of the section's parts:
+    map, hold, ignore, unit, the source names left over, slack, then the URDF joints left undriven."""
     here = ("robots", robot_key, "joints")
-    source = joints_spec["source"]
     limit_spec = joints_spec.get("limits", {})
     robot = _RobotJoints(model, robot_units(joints_spec.get("unit")))
-    on_violation: OnViolation = limit_spec.get("on_violation", "error")
-    moving = [j.name for j in model.joints if j.moving]
-    all_joints = [j.name for j in model.joints]
-    mimic_joints = {j.name for j in model.joints if j.mimic is not None}
     positions = {name: i for i, name in enumerate(names)} if names is not None else None  # linear in a wide source
-    hint = Hints()
+    section = _Section(ctx, here, joints_spec, robot, names, positions)
+    channels = _map_channels(section)
+    holds = _holds(section)
+    ignored = _ignored(section)
+    if robot.units.given is not None:
+        _check_unit_applies(ctx, robot, joints_spec, section.where("unit"))
+    _check_names_used(section, ignored)
+    channels = _with_slack(ctx, (*here, "limits", "slack"), model, limit_spec, channels)
+    mimics = _order_mimics(model)
+    _check_joints_driven(section)
+    on_violation: OnViolation = limit_spec.get("on_violation", "error")
+    return JointMapping(tuple(channels), tuple(holds), mimics, on_violation)
 
+
+def _map_channels(section: _Section) -> list[JointChannel]:
+    """A channel per (map entry, joint it names) that can be one, in the map's order."""
     channels: list[JointChannel] = []
-    covered: dict[str, str] = {}  # joint -> how ("map entry 'j1'", "hold")
-    attempted: set[str] = set()  # joints named by a rejected entry: already reported, not "not driven" too
-    for source_name, written in joints_spec["map"].items():
-        where = ctx.where(*here, "map", source_name)
-        spec = {"joint": written} if isinstance(written, str) else written
-        joint_names = spec["joint"] if isinstance(spec["joint"], list) else [spec["joint"]]
-        attempted.update(joint_names)
-        if names is not None and positions is not None and source_name not in positions:
-            problems.add(
-                f"'{source_name}' is not a name of source '{source}'{hint(source_name, names)}; its names are: {listing(names)}",
-                where,
+    for source_name, written in section.spec["map"].items():
+        channels.extend(_entry_channels(section, source_name, written))
+    return channels
+
+
+def _entry_channels(section: _Section, source_name: str, written: str | dict[str, Any]) -> list[JointChannel]:
+    """One map entry's channels: none when its source name or its corrections are wrong (its joints count as attempted,
+    so they are not reported as undriven as well), else one per named joint not already driven."""
+    where = section.where("map", source_name)
+    spec = {"joint": written} if isinstance(written, str) else written
+    joint_names = spec["joint"] if isinstance(spec["joint"], list) else [spec["joint"]]
+    section.attempted.update(joint_names)
+    names, positions = section.names, section.positions
+    if names is not None and positions is not None and source_name not in positions:
+        section.ctx.problems.add(
+            f"'{source_name}' is not a name of source '{section.spec['source']}'{section.hint(source_name, names)}; its names are: {listing(names)}",
+            where,
+        )
+        return []
+    entry = _MapEntry(source_name, positions[source_name] if positions is not None else UNKNOWN_INDEX, spec, where)
+    if not _corrections_consistent(section.ctx, entry):
+        return []
+    channels: list[JointChannel] = []
+    for joint_name in joint_names:
+        if joint_name in section.covered:  # accepted for an earlier entry, so it exists and moves: the one thing wrong is this
+            section.ctx.problems.add(
+                f"joint '{joint_name}' is driven twice: by {section.covered[joint_name]} and by map entry '{source_name}'", where
             )
             continue
-        entry = _MapEntry(source_name, positions[source_name] if positions is not None else UNKNOWN_INDEX, spec, where)
-        if not _corrections_consistent(ctx, entry):
-            continue
-        for joint_name in joint_names:
-            if joint_name in covered:  # accepted for an earlier entry, so it exists and moves: the one thing wrong is this
-                problems.add(f"joint '{joint_name}' is driven twice: by {covered[joint_name]} and by map entry '{source_name}'", where)
-                continue
-            channel = _channel(ctx, robot, entry, joint_name)
-            if channel is not None:
-                covered[joint_name] = f"map entry '{source_name}'"
-                channels.append(channel)
+        channel = _channel(section.ctx, section.robot, entry, joint_name)
+        if channel is not None:
+            section.covered[joint_name] = f"map entry '{source_name}'"
+            channels.append(channel)
+    return channels
 
+
+def _holds(section: _Section) -> list[HeldJoint]:
+    """The `hold` entries that can be held: a moving, non-mimic URDF joint that no map entry drives, held within its
+    limits; each other entry is reported with the one thing wrong with it."""
+    model, problems = section.robot.model, section.ctx.problems
+    all_joints = [j.name for j in model.joints]
     holds: list[HeldJoint] = []
-    for joint_name, value in joints_spec.get("hold", {}).items():
-        where = ctx.where(*here, "hold", joint_name)
+    for joint_name, value in section.spec.get("hold", {}).items():
+        where = section.where("hold", joint_name)
         joint = model.joint(joint_name)
-        attempted.add(joint_name)
+        section.attempted.add(joint_name)
         if joint is None:
-            problems.add(f"URDF '{model.name}' has no joint '{joint_name}'{hint(joint_name, all_joints)}", where)
+            problems.add(f"URDF '{model.name}' has no joint '{joint_name}'{section.hint(joint_name, all_joints)}", where)
         elif not joint.moving:
             problems.add(f"joint '{joint_name}' is {joint.type}; only moving joints can be held", where)
         elif joint.mimic is not None:
             problems.add(f"joint '{joint_name}' is a <mimic> of '{joint.mimic.joint}' and is computed from it; remove it from hold", where)
-        elif joint_name in covered:
-            problems.add(f"joint '{joint_name}' is both held and driven by {covered[joint_name]}; keep one", where)
+        elif joint_name in section.covered:
+            problems.add(f"joint '{joint_name}' is both held and driven by {section.covered[joint_name]}; keep one", where)
         elif joint.has_limits and not (joint.lower <= value <= joint.upper):  # type: ignore[operator]
             problems.add(
                 f"hold value {value} for '{joint_name}' is outside its URDF limits [{joint.lower}, {joint.upper}] {urdf_unit(joint.angular)}",
                 where,
             )
         else:
-            covered[joint_name] = "hold"
+            section.covered[joint_name] = "hold"
             holds.append(HeldJoint(joint_name, float(value)))
+    return holds
 
-    ignored = [str(name) for name in joints_spec.get("ignore", [])]  # 7 and "7": a value named by its index
+
+def _ignored(section: _Section) -> list[str]:
+    """The `ignore` list as source names (7 and "7": a value named by its index), each checked: a name of the source,
+    and not mapped as well."""
+    names, positions, source = section.names, section.positions, section.spec["source"]
+    ignored = [str(name) for name in section.spec.get("ignore", [])]
     for index, name in enumerate(ignored):
-        where = ctx.where(*here, "ignore", index)
+        where = section.where("ignore", index)
         if names is not None and positions is not None and name not in positions:
-            problems.add(f"ignored name '{name}' is not a name of source '{source}'{hint(name, names)}", where)
-        elif name in joints_spec["map"]:
-            problems.add(f"'{name}' is both mapped and ignored; keep one", where)
+            section.ctx.problems.add(f"ignored name '{name}' is not a name of source '{source}'{section.hint(name, names)}", where)
+        elif name in section.spec["map"]:
+            section.ctx.problems.add(f"'{name}' is both mapped and ignored; keep one", where)
+    return ignored
 
-    if robot.units.given is not None:
-        _check_unit_applies(ctx, robot, joints_spec, ctx.where(*here, "unit"))
+
+def _check_names_used(section: _Section, ignored: list[str]) -> None:
+    """Every source name is mapped or ignored: a name left over is usually a joint forgotten, so it is said, once."""
     ignored_set = set(ignored)
-    unused = [n for n in names or () if n not in joints_spec["map"] and n not in ignored_set]
+    unused = [n for n in section.names or () if n not in section.spec["map"] and n not in ignored_set]
     if unused:
-        problems.add(
+        section.ctx.problems.add(
             f"source names neither mapped nor ignored: {listing(unused)}; map each to a URDF joint or list it under ignore",
-            ctx.where(*here, "map"),
+            section.where("map"),
         )
-    channels = _with_slack(ctx, (*here, "limits", "slack"), model, limit_spec, channels)
-    mimics = _order_mimics(model)
-    uncovered = [j for j in moving if j not in covered and j not in mimic_joints and j not in attempted]
+
+
+def _check_joints_driven(section: _Section) -> None:
+    """Every moving URDF joint is mapped, held or a <mimic>; joints a refused entry named were reported already."""
+    model, covered, attempted = section.robot.model, section.covered, section.attempted
+    mimic_joints = {j.name for j in model.joints if j.mimic is not None}
+    uncovered = [
+        j.name for j in model.joints if j.moving and j.name not in covered and j.name not in mimic_joints and j.name not in attempted
+    ]
     if uncovered:
-        problems.add(
+        section.ctx.problems.add(
             f"URDF joints not driven by any source value: {', '.join(uncovered)}; add each to map, or to hold with a fixed value",
-            ctx.where(*here, "map"),
+            section.where("map"),
         )
-    return JointMapping(tuple(channels), tuple(holds), mimics, on_violation)
 
 
 def _corrections_consistent(ctx: CompileContext, entry: _MapEntry) -> bool:

@@ -103,94 +103,28 @@ def _refused_by_the_os(confinement: Confinement, path: Path) -> bool:
 def compile_robot(ctx: CompileContext, key: str, spec: dict[str, Any], sources: SourceNames) -> CompiledRobot | None:
     """The robot's plan and parsed URDF. `sources` names the values of each source that compiled (a source the config
     defines but that failed is reported once, by itself); None: only its data knows them (`validate --no-data`)."""
-    problems = ctx.problems
-    here = ("robots", key)
-    confinement = ctx.confinement
-    package_paths: dict[str, Path] = {}
-    followed = True  # every folder and the xacro file are paths the OS can follow; else nothing below them is read
-    for name, written in spec.get("package_paths", {}).items():
-        where = ctx.where(*here, "package_paths", name)
-        named = Path(os.path.abspath(ctx.config_dir / written))  # as written, `..` folded; check_read resolves it
-        try:
-            folder = package_paths[name] = confinement.check_read(named, f"package '{name}' folder", where)
-        except UserError as exc:  # kept, unresolved: xacro and mesh lookups check each file they read, and say which one
-            problems.extend(exc)
-            package_paths[name] = named
-            followed = followed and not _refused_by_the_os(confinement, named)
-            continue
-        if not folder.is_dir():
-            problems.add(f"package '{name}' directory not found: {folder}", where)
-    urdf_spec = spec["urdf"]
-    if isinstance(urdf_spec, dict) and "xacro" in urdf_spec:  # what the OS says of the file, at its own key
-        named = Path(os.path.abspath(ctx.config_dir / urdf_spec["xacro"]))
-        try:
-            confinement.check_read(named, "xacro file", ctx.where(*here, "urdf", "xacro"))
-        except UserError as exc:
-            if _refused_by_the_os(confinement, named):  # refused by its place: urdf/load.py says so, at the urdf key
-                problems.extend(exc)
-                followed = False
-    if not followed:
+    package_paths, folders_followed = _package_paths(ctx, key, spec)
+    xacro_followed = _xacro_file_followed(ctx, key, spec)  # checked even when a folder was not: every problem is reported
+    if not (folders_followed and xacro_followed):
         return None
     try:
         urdf = load_urdf(ctx, key, spec, package_paths)
     except UserError as exc:
-        problems.extend(exc)
+        ctx.problems.extend(exc)
         return None
     loaded, model = urdf.loaded, urdf.model
-    urdf_path = loaded.path
-    package_paths = {**loaded.package_paths, **package_paths}  # the config's own entries win
     keep_collisions = spec.get("collision_geometries", "drop") == "keep"
-    # Resolve every mesh (so Rerun needs no ROS environment); only those that will be drawn must resolve.
-    where_urdf = ctx.where(*here, "urdf")
-    resolution = resolve_meshes(model.meshes, package_paths, urdf_path, confinement, where_urdf)
-    drawn = [m for m in model.meshes if m.kind == "visual" or keep_collisions]
-    for error in [*resolution.refused, *garbage_meshes(drawn, resolution.resolved, urdf_path.name, where_urdf)]:
-        problems.extend(error)  # a mesh outside the config's roots, leaving its package, or not a mesh: never allowed
-    missing = [m for m in resolution.missing if m.kind == "visual" or keep_collisions]
-    if missing:
-        reasons = resolution.reasons
-        shown = listing(
-            [f"{m.uri} ({m.kind} of link '{m.link}'{': ' + reasons[m.uri] if m.uri in reasons else ''})" for m in missing],
-            limit=5,
-            separator="; ",
-        )
-        message = f"{len(missing)} mesh(es) do not resolve: {shown}"
-        if spec.get("allow_missing_meshes", False):
-            warn(f"{message}; they will be invisible (allow_missing_meshes: true)", ctx.where(*here))
-        else:
-            problems.add(
-                f"{message}; set package_paths for the package, or allow_missing_meshes: true to draw the robot without them",
-                ctx.where(*here, "package_paths") if "package_paths" in spec else ctx.where(*here, "urdf"),
-            )
-
-    joints_spec = spec.get("joints")
-    if joints_spec is None:  # a scene (table, camera mounts): nothing moves
-        moving = [j.name for j in model.joints if j.moving and j.mimic is None]
-        if moving:
-            problems.add(
-                f"URDF '{model.name}' has moving joints ({listing(moving)}) but the robot has no joints section; "
-                "add joints: {source: ..., map: ...} (hold joints the data lacks)",
-                ctx.where(*here),
-            )
-            return None
-        source_name: str | None = None
-        joints = JointMapping()
-    else:
-        source_name = joints_spec["source"]
-        if source_name not in sources:
-            if source_name in ctx.source_names:
-                return None  # the source itself is broken and already reported
-            problems.add(
-                f"no source named '{source_name}'; sources are: {', '.join(sources) or 'none'}",
-                ctx.where(*here, "joints", "source"),
-            )
-            return None
-        joints = compile_joints(ctx, key, joints_spec, sources[source_name], model)
+    package_paths = {**loaded.package_paths, **package_paths}  # the config's own entries win
+    mesh_files = _mesh_files(ctx, key, spec, urdf, package_paths, keep_collisions)
+    mapped = _robot_joints(ctx, key, spec, sources, model)
+    if mapped is None:
+        return None
+    source_name, joints = mapped
     prefix = spec.get("entity_path_prefix", key).strip("/")
     plan = RobotPlan(
         key=key,
-        urdf_path=urdf_path,
-        urdf_text=rewrite_mesh_uris(urdf.rerun_text, resolution.resolved),
+        urdf_path=loaded.path,
+        urdf_text=rewrite_mesh_uris(urdf.rerun_text, mesh_files),
         urdf_origin=loaded.origin,
         urdf_sha256=loaded.sha256,
         robot_name=model.name,
@@ -205,7 +139,108 @@ def compile_robot(ctx: CompileContext, key: str, spec: dict[str, Any], sources: 
         holds=joints.holds,
         mimics=joints.mimics,
         on_violation=joints.on_violation,
-        where=ctx.where(*here),
-        nan_policy=(joints_spec or {}).get("nan", "error"),
+        where=ctx.where("robots", key),
+        nan_policy=(spec.get("joints") or {}).get("nan", "error"),
     )
     return CompiledRobot(plan, model)
+
+
+def _package_paths(ctx: CompileContext, key: str, spec: dict[str, Any]) -> tuple[dict[str, Path], bool]:
+    """The config's package folders, each checked where it is written, and whether the OS can follow all of them. A
+    folder refused for its place is kept unresolved: xacro and mesh lookups check each file they read, and say which."""
+    confinement = ctx.confinement
+    package_paths: dict[str, Path] = {}
+    followed = True  # every folder is a path the OS can follow; else nothing below it is read
+    for name, written in spec.get("package_paths", {}).items():
+        where = ctx.where("robots", key, "package_paths", name)
+        named = Path(os.path.abspath(ctx.config_dir / written))  # as written, `..` folded; check_read resolves it
+        try:
+            folder = package_paths[name] = confinement.check_read(named, f"package '{name}' folder", where)
+        except UserError as exc:
+            ctx.problems.extend(exc)
+            package_paths[name] = named
+            followed = followed and not _refused_by_the_os(confinement, named)
+            continue
+        if not folder.is_dir():
+            ctx.problems.add(f"package '{name}' directory not found: {folder}", where)
+    return package_paths, followed
+
+
+def _xacro_file_followed(ctx: CompileContext, key: str, spec: dict[str, Any]) -> bool:
+    """Whether the OS can follow the robot's xacro file (True for any other URDF form). What the OS says of the file is
+    reported at its own key; a file refused for its place is left to urdf/load.py, which says so at the urdf key."""
+    urdf_spec = spec["urdf"]
+    if not (isinstance(urdf_spec, dict) and "xacro" in urdf_spec):
+        return True
+    named = Path(os.path.abspath(ctx.config_dir / urdf_spec["xacro"]))
+    try:
+        ctx.confinement.check_read(named, "xacro file", ctx.where("robots", key, "urdf", "xacro"))
+    except UserError as exc:
+        if _refused_by_the_os(ctx.confinement, named):
+            ctx.problems.extend(exc)
+            return False
+    return True
+
+
+def _mesh_files(
+    ctx: CompileContext, key: str, spec: dict[str, Any], urdf: RobotUrdf, package_paths: dict[str, Path], keep_collisions: bool
+) -> dict[str, Path]:
+    """Every mesh URI's file, so Rerun needs no ROS environment. Only meshes that will be drawn must resolve; a mesh
+    outside the config's roots, leaving its package, or not a mesh is never allowed, drawn or not."""
+    urdf_path = urdf.loaded.path
+    meshes = urdf.model.meshes
+    where_urdf = ctx.where("robots", key, "urdf")
+    resolution = resolve_meshes(meshes, package_paths, urdf_path, ctx.confinement, where_urdf)
+    drawn = [m for m in meshes if m.kind == "visual" or keep_collisions]
+    for error in [*resolution.refused, *garbage_meshes(drawn, resolution.resolved, urdf_path.name, where_urdf)]:
+        ctx.problems.extend(error)
+    reasons = resolution.reasons
+    missing = [
+        f"{m.uri} ({m.kind} of link '{m.link}'{': ' + reasons[m.uri] if m.uri in reasons else ''})"
+        for m in resolution.missing
+        if m.kind == "visual" or keep_collisions
+    ]
+    if missing:
+        _missing_meshes(ctx, key, spec, missing)
+    return resolution.resolved
+
+
+def _missing_meshes(ctx: CompileContext, key: str, spec: dict[str, Any], missing: list[str]) -> None:
+    """Drawn meshes that do not resolve (each described: URI, link, why): an error pointing at package_paths (the usual
+    fix), or a warning when the config allows the robot to be drawn without them."""
+    message = f"{len(missing)} mesh(es) do not resolve: {listing(missing, limit=5, separator='; ')}"
+    if spec.get("allow_missing_meshes", False):
+        warn(f"{message}; they will be invisible (allow_missing_meshes: true)", ctx.where("robots", key))
+    else:
+        ctx.problems.add(
+            f"{message}; set package_paths for the package, or allow_missing_meshes: true to draw the robot without them",
+            ctx.where("robots", key, "package_paths") if "package_paths" in spec else ctx.where("robots", key, "urdf"),
+        )
+
+
+def _robot_joints(
+    ctx: CompileContext, key: str, spec: dict[str, Any], sources: SourceNames, model: UrdfModel
+) -> tuple[str | None, JointMapping] | None:
+    """The robot's source and joint mapping; an empty mapping and no source for a scene (a robot without `joints`, such
+    as a table or camera mounts: refused if its URDF has moving joints). None: refused, or its source failed by itself."""
+    joints_spec = spec.get("joints")
+    if joints_spec is None:
+        moving = [j.name for j in model.joints if j.moving and j.mimic is None]
+        if moving:
+            ctx.problems.add(
+                f"URDF '{model.name}' has moving joints ({listing(moving)}) but the robot has no joints section; "
+                "add joints: {source: ..., map: ...} (hold joints the data lacks)",
+                ctx.where("robots", key),
+            )
+            return None
+        return None, JointMapping()
+    source_name: str = joints_spec["source"]
+    if source_name not in sources:
+        if source_name in ctx.source_names:
+            return None  # the source itself is broken and already reported
+        ctx.problems.add(
+            f"no source named '{source_name}'; sources are: {', '.join(sources) or 'none'}",
+            ctx.where("robots", key, "joints", "source"),
+        )
+        return None
+    return source_name, compile_joints(ctx, key, joints_spec, sources[source_name], model)

@@ -200,57 +200,89 @@ class _FirstRepeat:
 
 def _streamed(chunks: Iterator[Chunk], timeline: str | None, policy: str, label: str, path: Path, plan: Any) -> Iterator[Chunk]:
     """The rows as they come, checked chunk by chunk against the previous row (only index values are kept)."""
-    keep_last = policy == "keep_last"
-    last: int | None = None  # the index value of the previous row
-    seen = 0  # rows before this chunk
-    repeats = 0
-    first: _FirstRepeat | None = None  # under `error`: once set, nothing more is passed on
-    held: tuple[Chunk, pa.RecordBatch, np.ndarray] | None = None  # under `keep_last`: a chunk and which rows stay
+    check = _StreamCheck(policy == "keep_last", plan.name, path)
     for chunk in chunks:  # one iteration per chunk
         batch = chunk.to_record_batch()
         if timeline is None:
             timeline = _first_timeline(batch)
         values = _index_values(batch, timeline)
         if values is None:  # no such timeline (a generated one): nothing is checked, every chunk passed on as it is
-            if repeats:
-                raise NeedsSorting(plan.name, path)
-            if held is not None:
-                yield held[0]
-            yield chunk
+            yield from check.unchecked(chunk)
             yield from chunks
             return
+        yield from check.passed_on(chunk, batch, values)
+    yield from check.end(label, timeline or "", plan.where)
+
+
+@dataclass
+class _StreamCheck:
+    """What the streamed check keeps between chunks: the previous row's index value, the rows and repeats so far, and
+    what the policy holds back (`keep_last`: one chunk, whose last row may repeat in the next; `error`: the first repeat,
+    after which nothing more is passed on)."""
+
+    keep_last: bool
+    source: str
+    path: Path
+    last: int | None = None  # the index value of the previous row
+    seen: int = 0  # rows before this chunk
+    repeats: int = 0
+    first: _FirstRepeat | None = None  # under `error`: once set, nothing more is passed on
+    held: tuple[Chunk, pa.RecordBatch, np.ndarray] | None = None  # under `keep_last`: a chunk and which rows stay
+
+    def unchecked(self, chunk: Chunk) -> Iterator[Chunk]:
+        """The chunks passed on as they are once a chunk lacks the timeline; repeats already seen cannot be undone."""
+        if self.repeats:
+            raise NeedsSorting(self.source, self.path)
+        if self.held is not None:
+            yield self.held[0]
+        yield chunk
+
+    def passed_on(self, chunk: Chunk, batch: pa.RecordBatch, values: np.ndarray) -> Iterator[Chunk]:
+        """What of `chunk` goes on now; rows out of order raise `NeedsSorting` (earlier rows are gone: read it whole)."""
         if len(values) == 0:
-            if first is None:
+            if self.first is None:
                 yield chunk
-            continue
-        steps = np.diff(values, prepend=values[0] if last is None else last)
+            return
+        steps = np.diff(values, prepend=values[0] if self.last is None else self.last)
         if bool(np.any(steps < 0)):
-            raise NeedsSorting(plan.name, path)
+            raise NeedsSorting(self.source, self.path)
         equal = steps == 0
-        equal[0] = equal[0] and last is not None
-        repeats += int(np.count_nonzero(equal))
-        if keep_last:
-            if held is not None:
-                held[2][-1] = not equal[0]  # the held chunk's last row goes when this chunk goes on with its value
-                yield from _kept(*held)
-            held = (chunk, batch, np.append(~equal[1:], True))
-        elif first is not None:
-            first.rows += int(np.count_nonzero(values == first.value))
+        equal[0] = equal[0] and self.last is not None
+        self.repeats += int(np.count_nonzero(equal))
+        if self.keep_last:
+            yield from self._keeping_last(chunk, batch, equal)
+        else:
+            yield from self._until_a_repeat(chunk, values, equal)
+        self.last = int(values[-1])
+        self.seen += len(values)
+
+    def _keeping_last(self, chunk: Chunk, batch: pa.RecordBatch, equal: np.ndarray) -> Iterator[Chunk]:
+        """The held chunk goes on (without its last row when this chunk goes on with its value); this one is held."""
+        if self.held is not None:
+            self.held[2][-1] = not equal[0]
+            yield from _kept(*self.held)
+        self.held = (chunk, batch, np.append(~equal[1:], True))
+
+    def _until_a_repeat(self, chunk: Chunk, values: np.ndarray, equal: np.ndarray) -> Iterator[Chunk]:
+        """The chunk goes on until the first repeat; from then on only the rows of that repeated value are counted."""
+        if self.first is not None:
+            self.first.rows += int(np.count_nonzero(values == self.first.value))
         elif equal.any():
             at = int(np.argmax(equal))
             value = int(values[at])
-            first = _FirstRepeat(value, seen + at - 1, int(np.count_nonzero(values == value)) + (at == 0))
+            self.first = _FirstRepeat(value, self.seen + at - 1, int(np.count_nonzero(values == value)) + (at == 0))
         else:
             yield chunk
-        last = int(values[-1])
-        seen += len(values)
-    if held is not None:
-        yield from _kept(*held)
-    if first is not None:
-        rows = range(first.start, first.start + min(first.rows, 4))
-        raise _repeat_error(label, path, timeline or "", repeats, first.value, rows, first.rows, plan.where)
-    if repeats:
-        _kept_note(label, repeats, path, timeline or "")
+
+    def end(self, label: str, timeline: str, where: Where | None) -> Iterator[Chunk]:
+        """The held chunk; then the first repeat's error under `error`, or one note of the rows `keep_last` dropped."""
+        if self.held is not None:
+            yield from _kept(*self.held)
+        if self.first is not None:
+            rows = range(self.first.start, self.first.start + min(self.first.rows, 4))
+            raise _repeat_error(label, self.path, timeline, self.repeats, self.first.value, rows, self.first.rows, where)
+        if self.repeats:
+            _kept_note(label, self.repeats, self.path, timeline)
 
 
 def _kept(chunk: Chunk, batch: pa.RecordBatch, keep: np.ndarray) -> Iterator[Chunk]:

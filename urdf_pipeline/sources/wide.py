@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -69,27 +70,62 @@ def wide_columns(
     cannot be the timeline, a used column named twice or without a name."""
     index = compile_index(spec["index"])
     columns = list(schema.names)
+    places = _Places(document, here, kind, given="names" in spec)
     if index.column not in columns:
         raise UserError(
             f"index column '{index.column}' not among the columns of {file.name}{did_you_mean(index.column, columns)}; "
             f"its columns: {listing(columns)}",
-            document.where(*here, "index"),
+            places.index(),
         )
-    given = "names" in spec
-    names = tuple(spec["names"]) if given else tuple(c for c in columns if c != index.column)
+    names = tuple(spec["names"]) if places.given else tuple(c for c in columns if c != index.column)
+    _check_value_names(names, index.column, columns, file, places)
+    if not names:
+        raise UserError(f"{file.name} has no column but the index '{index.column}': no joint values", places.source())
+    _check_header(index.column, names, columns, file, places)
+    problem = index_type_problem(index.column, schema.field(index.column).type, index.kind)
+    if problem is not None:
+        raise UserError(problem, places.index())
+    _check_numbers(names, schema, file, places)
+    return index, names
+
+
+@dataclass(frozen=True)
+class _Places:
+    """Where a wide table's problems point: its index key; a value column's `names` entry when the config lists them,
+    else the source's file key (the value columns came from the header)."""
+
+    document: Document
+    here: tuple[str, str]
+    kind: str
+    given: bool  # the config lists the value columns in `names`
+
+    def index(self) -> Where:
+        return self.document.where(*self.here, "index")
+
+    def source(self) -> Where:
+        return self.document.where(*self.here, self.kind)
+
+    def name(self, position: int) -> Where:
+        return self.document.where(*self.here, "names", position) if self.given else self.source()
+
+
+def _check_value_names(names: tuple[str, ...], index_column: str, columns: list[str], file: Path, places: _Places) -> None:
+    """Each value name is a column of the header, and not the index column (a value and its time in one cell)."""
     for position, name in enumerate(names):
-        where = document.where(*here, "names", position) if given else document.where(*here, kind)
         if name not in columns:
             raise UserError(
-                f"column '{name}' not among the columns of {file.name}{did_you_mean(name, columns)}; its columns: {listing(columns)}", where
+                f"column '{name}' not among the columns of {file.name}{did_you_mean(name, columns)}; its columns: {listing(columns)}",
+                places.name(position),
             )
-        if name == index.column:
-            raise UserError(f"'{name}' is the index column; names lists the value columns only", where)
-    if not names:
-        raise UserError(f"{file.name} has no column but the index '{index.column}': no joint values", document.where(*here, kind))
-    for name in (index.column, *names):
+        if name == index_column:
+            raise UserError(f"'{name}' is the index column; names lists the value columns only", places.name(position))
+
+
+def _check_header(index_column: str, names: tuple[str, ...], columns: list[str], file: Path, places: _Places) -> None:
+    """Every column used is named once in the header: a column read by name must be the one the config means."""
+    for name in (index_column, *names):
         count = columns.count(name)
-        where = document.where(*here, "index") if name == index.column else document.where(*here, kind)
+        where = places.index() if name == index_column else places.source()
         if not name:
             raise UserError(
                 f"column {columns.index(name) + 1} of {file.name} has no name in the header; name it, or list the value columns in names:",
@@ -99,20 +135,20 @@ def wide_columns(
             raise UserError(
                 f"the header of {file.name} names column '{name}' {count} times; a wide table's columns need distinct names", where
             )
-    problem = index_type_problem(index.column, schema.field(index.column).type, index.kind)
-    if problem is not None:
-        raise UserError(problem, document.where(*here, "index"))
+
+
+def _check_numbers(names: tuple[str, ...], schema: pa.Schema, file: Path, places: _Places) -> None:
+    """Every value column holds numbers (one per cell); a list column in parquet is pointed at `column:`."""
     for position, name in enumerate(names):
         value_type = schema.field(name).type
         if not _is_number(value_type):
-            where = document.where(*here, "names", position) if given else document.where(*here, kind)
-            hint = "" if given else "; list the value columns in names: to leave it out"
+            hint = "" if places.given else "; list the value columns in names: to leave it out"
             if pa.types.is_list(value_type) or pa.types.is_fixed_size_list(value_type) or pa.types.is_large_list(value_type):
-                hint += f" (or give column: {name} if it holds all the values of a row)" if kind == "parquet" else ""
+                hint += f" (or give column: {name} if it holds all the values of a row)" if places.kind == "parquet" else ""
             raise UserError(
-                f"column '{name}' of {file.name} is {value_type}, not numbers: a wide table holds one number per cell{hint}", where
+                f"column '{name}' of {file.name} is {value_type}, not numbers: a wide table holds one number per cell{hint}",
+                places.name(position),
             )
-    return index, names
 
 
 def timeline(values: pa.Array, index: IndexPlan, first_row: int, plan: WidePlan) -> pa.Array:

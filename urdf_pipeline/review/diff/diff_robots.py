@@ -32,6 +32,26 @@ def robot_changes(report: _Report, old: Plan, new: Plan) -> None:
 
 
 def _robot_changes(report: _Report, subject: str, old_plan: Plan, old: RobotPlan, new_plan: Plan, new: RobotPlan) -> None:
+    """A robot in both plans: its URDF, prefixes and joints source; its mapping and holds only when both have a
+    source (a scene has none, and a robot that became one or stopped being one says so in `joints source`)."""
+    group = "robot"
+    _urdf_and_mesh_changes(report, subject, old, new)
+    report.field(group, subject, "entity_path_prefix", old.entity_path_prefix, new.entity_path_prefix)
+    report.field(group, subject, "frame_prefix", old.frame_prefix, new.frame_prefix)
+    report.field(group, subject, "collision_geometries", _collisions(old), _collisions(new))
+    report.field(group, subject, "joints source", old.source, new.source)
+    if old.source is None or new.source is None:
+        return
+    report.field(group, subject, "NaN policy", old.nan_policy, new.nan_policy)
+    report.field(group, subject, "limits slack", _slack(old), _slack(new))
+    report.field(group, subject, "limits on_violation", old.on_violation, new.on_violation)
+    _mapping_changes(report, subject, old_plan.source(old.source).names, old, new_plan.source(new.source).names, new)
+    _hold_changes(report, subject, old, new)
+
+
+def _urdf_and_mesh_changes(report: _Report, subject: str, old: RobotPlan, new: RobotPlan) -> None:
+    """The URDF's file, origin and content; what changed inside it (joints, links) only when its hash did, and its
+    meshes always (a mesh file can change under an unchanged URDF)."""
     group = "robot"
     report.field(group, subject, "URDF file", report.old_path(old.urdf_path), report.new_path(new.urdf_path))
     if not (old.urdf_origin.startswith("file ") and new.urdf_origin.startswith("file ")):  # a file's origin is its path
@@ -43,17 +63,14 @@ def _robot_changes(report: _Report, subject: str, old_plan: Plan, old: RobotPlan
             _urdf_changes(report, subject, old_model, new_model)
     if old_model is not None and new_model is not None:
         _mesh_changes(report, subject, old_model, new_model)
-    report.field(group, subject, "entity_path_prefix", old.entity_path_prefix, new.entity_path_prefix)
-    report.field(group, subject, "frame_prefix", old.frame_prefix, new.frame_prefix)
-    report.field(group, subject, "collision_geometries", _collisions(old), _collisions(new))
-    report.field(group, subject, "joints source", old.source, new.source)
-    if old.source is None or new.source is None:
-        return
-    report.field(group, subject, "NaN policy", old.nan_policy, new.nan_policy)
-    report.field(group, subject, "limits slack", _slack(old), _slack(new))
-    report.field(group, subject, "limits on_violation", old.on_violation, new.on_violation)
 
-    old_names, new_names = old_plan.source(old.source).names, new_plan.source(new.source).names
+
+def _mapping_changes(
+    report: _Report, subject: str, old_names: tuple[str, ...], old: RobotPlan, new_names: tuple[str, ...], new: RobotPlan
+) -> None:
+    """Per source value, in the new source's order (then the old one's): mapped, unmapped, or how its mapping changed;
+    then the values that became or stopped being ignored (a source name its plan does not map is ignored)."""
+    group = "robot"
     old_map, new_map = _channels_by_name(old), _channels_by_name(new)
     old_ignored = [n for n in old_names if n not in old_map]
     new_ignored = [n for n in new_names if n not in new_map]
@@ -80,6 +97,10 @@ def _robot_changes(report: _Report, subject: str, old_plan: Plan, old: RobotPlan
     if removed:
         report.add(group, subject, f"ignore removed: {', '.join(removed)}", removed, None)
 
+
+def _hold_changes(report: _Report, subject: str, old: RobotPlan, new: RobotPlan) -> None:
+    """Held joints by name: removed, added, or their value changed."""
+    group = "robot"
     old_holds, new_holds = {h.joint: h.value for h in old.holds}, {h.joint: h.value for h in new.holds}
     for joint in sorted(old_holds.keys() | new_holds.keys()):
         if joint not in new_holds:
