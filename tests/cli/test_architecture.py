@@ -167,7 +167,6 @@ def test_no_two_modules_share_a_name() -> None:
     assert not shared, "modules or packages sharing a name (rename one to say what it does): " + "; ".join(shared)
 
 
-
 # The packages whose `__init__` is a surface: every package of the table but `cli/` (the command line, which no one imports).
 STAGE_PACKAGES = tuple(
     name.removeprefix("urdf_pipeline.")

@@ -50,7 +50,7 @@ def _handle(handler: Callable[[argparse.Namespace], int], args: argparse.Namespa
 
     left_out = PandasLeftOut() if _pandas_unused(args) and "pandas" not in sys.modules else None
     if left_out is not None:
-        sys.meta_path.insert(0, left_out)  # type: ignore[arg-type]
+        sys.meta_path.insert(0, left_out)
     try:
         return handler(args)
     except UserError as exc:
@@ -69,7 +69,7 @@ def _handle(handler: Callable[[argparse.Namespace], int], args: argparse.Namespa
         return trouble or ExitCode.BUG
     finally:
         if left_out is not None:
-            sys.meta_path.remove(left_out)  # type: ignore[arg-type]
+            sys.meta_path.remove(left_out)
 
 
 def _pandas_unused(args: argparse.Namespace) -> bool:

@@ -149,7 +149,7 @@ def _holds(section: _Section) -> list[HeldJoint]:
             problems.add(f"joint '{joint_name}' is a <mimic> of '{joint.mimic.joint}' and is computed from it; remove it from hold", where)
         elif joint_name in section.covered:
             problems.add(f"joint '{joint_name}' is both held and driven by {section.covered[joint_name]}; keep one", where)
-        elif joint.has_limits and not (joint.lower <= value <= joint.upper):  # type: ignore[operator]
+        elif joint.has_limits and not (joint.lower <= value <= joint.upper):
             problems.add(
                 f"hold value {value} for '{joint_name}' is outside its URDF limits [{joint.lower}, {joint.upper}] {urdf_unit(joint.angular)}",
                 where,

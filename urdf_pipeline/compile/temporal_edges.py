@@ -88,8 +88,8 @@ def compile_temporal_edge(ctx: CompileContext, edge: EdgeSpec, sources: SourceNa
         parent=spec["parent"],
         child=spec["child"],
         source=name,
-        translation_names=translation,  # type: ignore[arg-type]
-        quaternion_names=quaternion,  # type: ignore[arg-type]
+        translation_names=translation,
+        quaternion_names=quaternion,
         translation_indices=tuple(at(v) for v in translation),  # type: ignore[arg-type]
         quaternion_indices=tuple(at(v) for v in quaternion),  # type: ignore[arg-type]
         entity=entities.entity_for(spec["child"]),

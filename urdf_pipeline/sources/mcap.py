@@ -113,7 +113,7 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
                 document.where(*here, "topic"),
             )
     counts = [channel.message_count for channel in channels]
-    if all(count is not None for count in counts) and sum(counts) == 0:  # type: ignore[arg-type]
+    if all(count is not None for count in counts) and sum(counts) == 0:
         raise UserError(f"topic '{spec['topic']}' has no messages in {path}; a source with zero rows", document.where(*here, "topic"))
     timeline = TIMELINES[spec.get("timeline", "header")]
     if timeline == TIMELINES["log_time"]:
