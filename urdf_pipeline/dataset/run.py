@@ -60,7 +60,7 @@ def build_jobs(plan: Plan) -> list[SegmentJob]:
 
 def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | None = None) -> DatasetRun:
     started = time.perf_counter()
-    manifest = Manifest.load(plan.dataset.manifest, plan.output.application_id, plan.dataset.layout, plan.config_path, plan.output.where)
+    manifest = Manifest.load(plan.dataset.manifest, plan.application_id, plan.dataset.layout, plan.config_path, plan.output_where)
     remember_file_hashes(manifest.files)
     jobs = build_jobs(plan)
     # Hashes of files this run did not read (other episodes: `--episodes`) are kept while the file is there, so that
@@ -142,7 +142,7 @@ def _prepare_outputs(plan: Plan, jobs: list[SegmentJob], to_run: list[SegmentJob
     folder written to takes files, and the partial files of killed runs are gone. Every refusal at once, exit 1."""
     from ..execute import blueprint_key, blueprint_path
 
-    where = plan.output.where
+    where = plan.output_where
     problems = Problems()
     for job in to_run:
         try:

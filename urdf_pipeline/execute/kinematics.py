@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import Problems
-from ..plan import Plan, RobotPlan
+from ..plan import RecordingPlan, RobotPlan
 from ..sources import JointValueMapper, module_for, raw_matrix, with_sorting_retry
 from .joint_fk import ClosedFormJointTransforms, multiply_quaternions, quaternion_from_rpy, rotate, rotation_matrices
 from .limits_report import check_joint_statistics
@@ -53,8 +53,8 @@ class RobotKinematics:
         return self.translations[index], self.quaternions[index]
 
 
-def segment_kinematics(plan: Plan) -> dict[str, RobotKinematics]:
-    """Every robot of a one-segment plan (`Plan.for_segment`), by robot key."""
+def segment_kinematics(plan: RecordingPlan) -> dict[str, RobotKinematics]:
+    """Every robot of one segment's plan (`Plan.for_segment`), by robot key."""
     from ..errors import UserError
 
     result: dict[str, RobotKinematics] = {}

@@ -53,7 +53,8 @@ def _robot_changes(report: _Report, subject: str, old_plan: Plan, old: RobotPlan
     report.field(group, subject, "limits slack", _slack(old), _slack(new))
     report.field(group, subject, "limits on_violation", old.on_violation, new.on_violation)
 
-    old_names, new_names = old_plan.source(old.source).names, new_plan.source(new.source).names
+    old_names = old_plan.for_segment(old_plan.segments[0]).source(old.source).names  # the first segment's, as plan shows them
+    new_names = new_plan.for_segment(new_plan.segments[0]).source(new.source).names
     old_map, new_map = _channels_by_name(old), _channels_by_name(new)
     old_ignored = [n for n in old_names if n not in old_map]
     new_ignored = [n for n in new_names if n not in new_map]
