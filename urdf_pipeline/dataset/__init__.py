@@ -13,10 +13,11 @@ from .. import lazy_surface
 if TYPE_CHECKING:
     from .base_check import check_base
     from .interrupts import exit_status, handle_sigterm, keep_sigterm_handler, restore_sigterm_handler, signal_name, signal_number
-    from .run import RunOptions, register_outputs, run_dataset
+    from .run import DatasetRun, RunOptions, register_outputs, run_dataset
     from .summary import summary_table, totals_line, write_report
 
 __all__ = [
+    "DatasetRun",
     "RunOptions",
     "check_base",
     "exit_status",
@@ -35,6 +36,7 @@ __all__ = [
 __getattr__ = lazy_surface(
     __name__,
     {
+        "DatasetRun": "run",
         "RunOptions": "run",
         "check_base": "base_check",
         "exit_status": "interrupts",

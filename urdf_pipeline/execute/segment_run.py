@@ -38,6 +38,7 @@ class SegmentJob:
     run_plan: Plan | None = None  # None when the worker was given the run's plan once, at its start (install_run_plan)
 
     def plan(self) -> RecordingPlan:
+        """This job's recording, cut from the run's plan: the segment's sources and output, or the model's."""
         run_plan = self.run_plan or _INSTALLED[0]
         return run_plan.for_model() if self.segment is None else run_plan.for_segment(self.segment)
 
