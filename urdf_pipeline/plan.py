@@ -1,4 +1,8 @@
-"""The frozen, typed plan: everything decided before any joint value is read."""
+"""The frozen, typed plan: everything decided before any joint value is read.
+
+Two levels: `Plan` is the whole config (what `compile_config` and `urdf_pipeline.load` return, what `plan`, `diff`
+and `run` read); `RecordingPlan` is one recording of it (a segment, or the split layout's model: what `execute`
+writes), made by `Plan.for_segment` / `for_model`. Only the latter has sources and an output."""
 
 from __future__ import annotations
 
