@@ -1,8 +1,12 @@
-"""The frozen, typed plan: everything decided before any joint value is read."""
+"""The frozen, typed plan: everything decided before any joint value is read.
+
+Two levels: `Plan` is the whole config (what `compile_config` and `urdf_pipeline.load` return, what `plan`, `diff`
+and `run` read); `RecordingPlan` is one recording of it (a segment, or the split layout's model: what `execute`
+writes), made by `Plan.for_segment` / `for_model`. Only the latter has sources and an output."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
@@ -15,6 +19,8 @@ TimelineKind = Literal["sequence", "timestamp", "duration"]
 
 @dataclass(frozen=True)
 class IndexPlan:
+    """The column a source's rows are ordered by, and the Rerun timeline it becomes (sequence, timestamp or duration)."""
+
     column: str
     kind: TimelineKind
     unit: str | None  # "s" | "ms" | "us" | "ns" for time kinds
@@ -35,6 +41,8 @@ class ParquetSourcePlan:
 
 @dataclass(frozen=True)
 class LeRobotSourcePlan:
+    """One feature (a joint vector) of a LeRobot dataset: one episode, or (per_segment) each segment's own."""
+
     name: str
     root: Path
     feature: str
@@ -180,12 +188,17 @@ class MimicJoint:
 
 @dataclass(frozen=True)
 class HeldJoint:
+    """A joint no source drives, held at one value (`hold:`), so the FK has a value for every joint."""
+
     joint: str
     value: float  # URDF units
 
 
 @dataclass(frozen=True)
 class RobotPlan:
+    """One robot of the config: its URDF text and where it hangs in the scene, and how one source's values drive its
+    joints (channels, holds, mimics) and what is done with values out of limits or NaN."""
+
     key: str
     urdf_path: Path  # the URDF (or xacro) file the text came from
     urdf_text: str  # URDF text with every resolved mesh URI replaced by an absolute path
@@ -311,21 +324,29 @@ class DatasetPlan:
 
 
 @dataclass(frozen=True)
-class Plan:
+class ScenePlan:
+    """What every recording of a config shares, whatever it reads: the robots, the edges between their frames, the
+    root frame. The base of the whole config's `Plan` and of one recording's `RecordingPlan`, which are otherwise
+    apart so that no code reads one segment's sources or output from the dataset's plan."""
+
     config_path: Path
-    sources: tuple[SourcePlan, ...]
     robots: tuple[RobotPlan, ...]
     edges: tuple[EdgePlan, ...]
     root_frame: str
-    output: OutputPlan  # the first segment's; see for_segment
     temporal_edges: tuple[TemporalEdgePlan, ...]
-    dataset: DatasetPlan
-
-    def source(self, name: str) -> SourcePlan:
-        return next(s for s in self.sources if s.name == name)
 
     def robots_for(self, source: str) -> tuple[RobotPlan, ...]:
         return tuple(r for r in self.robots if r.source == source)
+
+
+@dataclass(frozen=True)
+class Plan(ScenePlan):
+    """The whole config, compiled and frozen: the seam between checking and doing. Its segments each hold their own
+    sources and output path; one recording's plan is `for_segment(segment)` (or `for_model()`): what a run executes."""
+
+    dataset: DatasetPlan
+    application_id: str  # every recording's (output.application_id)
+    output_where: Where  # the config's `output`, for errors about what a run writes
 
     @property
     def segments(self) -> tuple[Segment, ...]:
@@ -344,15 +365,30 @@ class Plan:
                 return segment
         raise UserError(f"{option} {wanted}: no such segment (segments: {listing(ids)}){did_you_mean(wanted, ids)}", self.dataset.where)
 
-    def for_segment(self, segment: Segment) -> Plan:
-        """The plan of one recording: the segment's own sources and output."""
-        output = replace(self.output, path=segment.output, recording_id=segment.id)
-        return replace(self, sources=segment.sources, output=output)
+    def for_segment(self, segment: Segment) -> RecordingPlan:
+        """The plan of one segment's recording: its own sources and output."""
+        return self._recording(segment.sources, segment.output, segment.id)
 
-    def for_model(self) -> Plan:
-        """The plan of the split layout's model asset."""
+    def for_model(self) -> RecordingPlan:
+        """The plan of the split layout's model asset: no source is read."""
         assert self.dataset.model is not None, "for_model needs the split layout"
-        return replace(self, output=replace(self.output, path=self.dataset.model, recording_id=MODEL_RECORDING_ID))
+        return self._recording((), self.dataset.model, MODEL_RECORDING_ID)
+
+    def _recording(self, sources: tuple[SourcePlan, ...], path: Path, recording_id: str) -> RecordingPlan:
+        output = OutputPlan(path, self.application_id, recording_id, self.output_where)
+        return RecordingPlan(self.config_path, self.robots, self.edges, self.root_frame, self.temporal_edges, sources, output)
+
+
+@dataclass(frozen=True)
+class RecordingPlan(ScenePlan):
+    """The plan of ONE recording (a segment, or the split layout's model), made by `Plan.for_segment`/`for_model`:
+    what execute writes and the API logs. It knows nothing of the other segments."""
+
+    sources: tuple[SourcePlan, ...]  # this recording's own inputs (its episode, its file); none for the model
+    output: OutputPlan
+
+    def source(self, name: str) -> SourcePlan:
+        return next(s for s in self.sources if s.name == name)
 
 
 MODEL_RECORDING_ID = "urdf_model"  # the split layout's model asset is a recording of its own, not a segment

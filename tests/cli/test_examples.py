@@ -196,5 +196,5 @@ def test_make_demo_ends_with_a_command_that_opens_the_recording_it_wrote(example
     assert recipe[-1].strip() == '@echo "open it: $(BIN)/rerun configs/out/episode_000.rrd"'
     assert "BIN := $(VENV)/bin" in makefile and "VENV := .venv" in makefile
     assert (Path(sys.executable).parent / "rerun").is_file(), "rerun-sdk installs the viewer's script beside the interpreter"
-    written = compile_config(examples_dir / "demo.yaml").output.path
+    written = compile_config(examples_dir / "demo.yaml").segments[0].output
     assert written.relative_to(examples_dir).as_posix() == "out/episode_000.rrd"

@@ -100,14 +100,14 @@ def test_nothing_when_the_logger_is_quiet(caplog: pytest.LogCaptureFixture) -> N
 
 def test_the_total_comes_from_each_kind_s_metadata(examples_dir: Path, allow_examples: Path) -> None:
     demo = compile_config(examples_dir / "demo.yaml")
-    assert known_rows(demo.sources[0], None) == 300  # the parquet footer
+    assert known_rows(demo.segments[0].sources[0], None) == 300  # the parquet footer
     aloha = compile_config(examples_dir / "aloha_bimanual.yaml")
     assert known_rows(aloha.segments[1].sources[0], None) == 150  # the HDF5 dataset's shape (episode 1 has 300 // 2 rows)
     so101 = compile_config(examples_dir / "so101_lerobot.yaml")
-    assert known_rows(so101.sources[0], None) == 300  # the LeRobot episode's length in its metadata
-    assert known_rows(so101.sources[0], 123) == 123  # as the dataset plan says it
+    assert known_rows(so101.segments[0].sources[0], None) == 300  # the LeRobot episode's length in its metadata
+    assert known_rows(so101.segments[0].sources[0], 123) == 123  # as the dataset plan says it
     ur5 = compile_config(examples_dir / "ur5_ros2_bag.yaml")
-    assert known_rows(ur5.sources[0], None) == 300  # the MCAP summary's message count
+    assert known_rows(ur5.segments[0].sources[0], None) == 300  # the MCAP summary's message count
 
 
 def _long_source(config: Path, rows: int) -> None:

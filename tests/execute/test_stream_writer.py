@@ -57,7 +57,8 @@ def _chunk_counts(path: Path) -> tuple[int, list[int]]:
 
 @pytest.mark.parametrize("config", ["demo.yaml", "bimanual_pandas.yaml", "aloha_bimanual.yaml"])
 def test_streamed_recording_equals_the_collected_one(examples_dir: Path, config: str, monkeypatch: pytest.MonkeyPatch) -> None:
-    plan = compile_config(examples_dir / config)
+    compiled = compile_config(examples_dir / config)
+    plan = compiled.for_segment(compiled.segments[0])
     streamed = execute(plan, quiet=True).output.rename(examples_dir / "streamed.rrd")
     monkeypatch.setattr(segment_module, "drain_streams", _collected)
     collected = execute(plan, quiet=True).output

@@ -28,7 +28,7 @@ def demo(viewer: HeadlessViewer, examples_dir: Path, written: dict[str, Path]):
     (timeline,) = transform_timelines(chunks, [r.fk_entity for r in plan.robots])
     transforms = read_transforms(chunks, timeline)
     camera = framing(transforms.positions(plan.root_frame, robot_frames(plan.robots)).reshape(-1, 3), SMALL.width, SMALL.height)
-    store = viewer.show(plan.output.application_id, plan.output.recording_id, chunks)
+    store = viewer.show(plan.application_id, plan.segments[0].id, chunks)
     return store, timeline, camera
 
 
@@ -58,7 +58,7 @@ def test_the_viewers_transform_graph_connects_every_link_to_the_root(
     chunks = RrdReader(written[name]).stream().to_chunks()
     (timeline,) = transform_timelines(chunks, [r.fk_entity for r in plan.robots])
     times = read_transforms(chunks, timeline).times
-    store = viewer.show(plan.output.application_id, plan.output.recording_id, chunks)
+    store = viewer.show(plan.application_id, plan.segments[0].id, chunks)
     graph = viewer.transform_graph(store, timeline, int(times[len(times) // 2]))
     parents: dict[str, set[str]] = {}
     for edge in graph["edges"]:

@@ -239,7 +239,7 @@ def test_sample_adds_the_observed_range(examples_dir: Path, run_cli) -> None:
     assert result.code == 0, result.err
     report = json.loads(result.out)
     assert report["sample"] == {"read": {"arm_state": 40}, "rows": 40}
-    raw = read_sample(compile_config(examples_dir / "demo.yaml").sources[0], 40)
+    raw = read_sample(compile_config(examples_dir / "demo.yaml").segments[0].sources[0], 40)
     rows = {row["source_name"]: row for row in report["robots"][0]["joints"] if row["kind"] == "mapped"}
     assert rows["j2"]["observed"]["min"] == round(float(raw[:, 1].min()), 9) and rows["j2"]["observed"]["rows"] == 40
     assert all(row["observed"]["fits"] for row in rows.values())

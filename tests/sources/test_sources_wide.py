@@ -97,7 +97,7 @@ def test_wide_csv_in_degrees_drives_the_panda_and_matches_pinocchio(examples_dir
     config = panda_config(examples_dir, "wide_csv_contract", source, CONTRACT_MAP, ignore=["sample"])
 
     plan = compile_config(config)
-    (csv_plan,) = plan.sources
+    (csv_plan,) = plan.segments[0].sources
     assert isinstance(csv_plan, CsvSourcePlan) and csv_plan.names == ("sample", *(PANDA_NAMES[i] for i in order))
     batches = list(csv_kind._batches(csv_plan))
     assert len(batches) > 5 and sum(b.num_rows for b in batches) == frames
@@ -131,7 +131,7 @@ def test_wide_parquet_by_row_groups_drives_the_panda_and_matches_pinocchio(
     source = {"parquet": "data/wide_radians.parquet", "index": "frame", "names": names}
     config = panda_config(examples_dir, "wide_parquet_radians", source, {name: name for name in PANDA_JOINTS})
 
-    (parquet_plan,) = compile_config(config).sources
+    (parquet_plan,) = compile_config(config).segments[0].sources
     assert isinstance(parquet_plan, ParquetSourcePlan) and parquet_plan.column is None and parquet_plan.names == tuple(names)
     assert [b.num_rows for b in parquet_kind._batches(parquet_plan)] == [16] * 9 + [6]  # bounded batches, not the file
 
@@ -238,7 +238,7 @@ def test_init_scaffolds_a_config_from_a_wide_csv_that_validates_and_runs(example
     assert sorted(robot["joints"]["map"]) == sorted(PANDA_JOINTS)
     assert run_cli("validate", str(config)).code == 0
     plan = compile_config(config)
-    assert module_for(plan.sources[0]) is csv_kind
+    assert module_for(plan.segments[0].sources[0]) is csv_kind
 
 
 def test_a_glob_of_csv_files_gives_one_segment_per_file(examples_dir: Path, run_cli) -> None:

@@ -43,13 +43,13 @@ def run(
     finished = run_dataset(plan, RunOptions(jobs or os.cpu_count() or 1, "local", None, force))
     if finished.interrupted:
         raise KeyboardInterrupt
-    bugs = [r for r in finished.results if r.status == "bug"]
-    if bugs:
-        raise RuntimeError(f"urdf-pipeline: internal error in {bugs[0].label} (a bug, not your config):\n{bugs[0].reason}")
-    failed = [r for r in finished.results if r.status == "failed"]
-    if failed:
-        raise UserErrors([UserError(f"{r.label}: {line.removeprefix('error: ')}") for r in failed for line in r.reason.splitlines()])
-    return [r.output for r in finished.results if r.status in ("written", "skipped")]
+    if finished.bugs:
+        bug = finished.bugs[0]
+        raise RuntimeError(f"urdf-pipeline: internal error in {bug.label} (a bug, not your config):\n{bug.reason}")
+    if finished.failed:
+        lines = [(r.label, line.removeprefix("error: ")) for r in finished.failed for line in r.reason.splitlines()]
+        raise UserErrors([UserError(f"{label}: {line}") for label, line in lines])
+    return list(finished.outputs)
 
 
 def log(path: str | os.PathLike[str] | Plan, recording: RecordingStream | None = None, *, segment: str | None = None) -> dict[str, int]:

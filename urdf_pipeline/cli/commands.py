@@ -14,17 +14,39 @@ from ..errors import ExitCode, UserError, neutral_line, neutral_text
 from .viewer_target import require_viewer, spawn_viewer
 
 if TYPE_CHECKING:
+    from ..dataset import DatasetRun
     from ..execute import SegmentResult
+    from ..plan import Plan
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from ..compile import compile_config
-    from ..dataset import RunOptions, register_outputs, run_dataset, summary_table, totals_line, write_report
-    from ..progress import LOGGER, SegmentProgress, detail, say
-
+    """Compile, write every recording that is not up to date, say what happened; then register the outputs
+    (--catalog) and send them to a viewer (--connect, --spawn). The exit status is the run's (`DatasetRun.exit_status`)."""
     if args.catalog and not args.dataset:
         raise UserError("--catalog needs --dataset NAME: the catalog dataset to register the outputs in")
     viewer = require_viewer(args.connect) if args.connect else None  # a viewer listening there, before any work
+    plan = _compiled_for_run(args)
+    if args.spawn:  # a valid config: start the viewer (or find it running) before the run, so a failure costs nothing
+        viewer = spawn_viewer()
+    many = len(plan.segments) > 1 or plan.dataset.layout == "split"  # a dataset: a progress bar and a summary table
+    run = _run_segments(args, plan, many)
+    _say_results(run, many)
+    if run.interrupted:
+        from ..dataset import signal_name
+
+        print(f"interrupted ({signal_name(run.signal)}): only complete outputs were kept", file=sys.stderr)
+        return run.exit_status
+    _deliver(args, plan, run, viewer)
+    if run.bugs:
+        print("urdf-pipeline: internal error (a bug, not your config); please report it with the traceback above", file=sys.stderr)
+    return run.exit_status
+
+
+def _compiled_for_run(args: argparse.Namespace) -> Plan:
+    """The config's plan, each robot's URDF named; with --base, its segment ids checked against the base recordings."""
+    from ..compile import compile_config
+    from ..progress import detail, say
+
     started = time.perf_counter()
     plan = compile_config(Path(args.config), args.episodes)
     detail(f"{args.config} compiled in {time.perf_counter() - started:.2f} s")
@@ -34,12 +56,17 @@ def cmd_run(args: argparse.Namespace) -> int:
         from ..dataset import check_base
 
         say(f"all {check_base(plan, args.base)} segment id(s) found among the base recordings in {args.base}")
-    if args.spawn:  # a valid config: start the viewer (or find it running) before the run, so a failure costs nothing
-        viewer = spawn_viewer()
-    segments = len(plan.segments)
-    many = segments > 1 or plan.dataset.layout == "split"
+    return plan
+
+
+def _run_segments(args: argparse.Namespace, plan: Plan, many: bool) -> DatasetRun:
+    """The run on the executor asked for (`many`: with a progress bar, and each result's worker and notes at
+    --verbose); with --report, what it did as JSON."""
+    from ..dataset import RunOptions, run_dataset, write_report
+    from ..progress import LOGGER, SegmentProgress, detail, say
+
     if many:
-        say(f"{segments} segment(s), layout {plan.dataset.layout}, {args.jobs} job(s) on the {args.executor} executor")
+        say(f"{len(plan.segments)} segment(s), layout {plan.dataset.layout}, {args.jobs} job(s) on the {args.executor} executor")
     options = RunOptions(args.jobs, args.executor, args.ray_address, args.force, verbose=not many)
     run = run_dataset(plan, options, SegmentProgress() if many and LOGGER.isEnabledFor(logging.INFO) else None)
     for result in run.results if many else ():
@@ -48,6 +75,15 @@ def cmd_run(args: argparse.Namespace) -> int:
             detail(f"{result.label}: note: {text}")
     if args.report:
         write_report(Path(args.report), plan, run, options)
+    return run
+
+
+def _say_results(run: DatasetRun, many: bool) -> None:
+    """The blueprint, the summary (a dataset's table, or one recording's lines), the usable outputs' paths on stdout,
+    and the traceback of every bug on stderr."""
+    from ..dataset import summary_table, totals_line
+    from ..progress import LOGGER, say
+
     if run.blueprint is not None:
         say(f"blueprint (a 3D view of the scene and one per robot): {run.blueprint}")
     if many or run.interrupted:
@@ -55,27 +91,25 @@ def cmd_run(args: argparse.Namespace) -> int:
         say(totals_line(run.results, run.seconds) + f"; manifest {run.manifest}")
     else:
         _print_single(run.results[0])
-    for result in run.results:
-        if result.status in ("written", "skipped"):
-            print(neutral_line(str(result.output)))
-    bugs = [r for r in run.results if r.status == "bug"]
-    for result in bugs:
+    for output in run.outputs:
+        print(neutral_line(str(output)))
+    for result in run.bugs:
         print(neutral_text(f"{result.label}: {result.reason}"), file=sys.stderr)
-    if run.interrupted:
-        from ..dataset import exit_status, signal_name
 
-        print(f"interrupted ({signal_name(run.signal)}): only complete outputs were kept", file=sys.stderr)
-        return exit_status(run.signal)
-    if args.catalog:  # what was written (or is up to date) is registered even when other segments failed
+
+def _deliver(args: argparse.Namespace, plan: Plan, run: DatasetRun, viewer: str | None) -> None:
+    """What was written (or is up to date) registered in the catalog and sent to the viewer, even when other
+    segments failed."""
+    from ..progress import say
+
+    if args.catalog:
+        from ..dataset import register_outputs
+
         say(register_outputs(run, args.catalog, args.dataset, args.layer).summary())
     if viewer is not None:
         from ..execute import send_to_viewer
 
         say(f"sent {send_to_viewer(plan, run.results, viewer)} segment(s) to the viewer at {viewer}")
-    if bugs:
-        print("urdf-pipeline: internal error (a bug, not your config); please report it with the traceback above", file=sys.stderr)
-        return ExitCode.BUG
-    return ExitCode.USER_ERROR if any(r.status == "failed" for r in run.results) else ExitCode.OK
 
 
 def _print_single(result: SegmentResult) -> None:

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from ..config import Document, expand_edge_specs, load_document, require_schema_valid
 from ..errors import UserError, UserErrors, Where
-from ..plan import EdgePlan, OutputPlan, Plan, RobotPlan, SourcePlan, TemporalEdgePlan
+from ..plan import EdgePlan, Plan, RobotPlan, SourcePlan, TemporalEdgePlan
 from ..sources import kind_of
 from ..urdf import UrdfModel
 from .context import CompileContext, SourceNames
@@ -35,9 +35,16 @@ def compile_document(document: Document, episodes: str | None = None) -> Plan:
     dataset = expand_segments(ctx, compiled_sources, episodes) if len(sources) == len(ctx.data["sources"]) else None
     ctx.problems.raise_if_any()
     assert model.root is not None and dataset is not None
-    first = dataset.segments[0]
-    output = OutputPlan(first.output, ctx.data["output"]["application_id"], first.id, ctx.where("output"))
-    return Plan(document.file, first.sources, model.robots, model.edges, model.root, output, model.temporal, dataset)
+    return Plan(
+        config_path=document.file,
+        robots=model.robots,
+        edges=model.edges,
+        root_frame=model.root,
+        temporal_edges=model.temporal,
+        dataset=dataset,
+        application_id=ctx.data["output"]["application_id"],
+        output_where=ctx.where("output"),
+    )
 
 
 @dataclass(frozen=True)

@@ -46,11 +46,11 @@ def check_base(plan: Plan, base: str) -> int:
             f"only to a recording with the same recording_id (the base has e.g. {listing(close, empty='none')}): fix output.segment",
             plan.dataset.where if plan.dataset else WHERE,
         )
-    other_apps = sorted({found[s] for s in segments if found[s] != plan.output.application_id})
+    other_apps = sorted({found[s] for s in segments if found[s] != plan.application_id})
     if other_apps:
         raise UserError(
-            f"the base recordings have application_id {listing(other_apps)}, this config '{plan.output.application_id}': "
+            f"the base recordings have application_id {listing(other_apps)}, this config '{plan.application_id}': "
             "a viewer shows them apart; set output.application_id to the base's",
-            plan.output.where,
+            plan.output_where,
         )
     return len(segments)

@@ -92,7 +92,7 @@ def segment_hashes(plan: Plan, with_model: bool) -> dict[str, str]:
         {
             "version": __version__,
             "what": "single" if with_model else "layer",
-            "application_id": plan.output.application_id,
+            "application_id": plan.application_id,
             "robots": _canonical(plan.robots),
             "edges": _canonical(plan.edges),
             "temporal_edges": _canonical(plan.temporal_edges),
@@ -118,7 +118,7 @@ def model_hash(plan: Plan) -> str:
         {
             "version": __version__,
             "what": "model",
-            "application_id": plan.output.application_id,
+            "application_id": plan.application_id,
             "robots": [[r.key, r.urdf_text, r.entity_path_prefix, r.frame_prefix, r.keep_collisions] for r in plan.robots],
             "meshes": [file_sha256(p) for p in _mesh_files(plan)],
         }

@@ -78,7 +78,7 @@ def deferred_signals() -> Iterator[list[int]]:
         yield received
     finally:
         for signum, handler in previous.items():
-            signal.signal(signum, handler)  # type: ignore[arg-type]
+            signal.signal(signum, handler)
     if received:
         handler = previous[received[0]]
         if callable(handler):

@@ -58,7 +58,7 @@ def _start_fork_server() -> None:
 
 def _start_worker(initializer: Callable[..., None] | None, initargs: tuple[object, ...], scratch: str, main: int, no_pandas: bool) -> None:
     if no_pandas and not PandasLeftOut.installed():  # as in the run's own process: pyarrow's first array would import it
-        sys.meta_path.insert(0, PandasLeftOut())  # type: ignore[arg-type]
+        sys.meta_path.insert(0, PandasLeftOut())
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
     threading.Thread(target=_exit_with, args=(main,), name="urdf-pipeline-watch-main", daemon=True).start()
@@ -107,37 +107,9 @@ def _run_in_pool(
     initargs: tuple[object, ...],
     scratch: str,
 ) -> None:
-    context = multiprocessing.get_context("forkserver")
-    context.set_forkserver_preload(PRELOAD)
-    _start_fork_server()
-    pool = ProcessPoolExecutor(
-        helpers,
-        mp_context=context,
-        initializer=_start_worker,
-        initargs=(initializer, initargs, scratch, os.getpid(), PandasLeftOut.installed()),
-    )
-    ready = threading.Event()  # the worker processes are up: until then, this process works alone
-
-    def start_workers() -> None:
-        try:  # blocks until the fork server has imported Rerun: in a thread, so this process works meanwhile
-            wait([pool.submit(_started) for _ in range(helpers)])
-        except (RuntimeError, BrokenProcessPool):  # the run ended first (all done here, Ctrl-C): the pool is shut down
-            pass
-        finally:
-            ready.set()
-
-    threading.Thread(target=start_workers, name="urdf-pipeline-start-workers", daemon=True).start()
+    pool, ready = _start_pool(helpers, initializer, initargs, scratch)  # until `ready`, this process works alone
     pending: dict[Future[R], J] = {}
     queue = list(reversed(jobs))
-
-    def outcomes(done: Sequence[Future[R]]) -> list[tuple[J, R | None, BaseException | None]]:
-        """(job, result, error) of finished futures, taken out of `pending` (reading a future takes its lock)."""
-        taken = []
-        for future in done:
-            job, error = pending.pop(future), future.exception()
-            taken.append((job, None if error is not None else future.result(), error))
-        return taken
-
     try:
         while queue or pending:
             with deferred_signals() as stop:  # no signal raised inside the pool's locks: see interrupts.deferred_signals
@@ -148,7 +120,7 @@ def _run_in_pool(
                 run_here = bool(queue) and not ready.is_set()
                 while not done and not run_here and pending and not stop:  # a signal ends the wait within POLL_SECONDS
                     done = list(wait(pending, timeout=POLL_SECONDS, return_when=FIRST_COMPLETED)[0])
-                finished = outcomes(done)
+                finished = _outcomes(pending, done)
             for job, result, error in finished:  # our callbacks: interruptible as any of our code
                 if error is None:
                     on_done(job, result)  # type: ignore[arg-type]
@@ -164,6 +136,43 @@ def _run_in_pool(
             pool.shutdown(wait=True)
     else:  # every job was done here before the workers came up: they are not needed
         _terminate(pool)
+
+
+def _start_pool(
+    helpers: int, initializer: Callable[..., None] | None, initargs: tuple[object, ...], scratch: str
+) -> tuple[ProcessPoolExecutor, threading.Event]:
+    """The pool of `helpers` workers forked from the fork server, and an event set once they are up: they are started
+    in a thread, which blocks until the fork server has imported Rerun, so this process works meanwhile."""
+    context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload(PRELOAD)
+    _start_fork_server()
+    pool = ProcessPoolExecutor(
+        helpers,
+        mp_context=context,
+        initializer=_start_worker,
+        initargs=(initializer, initargs, scratch, os.getpid(), PandasLeftOut.installed()),
+    )
+    ready = threading.Event()
+
+    def start_workers() -> None:
+        try:
+            wait([pool.submit(_started) for _ in range(helpers)])
+        except (RuntimeError, BrokenProcessPool):  # the run ended first (all done here, Ctrl-C): the pool is shut down
+            pass
+        finally:
+            ready.set()
+
+    threading.Thread(target=start_workers, name="urdf-pipeline-start-workers", daemon=True).start()
+    return pool, ready
+
+
+def _outcomes(pending: dict[Future[R], J], done: Sequence[Future[R]]) -> list[tuple[J, R | None, BaseException | None]]:
+    """(job, result, error) of finished futures, taken out of `pending` (reading a future takes its lock)."""
+    taken = []
+    for future in done:
+        job, error = pending.pop(future), future.exception()
+        taken.append((job, None if error is not None else future.result(), error))
+    return taken
 
 
 def _started() -> None:

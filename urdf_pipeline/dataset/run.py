@@ -10,18 +10,17 @@ from __future__ import annotations
 import os
 import time
 import traceback
-from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..errors import Problems, UserError
+from ..errors import ExitCode, Problems, UserError
 from ..execute import Parts, SegmentJob, SegmentResult, remove_stale_partials, require_ours, require_writable, run_segment
 from ..plan import Plan
 from ..progress import LOGGER, SegmentProgress, process_identity
 from .executors import ExecutorName, executor_for
 from .fingerprint import file_hashes_used, model_hash, remember_file_hashes, segment_hashes
-from .interrupts import signal_name, signal_number
+from .interrupts import exit_status, signal_name, signal_number
 from .manifest import Manifest
 
 if TYPE_CHECKING:
@@ -39,12 +38,45 @@ class RunOptions:
 
 @dataclass(frozen=True)
 class DatasetRun:
+    """What a run did, segment by segment. The command line and the API read what to print, return or raise from it,
+    so they count written, failed and bug segments alike."""
+
     results: tuple[SegmentResult, ...]  # the model first (split layout), then the segments in order
     seconds: float
     manifest: Path
     interrupted: bool
     signal: int = 0  # what interrupted it: SIGINT (Ctrl-C) or SIGTERM
     blueprint: Path | None = None  # the run's blueprint, when some output was written or is up to date
+
+    @property
+    def usable(self) -> tuple[SegmentResult, ...]:
+        """Written by this run or already up to date: the recordings there are to open, register or send."""
+        return tuple(r for r in self.results if r.status in ("written", "skipped"))
+
+    @property
+    def outputs(self) -> tuple[Path, ...]:
+        """The paths of the usable recordings, in the results' order: what `run` prints on stdout and the API returns."""
+        return tuple(r.output for r in self.usable)
+
+    @property
+    def failed(self) -> tuple[SegmentResult, ...]:
+        """The segments refused by a user error (their error lines in `reason`)."""
+        return tuple(r for r in self.results if r.status == "failed")
+
+    @property
+    def bugs(self) -> tuple[SegmentResult, ...]:
+        """The segments that hit a bug (their traceback in `reason`)."""
+        return tuple(r for r in self.results if r.status == "bug")
+
+    @property
+    def exit_status(self) -> int:
+        """The command's exit status: the signal's when interrupted, else a bug's, else a user error's if a segment
+        failed, else OK."""
+        if self.interrupted:
+            return exit_status(self.signal)
+        if self.bugs:
+            return ExitCode.BUG
+        return ExitCode.USER_ERROR if self.failed else ExitCode.OK
 
 
 def build_jobs(plan: Plan) -> list[SegmentJob]:
@@ -59,10 +91,43 @@ def build_jobs(plan: Plan) -> list[SegmentJob]:
 
 
 def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | None = None) -> DatasetRun:
+    """Every recording of the plan that is not up to date, written on the executor `options` name; see the module."""
     started = time.perf_counter()
-    manifest = Manifest.load(plan.dataset.manifest, plan.output.application_id, plan.dataset.layout, plan.config_path, plan.output.where)
-    remember_file_hashes(manifest.files)
+    manifest = _manifest(plan)
     jobs = build_jobs(plan)
+    results, to_run = _up_to_date(jobs, manifest, options.force)
+    _prepare_outputs(plan, jobs, to_run, manifest)
+    if progress is not None:
+        progress.start(len(jobs), sum(j.frames_expected or 0 for j in to_run), skipped=len(jobs) - len(to_run))
+    to_run = _dispatched(to_run, options)
+    keeper = _Bookkeeper(results, manifest, progress)
+    interrupted = 0
+    try:
+        executor_for(options.executor, options.jobs, options.ray_address, plan).run(run_segment, to_run, keeper.done, keeper.crashed)
+    except KeyboardInterrupt as stop:  # Ctrl-C, or SIGTERM (interrupts.Terminated)
+        interrupted = signal_number(stop)
+        _remove_partial_files([job.output for job in to_run])
+        keeper.stopped(to_run, interrupted)
+    finally:
+        if progress is not None:
+            progress.finish()
+        manifest.write()
+    ordered = tuple(results[job.label] for job in jobs)
+    blueprint = None
+    if not interrupted and any(r.status in ("written", "skipped") for r in ordered):
+        blueprint = _blueprint(plan, manifest)
+    return DatasetRun(ordered, time.perf_counter() - started, manifest.path, bool(interrupted), interrupted, blueprint)
+
+
+def _manifest(plan: Plan) -> Manifest:
+    """The run's manifest, with the hashes of the input files it knows (a file unchanged since is not read again)."""
+    manifest = Manifest.load(plan.dataset.manifest, plan.application_id, plan.dataset.layout, plan.config_path, plan.output_where)
+    remember_file_hashes(manifest.files)
+    return manifest
+
+
+def _up_to_date(jobs: list[SegmentJob], manifest: Manifest, force: bool) -> tuple[dict[str, SegmentResult], list[SegmentJob]]:
+    """The results of the jobs whose output is up to date (skipped unless `force`), and the jobs to run."""
     # Hashes of files this run did not read (other episodes: `--episodes`) are kept while the file is there, so that
     # the next full re-run does not read them again; a changed file is hashed again anyway (size and mtime).
     kept = {path: entry for path, entry in manifest.files.items() if os.path.exists(path)}
@@ -73,57 +138,55 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
         fresh = manifest.up_to_date(job.label, job.output, job.content_hash)
         if not fresh and manifest.entry(job.label) is None:  # no manifest (deleted, another machine): the file says
             fresh = _adopt_if_written(job, manifest)
-        if fresh and not options.force:
+        if fresh and not force:
             results[job.label] = SegmentResult(job.label, job.output, "skipped", job.content_hash, reason="up to date")
         else:
             to_run.append(job)
-    _prepare_outputs(plan, jobs, to_run, manifest)
-    if progress is not None:
-        progress.start(len(jobs), sum(j.frames_expected or 0 for j in to_run), skipped=len(jobs) - len(to_run))
+    return results, to_run
 
-    def on_done(job: SegmentJob, result: SegmentResult) -> None:
-        results[job.label] = result
-        if result.status == "written":
-            extra = {"episode": job.segment.episode} if job.segment is not None else {}
-            manifest.record(job.label, job.output, job.content_hash, result.frames, extra)
-            manifest.write(every_seconds=1.0)
-        if progress is not None:
-            progress.done(result, job.frames_expected)
 
-    def on_crash(job: SegmentJob, error: BaseException) -> None:
-        reason = "".join(traceback.format_exception(error))
-        on_done(job, SegmentResult(job.label, job.output, "bug", job.content_hash, reason=reason))
-
+def _dispatched(to_run: list[SegmentJob], options: RunOptions) -> list[SegmentJob]:
+    """The jobs as the executor gets them: in the order they should start, logging as this process does."""
     if options.jobs != 1:  # the model, then the longest first: parallel workers finish together (no long one left last)
-        to_run.sort(key=lambda job: (job.segment is not None, -(job.frames_expected or 0)))
-    work: Callable[[SegmentJob], SegmentResult] = run_segment
+        to_run = sorted(to_run, key=lambda job: (job.segment is not None, -(job.frames_expected or 0)))
     if options.verbose and len(to_run) == 1 and options.executor == "local":
         to_run = [replace(to_run[0], verbose=True)]
     level, driver = LOGGER.getEffectiveLevel(), process_identity()  # workers elsewhere log as this process does
-    to_run = [replace(job, log_level=level, driver=driver) for job in to_run]
-    interrupted = 0
-    try:
-        executor_for(options.executor, options.jobs, options.ray_address, plan).run(work, to_run, on_done, on_crash)
-    except KeyboardInterrupt as stop:  # Ctrl-C, or SIGTERM (interrupts.Terminated)
-        interrupted = signal_number(stop)
-        _remove_partial_files([job.output for job in to_run])
-        for job in to_run:
-            if job.label in results:
+    return [replace(job, log_level=level, driver=driver) for job in to_run]
+
+
+@dataclass
+class _Bookkeeper:
+    """Each job's result as the executor reports it: kept, recorded in the manifest when written, shown by the progress
+    bar; and, when the run is stopped, what became of the jobs that had not reported."""
+
+    results: dict[str, SegmentResult]
+    manifest: Manifest
+    progress: SegmentProgress | None
+
+    def done(self, job: SegmentJob, result: SegmentResult) -> None:
+        self.results[job.label] = result
+        if result.status == "written":
+            extra = {"episode": job.segment.episode} if job.segment is not None else {}
+            self.manifest.record(job.label, job.output, job.content_hash, result.frames, extra)
+            self.manifest.write(every_seconds=1.0)
+        if self.progress is not None:
+            self.progress.done(result, job.frames_expected)
+
+    def crashed(self, job: SegmentJob, error: BaseException) -> None:
+        reason = "".join(traceback.format_exception(error))
+        self.done(job, SegmentResult(job.label, job.output, "bug", job.content_hash, reason=reason))
+
+    def stopped(self, jobs: list[SegmentJob], signum: int) -> None:
+        """After Ctrl-C or SIGTERM (partial files removed): a job without a result was written, or interrupted."""
+        for job in jobs:
+            if job.label in self.results:
                 continue
-            if _adopt_if_written(job, manifest):  # finished by a worker stopped before its result arrived
-                reason = f"finished as {signal_name(interrupted)} came"
-                results[job.label] = SegmentResult(job.label, job.output, "written", job.content_hash, reason=reason)
+            if _adopt_if_written(job, self.manifest):  # finished by a worker stopped before its result arrived
+                reason = f"finished as {signal_name(signum)} came"
+                self.results[job.label] = SegmentResult(job.label, job.output, "written", job.content_hash, reason=reason)
             else:
-                results[job.label] = SegmentResult(job.label, job.output, "interrupted", job.content_hash, reason=signal_name(interrupted))
-    finally:
-        if progress is not None:
-            progress.finish()
-        manifest.write()
-    ordered = tuple(results[job.label] for job in jobs)
-    blueprint = None
-    if not interrupted and any(r.status in ("written", "skipped") for r in ordered):
-        blueprint = _blueprint(plan, manifest)
-    return DatasetRun(ordered, time.perf_counter() - started, manifest.path, bool(interrupted), interrupted, blueprint)
+                self.results[job.label] = SegmentResult(job.label, job.output, "interrupted", job.content_hash, reason=signal_name(signum))
 
 
 def _blueprint(plan: Plan, manifest: Manifest) -> Path:
@@ -142,7 +205,7 @@ def _prepare_outputs(plan: Plan, jobs: list[SegmentJob], to_run: list[SegmentJob
     folder written to takes files, and the partial files of killed runs are gone. Every refusal at once, exit 1."""
     from ..execute import blueprint_key, blueprint_path
 
-    where = plan.output.where
+    where = plan.output_where
     problems = Problems()
     for job in to_run:
         try:
@@ -185,6 +248,5 @@ def register_outputs(run: DatasetRun, url: str, dataset: str, layer: str) -> Cat
     """Register what the run wrote or found up to date: the model as the dataset's asset, each segment under `layer`."""
     from .catalog import register_in_catalog
 
-    usable = [r for r in run.results if r.status in ("written", "skipped")]
-    model = next((r.output for r in usable if r.label == "model"), None)
-    return register_in_catalog(url, dataset, layer, model, [(r.label, r.output) for r in usable if r.label != "model"])
+    model = next((r.output for r in run.usable if r.label == "model"), None)
+    return register_in_catalog(url, dataset, layer, model, [(r.label, r.output) for r in run.usable if r.label != "model"])

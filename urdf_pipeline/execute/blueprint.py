@@ -40,10 +40,10 @@ def blueprint_key(plan: Plan) -> str:
 
     from .. import __version__
 
-    parts = [__version__, plan.output.application_id, [[r.key, r.entity_path_prefix] for r in plan.robots]]
+    parts = [__version__, plan.application_id, [[r.key, r.entity_path_prefix] for r in plan.robots]]
     return hashlib.sha256(json.dumps(parts).encode()).hexdigest()
 
 
 def write_blueprint(plan: Plan) -> Path:
     blueprint = recording_blueprint(plan)
-    return write_file_atomically(blueprint_path(plan), lambda partial: blueprint.save(plan.output.application_id, partial))
+    return write_file_atomically(blueprint_path(plan), lambda partial: blueprint.save(plan.application_id, partial))

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import Problems
-from ..plan import Plan, RobotPlan
+from ..plan import RecordingPlan, RobotPlan
 from ..sources import JointValueMapper, module_for, raw_matrix, with_sorting_retry
 from .joint_fk import ClosedFormJointTransforms, multiply_quaternions, quaternion_from_rpy, rotate, rotation_matrices
 from .limits_report import check_joint_statistics
@@ -53,8 +53,8 @@ class RobotKinematics:
         return self.translations[index], self.quaternions[index]
 
 
-def segment_kinematics(plan: Plan) -> dict[str, RobotKinematics]:
-    """Every robot of a one-segment plan (`Plan.for_segment`), by robot key."""
+def segment_kinematics(plan: RecordingPlan) -> dict[str, RobotKinematics]:
+    """Every robot of one segment's plan (`Plan.for_segment`), by robot key."""
     from ..errors import UserError
 
     result: dict[str, RobotKinematics] = {}
@@ -97,7 +97,7 @@ def _compose(tree: UrdfTree, prefix: str, names: list[str], values: np.ndarray) 
     root = tree.root_link().name
     placed_t = {root: np.zeros((rows, 3))}
     placed_q = {root: np.tile([0.0, 0.0, 0.0, 1.0], (rows, 1))}
-    children: dict[str, list] = {}  # type: ignore[type-arg]
+    children: dict[str, list] = {}
     for joint in tree.joints():
         children.setdefault(joint.parent_link, []).append(joint)
     queue = [root]

@@ -47,7 +47,7 @@ def send_to_viewer(plan: Plan, results: tuple[SegmentResult, ...], url: str | No
     blueprint = recording_blueprint(plan)
     sent = 0
     for result in (r for r in usable if r.label != "model"):
-        stream = rr.RecordingStream(plan.output.application_id, recording_id=result.label, send_properties=False)
+        stream = rr.RecordingStream(plan.application_id, recording_id=result.label, send_properties=False)
         try:
             stream.connect_grpc(url or DEFAULT_VIEWER_URL, default_blueprint=blueprint)
             if model_store is not None:

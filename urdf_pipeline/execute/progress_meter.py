@@ -19,7 +19,7 @@ import time
 from collections.abc import Callable
 from typing import Any, TextIO
 
-from ..plan import Hdf5SourcePlan, LeRobotSourcePlan, McapSourcePlan, ParquetSourcePlan, Plan, SourcePlan
+from ..plan import Hdf5SourcePlan, LeRobotSourcePlan, McapSourcePlan, ParquetSourcePlan, RecordingPlan, SourcePlan
 from ..sources import module_for
 
 LOGGER = logging.getLogger("urdf_pipeline")
@@ -135,7 +135,7 @@ def _topic(topic: str) -> str:
     return topic if topic.startswith("/") else f"/{topic}"
 
 
-def source_meter(plan: Plan, source: SourcePlan, rows_expected: int | None) -> RowMeter:
+def source_meter(plan: RecordingPlan, source: SourcePlan, rows_expected: int | None) -> RowMeter:
     """The meter of one source of a segment, named after the segment (and the source, when several drive robots);
     the pass that reads the source finishes it (segment.py)."""
     driving = [s for s in plan.sources if plan.robots_for(s.name)]

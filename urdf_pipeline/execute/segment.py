@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
 from ..errors import Problems
-from ..plan import Plan
+from ..plan import RecordingPlan
 from ..progress import note as log_note
 from ..progress import say
 from ..sources import CallbackErrors, JointValueMapper, module_for, with_sorting_retry
@@ -44,7 +44,7 @@ def _silent(message: str) -> None:
 
 
 def execute(
-    plan: Plan,
+    plan: RecordingPlan,
     parts: Parts = "all",
     provenance: dict[str, str] | None = None,
     on_note: Callable[[str], None] = log_note,
@@ -98,7 +98,7 @@ class _Pass:
         return {m.robot.key: m.stats.rows for m in self.mappers}
 
 
-def _open(plan: Plan, parts: Parts, provenance: dict[str, str] | None, quiet: bool, rows_expected: int | None) -> _Pass:
+def _open(plan: RecordingPlan, parts: Parts, provenance: dict[str, str] | None, quiet: bool, rows_expected: int | None) -> _Pass:
     """Every stream of one attempt, opened anew (a retry after a source was found out of order reads it again).
     `provenance` None: no properties entity (a user's own recording, see `log_segment`)."""
     errors = CallbackErrors()
@@ -130,7 +130,7 @@ def _open(plan: Plan, parts: Parts, provenance: dict[str, str] | None, quiet: bo
 
 
 def _write(
-    plan: Plan, parts: Parts, provenance: dict[str, str], on_note: Callable[[str], None], quiet: bool, rows_expected: int | None
+    plan: RecordingPlan, parts: Parts, provenance: dict[str, str], on_note: Callable[[str], None], quiet: bool, rows_expected: int | None
 ) -> tuple[Path, dict[str, int], tuple[str, ...]]:
     """One attempt: open the streams, write them to the partial file, check what the pass found, rename."""
     opened = _open(plan, parts, provenance, quiet, rows_expected)
@@ -146,7 +146,7 @@ def _write(
     return written, opened.rows(), tuple(notes)
 
 
-def log_segment(plan: Plan, recording: RecordingStream, on_note: Callable[[str], None] = log_note) -> dict[str, int]:
+def log_segment(plan: RecordingPlan, recording: RecordingStream, on_note: Callable[[str], None] = log_note) -> dict[str, int]:
     """One segment's model, FK and edges sent into the caller's recording as they are read (bounded memory, as a run).
     The checks of the pass (limits, NaN, zero rows) run after it and raise then: what was read is already sent. A
     source found out of time order part-way is sent again, whole and sorted (its earlier rows twice, same poses)."""

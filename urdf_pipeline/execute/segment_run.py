@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Literal
 
 from ..errors import UserError
-from ..plan import Plan, Segment
+from ..plan import Plan, RecordingPlan, Segment
 from ..progress import note, process_identity, warnings_logged, worker_logging
 from .segment import Parts
 
@@ -37,7 +37,8 @@ class SegmentJob:
     driver: str = ""  # host:pid of the run's process: a worker elsewhere sets up its own logging at `log_level`
     run_plan: Plan | None = None  # None when the worker was given the run's plan once, at its start (install_run_plan)
 
-    def plan(self) -> Plan:
+    def plan(self) -> RecordingPlan:
+        """This job's recording, cut from the run's plan: the segment's sources and output, or the model's."""
         run_plan = self.run_plan or _INSTALLED[0]
         return run_plan.for_model() if self.segment is None else run_plan.for_segment(self.segment)
 

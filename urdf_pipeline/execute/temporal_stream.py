@@ -11,7 +11,7 @@ import pyarrow as pa
 
 from ..compile import describe_temporal_edge
 from ..errors import Problems
-from ..plan import Plan, SourcePlan, TemporalEdgePlan
+from ..plan import RecordingPlan, SourcePlan, TemporalEdgePlan
 from ..sources import CallbackErrors, raw_matrix
 from .transform_lenses import transform_lenses, transform_stream
 
@@ -101,7 +101,7 @@ def temporal_edge_stream(source: SourceStream, values: list[TemporalEdgeValues],
     return transform_stream(source, pairs, errors)
 
 
-def temporal_edge_streams(plan: Plan, errors: CallbackErrors) -> tuple[list[LazyChunkStream], list[TemporalEdgeValues]]:
+def temporal_edge_streams(plan: RecordingPlan, errors: CallbackErrors) -> tuple[list[LazyChunkStream], list[TemporalEdgeValues]]:
     """One stream per source that temporal edges read. The source is opened here on its own: a source that also
     drives a robot is read twice (once for the FK, once here), which keeps the FK stream untouched."""
     from ..sources import module_for

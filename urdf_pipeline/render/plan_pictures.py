@@ -69,7 +69,7 @@ def render_plan(plan: Plan, folder: Path, size: Size = DEFAULT_SIZE) -> tuple[Pi
         require_picture_path(path)
     pictures = []
     with HeadlessViewer(size) as viewer:
-        store = viewer.show(plan.output.application_id, "plan", chunks)
+        store = viewer.show(plan.application_id, "plan", chunks)
         for (label, robots, whole), path in zip(views, paths, strict=True):
             camera = framing(_points(transforms, plan.root_frame, robots, np.zeros(1, np.int64)), size.width, size.height)
             viewer.picture(store, Shot(camera, view_contents(robots, whole), REST_POSE, 0), path)
@@ -94,7 +94,7 @@ def render_diff(old: Plan, new: Plan, folder: Path, stem: str, size: Size = DEFA
     pngs = {}
     with HeadlessViewer(size) as viewer:
         for side in plans:
-            store = viewer.show(new.output.application_id, f"diff_{side}", chunks[side])
+            store = viewer.show(new.application_id, f"diff_{side}", chunks[side])
             viewer.picture(store, Shot(camera, ("/**",), REST_POSE, 0), paths[side])
             pngs[side] = paths[side].read_bytes()
     write_png(both, side_by_side([("old", pngs["old"]), ("new", pngs["new"])]))

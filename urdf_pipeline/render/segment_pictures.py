@@ -62,7 +62,7 @@ def snapshot(plan: Plan, request: SnapshotRequest) -> tuple[Picture, ...]:
     pictures = []
     contents = view_contents(robots, request.view == SCENE)
     with HeadlessViewer(size) as viewer:
-        store = viewer.show(plan.output.application_id, segment.id, chunks)
+        store = viewer.show(plan.application_id, segment.id, chunks)
         for time, path in shots:
             viewer.picture(store, Shot(camera, contents, timeline, time), path)
             pictures.append(Picture(_time_label(timeline, time).replace("-", " ", 1), path))

@@ -99,7 +99,7 @@ def _kind(source: SourcePlan) -> str:
 
 
 def _source_changes(report: _Report, old: Plan, new: Plan) -> None:
-    old_sources, new_sources = {s.name: s for s in old.sources}, {s.name: s for s in new.sources}
+    old_sources, new_sources = {s.name: s for s in old.segments[0].sources}, {s.name: s for s in new.segments[0].sources}
     for name in sorted(old_sources.keys() | new_sources.keys()):
         subject = f"source {name}"
         if name not in new_sources:
@@ -140,7 +140,7 @@ def _source_files(path_value: Callable[[Path], PathValue], plan: Plan, name: str
     """The files a source reads over all segments (one, or every file of a glob), in segment order."""
     files: list[PathValue] = []
     segments = plan.dataset.segments
-    plans = [s for segment in segments for s in segment.sources if s.name == name] or [plan.source(name)]
+    plans = [s for segment in segments for s in segment.sources if s.name == name] or [plan.for_segment(plan.segments[0]).source(name)]
     for source in plans:
         value = path_value(source.root if isinstance(source, LeRobotSourcePlan) else source.path)
         if value not in files:
@@ -175,7 +175,7 @@ def _names_changes(report: _Report, subject: str, old: tuple[str, ...], new: tup
 
 def _output_changes(report: _Report, old: Plan, new: Plan) -> None:
     subject = "output"
-    report.field("output", subject, "application_id", old.output.application_id, new.output.application_id)
+    report.field("output", subject, "application_id", old.application_id, new.application_id)
     report.field("output", subject, "layout", old.dataset.layout, new.dataset.layout)
     old_model = report.old_path(old.dataset.model) if old.dataset.model else None
     new_model = report.new_path(new.dataset.model) if new.dataset.model else None
