@@ -249,3 +249,19 @@ def test_no_surface_name_is_also_a_module_name() -> None:
             if (folder / f"{name}.py").exists() or (folder / name / "__init__.py").exists()
         ]
     assert not clashes, "exported names that are also module names: " + ", ".join(clashes)
+
+
+def test_each_surface_lists_its_names_once() -> None:
+    """A package's public names are written once, as `from .module import name` under `if TYPE_CHECKING:`; `__all__`
+    and the lazy `__getattr__` are derived from those lines by `lazy_surface`, never written out beside them."""
+    from urdf_pipeline import surface_imports
+
+    twice = []
+    for package in STAGE_PACKAGES:
+        source = (PACKAGE / package / "__init__.py").read_text(encoding="utf-8")
+        names = surface_imports(source)
+        assert names and "lazy_surface(__name__, __file__)" in source, f"urdf_pipeline.{package}: no one-list surface"
+        for node in ast.walk(ast.parse(source)):
+            if isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value in names:
+                twice.append(f"urdf_pipeline.{package}.{node.value}")
+    assert not twice, "public names written a second time (derive them from the TYPE_CHECKING imports): " + ", ".join(twice)

@@ -8,7 +8,6 @@ as diff(1): 0 equal, 1 the plans differ, 2 any error;
 Ctrl-C: see interrupts.py), 141 stdout closed early (`| head`).
 """
 
+# the surface, imported at once: every command starts at main
 from .entry import main
 from .parser import build_parser
-
-__all__ = ["build_parser", "main"]
