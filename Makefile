@@ -3,7 +3,7 @@ PYTHON ?= python3.11
 VENV := .venv
 BIN := $(VENV)/bin
 
-.PHONY: demo test lint clean bytecode renderer
+.PHONY: demo test lint docs clean bytecode renderer
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -14,6 +14,10 @@ $(VENV)/.demo-installed: pyproject.toml | $(BIN)/python
 
 $(VENV)/.test-installed: pyproject.toml | $(BIN)/python
 	$(BIN)/pip install --quiet -e '.[test]'
+	touch $@
+
+$(VENV)/.docs-installed: pyproject.toml | $(BIN)/python
+	$(BIN)/pip install --quiet -e '.[docs]'
 	touch $@
 
 # Bytecode as a wheel install would have it (this checkout is installed editable): a run does not compile the package
@@ -50,6 +54,12 @@ lint: $(VENV)/.test-installed
 
 test: lint bytecode renderer
 	$(BIN)/python -m pytest
+
+# The site of docs/, into docs/_build/html (git-ignored). Strict, as tests/docs builds it: any warning (a broken link
+# or anchor, a missing page, a page in no table of contents) fails the build, after all of them are reported.
+docs: $(VENV)/.docs-installed
+	$(BIN)/python -m sphinx -W --keep-going -n -q -b html docs docs/_build/html
+	@echo "open it: docs/_build/html/index.html"
 
 clean:
 	rm -rf configs/out configs/data configs/robots

@@ -16,8 +16,10 @@ HEADER = """# Config reference
 
 Generated from `schemas/urdf-pipeline.schema.json` by `python -m urdf_pipeline.config.reference`; do not edit by
 hand. Each row is one key: its YAML path (`NAME`, `KEY` and `*` stand for names you choose, `[]` for list items),
-what it accepts, its default, what it means, and an example. Editors that read the schema (the first line of every
-example config, `# yaml-language-server: $schema=...`) show the same text while you type.
+what it accepts, its default (or `required`: the key must be given wherever its parent is), what it means, and an
+example. A key that chooses a form (a source kind, an edge with `fixed_chain`, `source` or `file`) first says what
+that form is. Editors that read the schema (the first line of every example config,
+`# yaml-language-server: $schema=...`) show the same text while you type.
 """
 
 
@@ -31,9 +33,12 @@ class Key:
     example: str
 
 
-def keys(node: dict[str, Any] | None = None, path: str = "", seen: frozenset[str] = frozenset(), label: str = "") -> Iterator[Key]:
+def keys(
+    node: dict[str, Any] | None = None, path: str = "", seen: frozenset[str] = frozenset(), label: str = "", form: str = ""
+) -> Iterator[Key]:
     """Every documented key below `node`, depth first, in the schema's order; `$ref`s are followed (once per path).
-    `label` names the form a key belongs to (a source kind, a URDF form) where the same path has several."""
+    `label` names the form a key belongs to (a source kind, a URDF form) where the same path has several; `form` is
+    that form's own description, shown once, on the key that chooses the form (`parquet`, `fixed_chain`, ...)."""
     root = schema()
     node = root if node is None else node
     for name, spec in node.get("properties", {}).items():
@@ -42,11 +47,14 @@ def keys(node: dict[str, Any] | None = None, path: str = "", seen: frozenset[str
         shown = f"{key_path}` ({label})" if label else f"{key_path}`"
         default = _json(spec.get("default", resolved.get("default")))
         required = name in node.get("required", [])
-        yield Key(shown, required, _kinds(root, resolved), default, _description(spec, resolved), _example(spec, resolved))
+        description = _description(spec, resolved)
+        if form and name == label:
+            description = f"{_escaped(form)} {description}"
+        yield Key(shown, required, _kinds(root, resolved), default, description, _example(spec, resolved))
         if refs & seen:
             continue
-        for suffix, child, form in _children(root, resolved):
-            yield from keys(child, key_path + suffix, seen | refs, form or label)
+        for suffix, child, child_label, child_form in _children(root, resolved):
+            yield from keys(child, key_path + suffix, seen | refs, child_label or label, child_form)
 
 
 def _resolved(root: dict[str, Any], spec: dict[str, Any]) -> tuple[dict[str, Any], frozenset[str]]:
@@ -58,28 +66,30 @@ def _resolved(root: dict[str, Any], spec: dict[str, Any]) -> tuple[dict[str, Any
     return spec, frozenset(refs)
 
 
-def _children(root: dict[str, Any], spec: dict[str, Any]) -> Iterator[tuple[str, dict[str, Any], str]]:
+def _children(root: dict[str, Any], spec: dict[str, Any]) -> Iterator[tuple[str, dict[str, Any], str, str]]:
     """Where more keys live: own properties, list items, named entries (`*`), and the branches of oneOf/anyOf/allOf
-    and if-then-else. A branch chosen by a required key is labelled with it (`parquet`, `fixed_chain`, ...); the
-    branch that only explains a missing kind (`if: not ...`) adds no keys."""
+    and if-then-else. A branch chosen by a required key is labelled with it (`parquet`, `fixed_chain`, ...) and
+    carries its description (the form's, written once in the schema); the branch that only explains a missing kind
+    (`if: not ...`) adds no keys."""
     if "properties" in spec:
-        yield "", spec, ""
+        yield "", spec, "", ""
     if isinstance(spec.get("items"), dict):
         items, _ = _resolved(root, spec["items"])
-        for suffix, child, label in _children(root, items):
-            yield "[]" + suffix, child, label
+        for suffix, child, label, form in _children(root, items):
+            yield "[]" + suffix, child, label, form
     if isinstance(spec.get("additionalProperties"), dict):
         entries, _ = _resolved(root, spec["additionalProperties"])
-        for suffix, child, label in _children(root, entries):
-            yield ".*" + suffix, child, label
+        for suffix, child, label, form in _children(root, entries):
+            yield ".*" + suffix, child, label, form
     for combinator in ("oneOf", "anyOf", "allOf"):
         for branch in spec.get(combinator, []):
             yield from _children(root, _resolved(root, branch)[0])
     if isinstance(spec.get("if"), dict):
         required = spec["if"].get("required", [])
         if required and isinstance(spec.get("then"), dict):
-            for suffix, child, label in _children(root, _resolved(root, spec["then"])[0]):
-                yield suffix, child, label or required[0]
+            then, _ = _resolved(root, spec["then"])
+            for suffix, child, label, form in _children(root, then):
+                yield suffix, child, label or required[0], form or (str(then.get("description", "")) if not label else "")
         if isinstance(spec.get("else"), dict):
             yield from _children(root, _resolved(root, spec["else"])[0])
 
@@ -101,7 +111,12 @@ def _kinds(root: dict[str, Any], spec: dict[str, Any]) -> str:
 
 
 def _description(spec: dict[str, Any], resolved: dict[str, Any]) -> str:
-    return str(spec.get("description") or resolved.get("description", "")).replace("|", "\\|").replace("\n", " ")
+    return _escaped(str(spec.get("description") or resolved.get("description", "")))
+
+
+def _escaped(text: str) -> str:
+    """One table cell: a `|` would end it, a newline the row."""
+    return text.replace("|", "\\|").replace("\n", " ")
 
 
 def _example(spec: dict[str, Any], resolved: dict[str, Any]) -> str:
@@ -116,7 +131,7 @@ def _json(value: Any) -> str:
 def reference_markdown() -> str:
     lines = [HEADER, "| key | accepts | default | meaning | example |", "| --- | --- | --- | --- | --- |"]
     for key in dict.fromkeys(keys()):  # a key reached through two equal branches (index.unit) is listed once
-        default = f"`{key.default}`" if key.default else ""
+        default = "required" if key.required else f"`{key.default}`" if key.default else ""
         lines.append(f"| `{key.path} | {key.kinds} | {default} | {key.description} | {key.example} |")
     return "\n".join(lines) + "\n"
 
