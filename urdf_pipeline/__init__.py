@@ -1,6 +1,6 @@
 """urdf-pipeline: one schema-validated YAML file per robot setup becomes a validated Rerun recording.
 
-The Python API, for notebooks and scripts (see the README's "Python API"):
+The Python API, for notebooks and scripts (docs/python-api.md):
 
     plan = urdf_pipeline.load("configs/demo.yaml")           # compile and validate: a frozen Plan
     urdf_pipeline.run("configs/demo.yaml", jobs=2)            # what `urdf-pipeline run` does; the written paths

@@ -1,6 +1,6 @@
 """Which files a config may make the tool read or write: a config from a pull request must not reach beyond its folder.
 
-The rule (documented in docs/ci.md, "What a config can reach"):
+The rule (documented in docs/security.md, "What a config can reach"):
 - A path a config names (URDF, xacro and what it includes, meshes, package_paths, sources, sidecar edge files) is
   read only if it resolves, symlinks followed, under an allowed root: the config's own folder (or, when the config
   is in a git work tree, that work tree: a repository keeps configs/ beside robots/ and data/, and everything in a

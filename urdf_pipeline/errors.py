@@ -14,7 +14,7 @@ from pathlib import Path
 
 
 class ExitCode(IntEnum):
-    """Every exit status of the command line, in one place (README, "Exit status and faults")."""
+    """Every exit status of the command line, in one place (docs/security.md, "Exit status and faults")."""
 
     OK = 0
     USER_ERROR = 1  # one `error: FILE:LINE:COL: ...` line per problem, no traceback
