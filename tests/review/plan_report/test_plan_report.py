@@ -1,6 +1,6 @@
 """`urdf-pipeline plan --format markdown|json`: byte-for-byte golden files, determinism, every edge origin, --sample.
 
-Regenerate the golden files with `UPDATE_GOLDEN=1 .venv/bin/pytest tests/review/test_plan_report.py` after a deliberate
+Regenerate the golden files with `UPDATE_GOLDEN=1 .venv/bin/pytest tests/review/plan_report/test_plan_report.py` after a deliberate
 change to the report (or to the example configs), and review their diff like code.
 """
 
@@ -21,10 +21,10 @@ import yaml
 
 from urdf_pipeline.examples import write_joint_parquet
 
-from ..conftest import assert_commands_leave_out
-from ..edge_helpers import write_config
+from ...conftest import assert_commands_leave_out
+from ...edge_helpers import write_config
 
-GOLDEN = Path(__file__).resolve().parents[1] / "golden"
+GOLDEN = Path(__file__).resolve().parents[2] / "golden"
 GOLDEN_CONFIGS = ["demo", "bimanual_pandas", "so101_dataset", "aloha_bimanual"]
 FORMATS = {"markdown": "md", "json": "json"}
 

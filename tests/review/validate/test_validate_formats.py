@@ -18,9 +18,9 @@ from urdf_pipeline.config.document import Document, parse_document
 from urdf_pipeline.errors import Where
 from urdf_pipeline.review.validate.annotations import Annotation
 
-from ..compile.test_invalid_configs import CASES, MISSING_MESH_URI
+from ...compile.test_invalid_configs import CASES, MISSING_MESH_URI
 
-WARNINGS_CONFIG = Path(__file__).resolve().parents[1] / "configs" / "annotations" / "warnings.yaml"
+WARNINGS_CONFIG = Path(__file__).resolve().parents[2] / "configs" / "annotations" / "warnings.yaml"
 BY_NAME = {case.name: case for case in CASES}
 TEXT_ERROR = re.compile(r"^error: .+:\d+:\d+: ")
 

@@ -17,9 +17,9 @@ from urdf_pipeline.compile import check_config_without_data
 from urdf_pipeline.review.validate.annotations import ConfigResult, validate_config
 from urdf_pipeline.sources import KINDS, lerobot
 
-from ..compile import test_invalid_configs
-from ..compile.test_invalid_configs import CASES, COMPILE_CASES, Case
-from ..conftest import CONFIGS, assert_commands_leave_out
+from ...compile import test_invalid_configs
+from ...compile.test_invalid_configs import CASES, COMPILE_CASES, Case
+from ...conftest import CONFIGS, assert_commands_leave_out
 
 invalid_dir = test_invalid_configs.invalid_dir  # the fixture: the examples plus every case and the inputs they need
 BY_NAME = {case.name: case for case in CASES}

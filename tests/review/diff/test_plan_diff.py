@@ -13,7 +13,7 @@ import pytest
 from urdf_pipeline.examples import write_joint_parquet
 from urdf_pipeline.review.diff.diff_base import rotation_angle_deg
 
-from ..edge_helpers import rig_config, write_config, write_rig
+from ...edge_helpers import rig_config, write_config, write_rig
 
 DEMO_REWRITTEN = """\
 # The demo config, rewritten: other key order, comments, quoting, flow vs block style, rpy_deg for the quaternion.

@@ -17,7 +17,7 @@ from urdf_pipeline.examples import write_joint_parquet
 from urdf_pipeline.plan import JointChannel
 from urdf_pipeline.review.check.check_joints import check_channel
 
-from ..conftest import SHARED
+from ...conftest import SHARED
 
 HERE = Where(Path("c.yaml"), 1)
 
@@ -191,7 +191,7 @@ def test_lerobot_degrees_configured_as_radians_get_the_robot_unit(examples_dir: 
 
 
 G1_DATA = SHARED / "data" / "lerobot_g1_inspire_v21"
-G1_CONFIG = Path(__file__).resolve().parents[1] / "configs" / "valid" / "g1_inspire_lerobot.yaml"
+G1_CONFIG = Path(__file__).resolve().parents[2] / "configs" / "valid" / "g1_inspire_lerobot.yaml"
 
 
 @pytest.mark.skipif(not G1_DATA.is_dir(), reason=f"{G1_DATA} is absent (shared data is not part of a fresh clone)")
