@@ -15,7 +15,7 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
     from .edges_stream import CALIBRATION_ENTITY, calibration_stream
     from .joint_fk import rotation_matrices
     from .kinematics import RobotKinematics, segment_kinematics
-    from .live_viewer import send_to_viewer, viewer_binary
+    from .viewer_delivery import send_to_viewer, viewer_binary
     from .model_stream import cached_tree, robot_model_stream
     from .provenance import stored_content_hash
     from .segment import Parts, RunResult, execute, log_segment
