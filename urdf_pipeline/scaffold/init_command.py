@@ -183,26 +183,45 @@ def _source_entry(info: SourceInfo, names: list[str], stub: bool, mismatch: bool
     return entry
 
 
-def _joints(
-    model: UrdfModel,
-    source_key: str,
-    source: SourceDescription,
-    names: list[str],
-    matches: list[Match],
-    stub: bool,
-    units: SampledUnits | None = None,
-) -> Block:
-    drivable = [j for j in model.joints if j.moving and j.mimic is None]
-    by_name = {j.name: j for j in model.joints}
-    joints = Block()
-    joints.add("source", source_key)
+def _drivable(model: UrdfModel) -> list[Joint]:
+    """The joints the data drives: moving ones, except mimic joints (computed from the joint they follow)."""
+    return [j for j in model.joints if j.moving and j.mimic is None]
+
+
+def _joints(inputs: ScaffoldInputs, names: list[str], matches: list[Match], units: SampledUnits | None) -> Block:
+    """`joints:`: source and unit, the map, what the data leaves out (ignore, hold), notes on joints the map cannot drive."""
+    model, source = inputs.description.model, inputs.info.description
+    drivable = _drivable(model)
     angular = any(j.angular for j in drivable)
-    sampled = units.robot_unit(angular) if units is not None else None
-    unit = sampled[0] if sampled else "rad" if angular else "m"
-    length = units.robot_unit(False) if units is not None and angular else None
+    unit, unit_comment = _robot_unit(angular, units)
+    joints = Block()
+    joints.add("source", inputs.source_key)
+    joints.add("unit", unit, unit_comment)
+    mapping = _joint_map(inputs, matches, unit, angular, units)
+    joints.add("map", mapping, "source name: URDF joint (add sign, offset, unit per entry when needed)")
+    ignored = _ignored(source, names, matches)
+    if ignored.items:
+        joints.add("ignore", ignored, "source names deliberately unused")
+    held = _held(drivable, matches)
+    if held.items:
+        joints.add("hold", held, "URDF joints the data lacks -> a fixed value in URDF units")
+    for note in _undriven_notes(model):
+        joints.note(note)
+    return joints
+
+
+def _robot_unit(angular: bool, units: SampledUnits | None) -> tuple[str, str]:
+    """The robot's unit (its revolute joints' if any) and why: what most sampled joints point to, else the URDF's."""
+    if units is not None and (sampled := units.robot_unit(angular)):
+        return sampled
     other = "prismatic joints say theirs (m | mm) in their entry" if angular else "all joints are prismatic"
-    comment = sampled[1] if sampled else f"review: the unit of the source values ({'rad | deg' if angular else 'm | mm'}); {other}"
-    joints.add("unit", unit, comment)
+    return "rad" if angular else "m", f"review: the unit of the source values ({'rad | deg' if angular else 'm | mm'}); {other}"
+
+
+def _joint_map(inputs: ScaffoldInputs, matches: list[Match], unit: str, angular: bool, units: SampledUnits | None) -> Block:
+    """`map:`: a bare joint name where the robot's unit fits it, else `{joint, unit}`; each comment says why, to review."""
+    by_name = {j.name: j for j in inputs.description.model.joints}
+    length = units.robot_unit(False) if units is not None and angular else None
     mapping = Block()
     for match in matches:
         joint = by_name[match.joint]
@@ -210,42 +229,53 @@ def _joints(
         kind_unit = unit if joint.angular == angular else (length[0] if length else "m")
         own = choice.unit if choice is not None else kind_unit
         value: Any = match.joint if own == unit and joint.angular == angular else {"joint": match.joint, "unit": own}
-        if stub:
-            comment = joint_summary(joint)
-        elif source.names is None:
-            comment = f"review: matched by position; {joint_summary(joint)}"
-        elif match.score == 0.0:
-            comment = f"TODO: no source name resembles a joint name: matched by position, surely wrong; {joint_summary(joint)}"
-        else:
-            comment = f"review: matched by name (score {match.score:.2f}); {joint_summary(joint)}"
+        comment = _match_comment(match, joint, inputs.info.description, inputs.source is None)
         mapping.add(match.source_name, value, comment + (f"; {choice.reason}" if choice is not None else ""))
-    joints.add("map", mapping, "source name: URDF joint (add sign, offset, unit per entry when needed)")
-    matched_sources = {m.source_name for m in matches}
-    unmatched = [n for n in names if n not in matched_sources]
-    if unmatched:
-        why = "a value beyond the URDF's joints" if source.names is None else "no URDF joint resembles it"
-        joints.add("ignore", Seq([(n, f"TODO: {why}: map it, or keep it ignored") for n in unmatched]), "source names deliberately unused")
-    matched_joints = {m.joint for m in matches}
-    held = [j for j in drivable if j.name not in matched_joints]
-    if held:
-        hold = Block()
-        for joint in held:
-            value = hold_value(joint)
-            hold.add(joint.name, value, f"TODO: not in the data, held at {number(value)}; {joint_summary(joint)}")
-        joints.add("hold", hold, "URDF joints the data lacks -> a fixed value in URDF units")
-    for joint in model.joints:
-        if joint.mimic is not None:
-            m = joint.mimic
-            joints.note(
-                f"mimic (computed by the pipeline, not mapped): {joint.name} = {m.joint} * {number(m.multiplier)} + {number(m.offset)}"
-            )
-    for joint in model.joints:
-        if joint.type in ("floating", "planar"):
-            joints.note(
-                f"{joint.type} joint {joint.name} ({joint.parent} -> {joint.child}) is not driven: a static identity unless "
-                "a temporal edge (edges: - {parent, child, source, translation, quaternion_xyzw}) drives it"
-            )
-    return joints
+    return mapping
+
+
+def _match_comment(match: Match, joint: Joint, source: SourceDescription, stub: bool) -> str:
+    """How far to trust the match (by name, by position, or surely wrong), and the joint's limits to check it against."""
+    if stub:
+        return joint_summary(joint)
+    if source.names is None:
+        return f"review: matched by position; {joint_summary(joint)}"
+    if match.score == 0.0:
+        return f"TODO: no source name resembles a joint name: matched by position, surely wrong; {joint_summary(joint)}"
+    return f"review: matched by name (score {match.score:.2f}); {joint_summary(joint)}"
+
+
+def _ignored(source: SourceDescription, names: list[str], matches: list[Match]) -> Seq:
+    """`ignore:`, the source names no joint matched, each a TODO: leaving data unused must be a decision."""
+    matched = {m.source_name for m in matches}
+    why = "a value beyond the URDF's joints" if source.names is None else "no URDF joint resembles it"
+    return Seq([(n, f"TODO: {why}: map it, or keep it ignored") for n in names if n not in matched])
+
+
+def _held(drivable: list[Joint], matches: list[Match]) -> Block:
+    """`hold:`, the joints no source name matched, each a TODO at a value within its limits (none may be left undriven)."""
+    matched = {m.joint for m in matches}
+    hold = Block()
+    for joint in (j for j in drivable if j.name not in matched):
+        value = hold_value(joint)
+        hold.add(joint.name, value, f"TODO: not in the data, held at {number(value)}; {joint_summary(joint)}")
+    return hold
+
+
+def _undriven_notes(model: UrdfModel) -> list[str]:
+    """What moves without the map, so that none surprises: mimic joints (computed), floating and planar ones (static)."""
+    mimics = [
+        f"mimic (computed by the pipeline, not mapped): {j.name} = {m.joint} * {number(m.multiplier)} + {number(m.offset)}"
+        for j in model.joints
+        if (m := j.mimic) is not None
+    ]
+    free = [
+        f"{j.type} joint {j.name} ({j.parent} -> {j.child}) is not driven: a static identity unless "
+        "a temporal edge (edges: - {parent, child, source, translation, quaternion_xyzw}) drives it"
+        for j in model.joints
+        if j.type in ("floating", "planar")
+    ]
+    return mimics + free
 
 
 @dataclass(frozen=True)
@@ -261,6 +291,10 @@ class ScaffoldInputs:
     def key(self) -> str:
         return _robot_key(self.description)
 
+    @property
+    def source_key(self) -> str:
+        return f"{self.key}_state"
+
 
 def _robot_key(description: InitUrdf) -> str:
     """The robot's key in the config: its URDF name, else its file's, as a YAML-safe identifier."""
@@ -269,71 +303,91 @@ def _robot_key(description: InitUrdf) -> str:
 
 def load_inputs(urdf: UrdfArgument, source: str | None, out_file: Path) -> ScaffoldInputs:
     description = load_robot(urdf, out_file)
-    joint_names = [j.name for j in description.model.joints if j.moving and j.mimic is None]
+    joint_names = [j.name for j in _drivable(description.model)]
     key = _robot_key(description)
     info = stub_source(key, joint_names) if source is None else read_source(source, f"{key}_state", out_file)
     return ScaffoldInputs(description, info, source, out_file)
 
 
-def scaffold(urdf: UrdfArgument, source: str | None, out_file: Path, units: SampledUnits | None = None) -> Scaffold:
-    """The config text for the robot `urdf` names (and source spec `source`), to be written at `out_file` (paths
-    relative to it); `units`: each joint's unit as init_units chose it from a sample."""
-    return compose(load_inputs(urdf, source, out_file), units)
-
-
 def compose(inputs: ScaffoldInputs, units: SampledUnits | None = None) -> Scaffold:
-    description, info, source, out_file = inputs.description, inputs.info, inputs.source, inputs.out_file
-    model = description.model
-    out_dir = out_file.parent
-    key = inputs.key
-    source_key = f"{key}_state"
-    joint_names = [j.name for j in model.joints if j.moving and j.mimic is None]
-    stub = source is None
-    names, matches = _pair(info.description, joint_names)
-    if not matches:
-        raise UserError(f"--source {source}: it holds no values")
-    mismatch = _width_mismatch(info.description, joint_names, source_key, key, model.name)
+    """The config in the order a reader fills it in: the source, the robot, its place in the scene, the output."""
+    names, matches, mismatch = _paired(inputs)
+    config = Block()
+    config.add("version", 1)
+    config.add("sources", _sources(inputs, names, bool(mismatch)))
+    config.add("robots", _robots(inputs, names, matches, units))
+    frames, edges = _scene(inputs.description.model)
+    config.add("frames", frames)
+    if edges is not None:
+        config.add("edges", edges, "calibration: where the robot stands in the scene")
+    config.add("output", _output(inputs))
+    return _rendered(inputs, config, matches, mismatch)
 
+
+def _paired(inputs: ScaffoldInputs) -> tuple[list[str], list[Match], str]:
+    """The source's names, the joints they match, what differs in width (a source without names); no values: refused."""
+    model, source = inputs.description.model, inputs.info.description
+    joint_names = [j.name for j in _drivable(model)]
+    names, matches = _pair(source, joint_names)
+    if not matches:
+        raise UserError(f"--source {inputs.source}: it holds no values")
+    return names, matches, _width_mismatch(source, joint_names, inputs.source_key, inputs.key, model.name)
+
+
+def _sources(inputs: ScaffoldInputs, names: list[str], mismatch: bool) -> Block:
+    """`sources:`, the one source: the stub to fill in, or the entry proposed from --source's metadata."""
+    stub = inputs.source is None
+    entry = _source_entry(inputs.info, names, stub, mismatch)
     sources = Block()
-    entry = _source_entry(info, names, stub, bool(mismatch))
-    sources.add(source_key, entry, "TODO: where the joint values come from" if stub else f"from --source {source}")
+    sources.add(inputs.source_key, entry, "TODO: where the joint values come from" if stub else f"from --source {inputs.source}")
+    return sources
+
+
+def _robots(inputs: ScaffoldInputs, names: list[str], matches: list[Match], units: SampledUnits | None) -> Block:
+    """`robots:`, the one robot: its URDF in the form given, the package folders its meshes need, its joints."""
+    description, model = inputs.description, inputs.description.model
     robot = Block()
-    robot.add("urdf", description.entry, f"{model.name}: {len(joint_names)} joints to drive, {len(model.links)} links")
-    paths = package_paths(description, out_dir)
+    robot.add("urdf", description.entry, f"{model.name}: {len(_drivable(model))} joints to drive, {len(model.links)} links")
+    paths = package_paths(description, inputs.out_file.parent)
     if paths is not None:
         stubbed = any("TODO" in i.comment for i in paths.items if isinstance(i, Item))
         robot.add("package_paths", paths, "TODO: meshes that do not resolve until the stubs below are filled in" if stubbed else "")
-    joints = _joints(model, source_key, info.description, names, matches, stub, units)
-    robot.add("joints", joints)
+    robot.add("joints", _joints(inputs, names, matches, units))
     robots = Block()
-    robots.add(key, robot)
+    robots.add(inputs.key, robot)
+    return robots
 
+
+def _scene(model: UrdfModel) -> tuple[Block, Seq | None]:
+    """`frames:`, and the calibration edge from the scene's root to the URDF's root link (None: that link is the root)."""
     root = "world" if "world" not in model.links or model.root_link == "world" else "scene"  # a URDF link 'world' below its root
     frames = Block()
     frames.add("root", root, "the one root frame of the scene")
-    config = Block()
-    config.add("version", 1)
-    config.add("sources", sources)
-    config.add("robots", robots)
-    config.add("frames", frames)
-    if model.root_link != root:
-        edge = Block()
-        edge.add("parent", root)
-        edge.add("child", model.root_link, "the URDF's root link")
-        edge.add("translation", [0.0, 0.0, 0.0], "TODO: measure (m)")
-        edge.add("quaternion_xyzw", [0.0, 0.0, 0.0, 1.0], "TODO: measure (or rpy / rpy_deg)")
-        config.add("edges", Seq([(edge, "")]), "calibration: where the robot stands in the scene")
-    else:
+    if model.root_link == root:
         frames.note(f"the URDF's root link is '{root}' itself: no calibration edge needed")
+        return frames, None
+    edge = Block()
+    edge.add("parent", root)
+    edge.add("child", model.root_link, "the URDF's root link")
+    edge.add("translation", [0.0, 0.0, 0.0], "TODO: measure (m)")
+    edge.add("quaternion_xyzw", [0.0, 0.0, 0.0, 1.0], "TODO: measure (or rpy / rpy_deg)")
+    return frames, Seq([(edge, "")])
+
+
+def _output(inputs: ScaffoldInputs) -> Block:
+    """`output:`, the recording's path, application id and segment id (the source's proposal, so layers can attach)."""
     output = Block()
     output.add("path", "out/{segment}.rrd")
-    output.add("application_id", key)
-    output.add("segment", info.description.segment, "the recording id (layers attach only when it equals the base recording's)")
-    config.add("output", output)
+    output.add("application_id", inputs.key)
+    output.add("segment", inputs.info.description.segment, "the recording id (layers attach only when it equals the base recording's)")
+    return output
 
+
+def _rendered(inputs: ScaffoldInputs, config: Block, matches: list[Match], mismatch: str) -> Scaffold:
+    """The text, a header (schema, origin, how to read the marks) then the config, and its counts for init's summary."""
     header = [
-        f"# yaml-language-server: $schema={schema_reference(out_dir)}",
-        f"# Generated by `urdf-pipeline init` from {description.shown}" + (f" and {source}." if source else "."),
+        f"# yaml-language-server: $schema={schema_reference(inputs.out_file.parent)}",
+        f"# Generated by `urdf-pipeline init` from {inputs.description.shown}" + (f" and {inputs.source}." if inputs.source else "."),
         "# `TODO:` marks what init could not know (a stub to fill in, a decision to make); `review:` a guess to check.",
         "# Then `urdf-pipeline check` compares the data with the URDF limits and suggests unit and sign corrections.",
     ]
@@ -342,11 +396,11 @@ def compose(inputs: ScaffoldInputs, units: SampledUnits | None = None) -> Scaffo
     return Scaffold(
         text="\n".join(header + body) + "\n",
         data=data,
-        stub=stub,
+        stub=inputs.source is None,
         mapped=len(matches),
-        by_name=0 if stub or info.description.names is None else sum(m.score > 0 for m in matches),
-        held=len(data["robots"][key]["joints"].get("hold", {})),
-        ignored=len(data["robots"][key]["joints"].get("ignore", [])),
+        by_name=0 if inputs.source is None or inputs.info.description.names is None else sum(m.score > 0 for m in matches),
+        held=len(data["robots"][inputs.key]["joints"].get("hold", {})),
+        ignored=len(data["robots"][inputs.key]["joints"].get("ignore", [])),
         todos=sum("# TODO" in line for line in body),
         mismatch=mismatch,
     )
