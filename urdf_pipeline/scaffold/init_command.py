@@ -42,37 +42,16 @@ import yaml
 from ..config import SCHEMA_RESOURCE, Document, parse_document, schema_text
 from ..errors import UserError
 from ..sources import SourceDescription
-from ..urdf import Joint, UrdfModel
+from ..urdf import UrdfModel
+from .init_joints import Source, drivable, joints_block
 from .init_units import SampledUnits
 from .init_urdf import InitUrdf, UrdfArgument, load_robot, package_paths
 from .name_match import Match, match_names
 from .source_probe import SourceInfo, read_source, stub_source
-from .yaml_writer import Block, Item, Seq, number, render_block, to_data
+from .yaml_writer import Block, Item, Seq, render_block, to_data
 
 IDENTIFIER = re.compile(r"^[A-Za-z_][A-Za-z0-9_-]*$")
 SCHEMA_IN_REPO = Path("schemas") / SCHEMA_RESOURCE
-
-
-# ---------------------------------------------------------------------------------------------------------------
-# Joint descriptions
-
-
-def joint_summary(joint: Joint) -> str:
-    unit = "rad" if joint.angular else "m"
-    if joint.type == "continuous":
-        return "continuous, no limits (rad)"
-    if joint.has_limits:
-        return f"{joint.type}, {number(joint.lower or 0.0)} .. {number(joint.upper or 0.0)} {unit}"
-    return f"{joint.type}, no usable limits ({unit})"
-
-
-def hold_value(joint: Joint) -> float:
-    """0.0, or the middle of the limits when 0 is outside them."""
-    if not joint.has_limits or (joint.lower or 0.0) <= 0.0 <= (joint.upper or 0.0):
-        return 0.0
-    lower, upper = float(joint.lower or 0.0), float(joint.upper or 0.0)
-    middle = round((lower + upper) / 2, 6)
-    return middle if lower <= middle <= upper else (lower + upper) / 2
 
 
 def _identifier(text: str, fallback: str) -> str:
@@ -183,101 +162,6 @@ def _source_entry(info: SourceInfo, names: list[str], stub: bool, mismatch: bool
     return entry
 
 
-def _drivable(model: UrdfModel) -> list[Joint]:
-    """The joints the data drives: moving ones, except mimic joints (computed from the joint they follow)."""
-    return [j for j in model.joints if j.moving and j.mimic is None]
-
-
-def _joints(inputs: ScaffoldInputs, names: list[str], matches: list[Match], units: SampledUnits | None) -> Block:
-    """`joints:`: source and unit, the map, what the data leaves out (ignore, hold), notes on joints the map cannot drive."""
-    model, source = inputs.description.model, inputs.info.description
-    drivable = _drivable(model)
-    angular = any(j.angular for j in drivable)
-    unit, unit_comment = _robot_unit(angular, units)
-    joints = Block()
-    joints.add("source", inputs.source_key)
-    joints.add("unit", unit, unit_comment)
-    mapping = _joint_map(inputs, matches, unit, angular, units)
-    joints.add("map", mapping, "source name: URDF joint (add sign, offset, unit per entry when needed)")
-    ignored = _ignored(source, names, matches)
-    if ignored.items:
-        joints.add("ignore", ignored, "source names deliberately unused")
-    held = _held(drivable, matches)
-    if held.items:
-        joints.add("hold", held, "URDF joints the data lacks -> a fixed value in URDF units")
-    for note in _undriven_notes(model):
-        joints.note(note)
-    return joints
-
-
-def _robot_unit(angular: bool, units: SampledUnits | None) -> tuple[str, str]:
-    """The robot's unit (its revolute joints' if any) and why: what most sampled joints point to, else the URDF's."""
-    if units is not None and (sampled := units.robot_unit(angular)):
-        return sampled
-    other = "prismatic joints say theirs (m | mm) in their entry" if angular else "all joints are prismatic"
-    return "rad" if angular else "m", f"review: the unit of the source values ({'rad | deg' if angular else 'm | mm'}); {other}"
-
-
-def _joint_map(inputs: ScaffoldInputs, matches: list[Match], unit: str, angular: bool, units: SampledUnits | None) -> Block:
-    """`map:`: a bare joint name where the robot's unit fits it, else `{joint, unit}`; each comment says why, to review."""
-    by_name = {j.name: j for j in inputs.description.model.joints}
-    length = units.robot_unit(False) if units is not None and angular else None
-    mapping = Block()
-    for match in matches:
-        joint = by_name[match.joint]
-        choice = units.joints.get(match.joint) if units is not None else None
-        kind_unit = unit if joint.angular == angular else (length[0] if length else "m")
-        own = choice.unit if choice is not None else kind_unit
-        value: Any = match.joint if own == unit and joint.angular == angular else {"joint": match.joint, "unit": own}
-        comment = _match_comment(match, joint, inputs.info.description, inputs.source is None)
-        mapping.add(match.source_name, value, comment + (f"; {choice.reason}" if choice is not None else ""))
-    return mapping
-
-
-def _match_comment(match: Match, joint: Joint, source: SourceDescription, stub: bool) -> str:
-    """How far to trust the match (by name, by position, or surely wrong), and the joint's limits to check it against."""
-    if stub:
-        return joint_summary(joint)
-    if source.names is None:
-        return f"review: matched by position; {joint_summary(joint)}"
-    if match.score == 0.0:
-        return f"TODO: no source name resembles a joint name: matched by position, surely wrong; {joint_summary(joint)}"
-    return f"review: matched by name (score {match.score:.2f}); {joint_summary(joint)}"
-
-
-def _ignored(source: SourceDescription, names: list[str], matches: list[Match]) -> Seq:
-    """`ignore:`, the source names no joint matched, each a TODO: leaving data unused must be a decision."""
-    matched = {m.source_name for m in matches}
-    why = "a value beyond the URDF's joints" if source.names is None else "no URDF joint resembles it"
-    return Seq([(n, f"TODO: {why}: map it, or keep it ignored") for n in names if n not in matched])
-
-
-def _held(drivable: list[Joint], matches: list[Match]) -> Block:
-    """`hold:`, the joints no source name matched, each a TODO at a value within its limits (none may be left undriven)."""
-    matched = {m.joint for m in matches}
-    hold = Block()
-    for joint in (j for j in drivable if j.name not in matched):
-        value = hold_value(joint)
-        hold.add(joint.name, value, f"TODO: not in the data, held at {number(value)}; {joint_summary(joint)}")
-    return hold
-
-
-def _undriven_notes(model: UrdfModel) -> list[str]:
-    """What moves without the map, so that none surprises: mimic joints (computed), floating and planar ones (static)."""
-    mimics = [
-        f"mimic (computed by the pipeline, not mapped): {j.name} = {m.joint} * {number(m.multiplier)} + {number(m.offset)}"
-        for j in model.joints
-        if (m := j.mimic) is not None
-    ]
-    free = [
-        f"{j.type} joint {j.name} ({j.parent} -> {j.child}) is not driven: a static identity unless "
-        "a temporal edge (edges: - {parent, child, source, translation, quaternion_xyzw}) drives it"
-        for j in model.joints
-        if j.type in ("floating", "planar")
-    ]
-    return mimics + free
-
-
 @dataclass(frozen=True)
 class ScaffoldInputs:
     """What init reads once: the robot (xacro expanded) and the source's description."""
@@ -295,6 +179,10 @@ class ScaffoldInputs:
     def source_key(self) -> str:
         return f"{self.key}_state"
 
+    @property
+    def source_spec(self) -> Source:
+        return Source(self.source_key, self.info.description, self.source is None)
+
 
 def _robot_key(description: InitUrdf) -> str:
     """The robot's key in the config: its URDF name, else its file's, as a YAML-safe identifier."""
@@ -303,7 +191,7 @@ def _robot_key(description: InitUrdf) -> str:
 
 def load_inputs(urdf: UrdfArgument, source: str | None, out_file: Path) -> ScaffoldInputs:
     description = load_robot(urdf, out_file)
-    joint_names = [j.name for j in _drivable(description.model)]
+    joint_names = [j.name for j in drivable(description.model)]
     key = _robot_key(description)
     info = stub_source(key, joint_names) if source is None else read_source(source, f"{key}_state", out_file)
     return ScaffoldInputs(description, info, source, out_file)
@@ -327,7 +215,7 @@ def compose(inputs: ScaffoldInputs, units: SampledUnits | None = None) -> Scaffo
 def _paired(inputs: ScaffoldInputs) -> tuple[list[str], list[Match], str]:
     """The source's names, the joints they match, what differs in width (a source without names); no values: refused."""
     model, source = inputs.description.model, inputs.info.description
-    joint_names = [j.name for j in _drivable(model)]
+    joint_names = [j.name for j in drivable(model)]
     names, matches = _pair(source, joint_names)
     if not matches:
         raise UserError(f"--source {inputs.source}: it holds no values")
@@ -347,12 +235,12 @@ def _robots(inputs: ScaffoldInputs, names: list[str], matches: list[Match], unit
     """`robots:`, the one robot: its URDF in the form given, the package folders its meshes need, its joints."""
     description, model = inputs.description, inputs.description.model
     robot = Block()
-    robot.add("urdf", description.entry, f"{model.name}: {len(_drivable(model))} joints to drive, {len(model.links)} links")
+    robot.add("urdf", description.entry, f"{model.name}: {len(drivable(model))} joints to drive, {len(model.links)} links")
     paths = package_paths(description, inputs.out_file.parent)
     if paths is not None:
         stubbed = any("TODO" in i.comment for i in paths.items if isinstance(i, Item))
         robot.add("package_paths", paths, "TODO: meshes that do not resolve until the stubs below are filled in" if stubbed else "")
-    robot.add("joints", _joints(inputs, names, matches, units))
+    robot.add("joints", joints_block(inputs.description.model, inputs.source_spec, names, matches, units))
     robots = Block()
     robots.add(inputs.key, robot)
     return robots
