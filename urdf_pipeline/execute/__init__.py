@@ -15,11 +15,11 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
     from .edges_stream import CALIBRATION_ENTITY, calibration_stream
     from .joint_fk import rotation_matrices
     from .kinematics import RobotKinematics, segment_kinematics
-    from .viewer_delivery import send_to_viewer, viewer_binary
     from .model_stream import cached_tree, robot_model_stream
     from .provenance import stored_content_hash
     from .segment import Parts, RunResult, execute, log_segment
     from .segment_run import SegmentJob, SegmentResult, install_run_plan, run_segment
+    from .viewer_delivery import send_to_viewer, viewer_binary
     from .writer import process_alive, remove_stale_partials, require_ours, require_writable, write_file_atomically
 
 if not TYPE_CHECKING:  # the names above, imported when first used
