@@ -297,6 +297,7 @@ class OutputPlan:
     application_id: str
     recording_id: str
     where: Where
+    joint_series: bool = False  # output.joint_series: the driven joints' values also as time series
 
 
 @dataclass(frozen=True)
@@ -321,6 +322,7 @@ class DatasetPlan:
     model: Path | None  # layout split: the static model asset
     manifest: Path
     where: Where  # output.segment, for errors about segments
+    joint_series: bool = False  # output.joint_series: each segment also holds its driven joints' values as time series
 
 
 @dataclass(frozen=True)
@@ -375,7 +377,8 @@ class Plan(ScenePlan):
         return self._recording((), self.dataset.model, MODEL_RECORDING_ID)
 
     def _recording(self, sources: tuple[SourcePlan, ...], path: Path, recording_id: str) -> RecordingPlan:
-        output = OutputPlan(path, self.application_id, recording_id, self.output_where)
+        series = self.dataset.joint_series and bool(sources)  # the split layout's model holds no values
+        output = OutputPlan(path, self.application_id, recording_id, self.output_where, series)
         return RecordingPlan(self.config_path, self.robots, self.edges, self.root_frame, self.temporal_edges, sources, output)
 
 

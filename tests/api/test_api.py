@@ -19,6 +19,7 @@ from ..execute.test_fk_against_pinocchio import (
     random_within_limits,
     variant,
 )
+from ..execute.test_joint_series import read_series
 from ..reference_fk import PinocchioRobot
 from ..rrd_frames import read_frames
 
@@ -84,6 +85,21 @@ def test_log_sends_the_segment_into_the_callers_recording(random_demo: tuple[Pat
     for row in (0, 49):
         for link, expected in reference.link_poses(panda_joint_values(q[row])).items():
             assert_poses_match(frames.world_pose(link, row, "world"), WORLD_FROM_BASE @ expected, f"{link} at row {row}")
+
+
+def test_log_sends_the_joint_series_when_the_config_asks(random_demo: tuple[Path, np.ndarray, PinocchioRobot], tmp_path: Path) -> None:
+    config, q, _ = random_demo
+    config.write_text(config.read_text().replace("output:\n", "output:\n  joint_series: true\n"))
+    recording = rr.RecordingStream("my_app", recording_id="my_take")
+    saved = tmp_path / "mine.rrd"
+    recording.save(saved)
+    assert urdf_pipeline.log(config, recording) == {"arm": 50}
+    recording.flush()
+    recording.disconnect()
+    times, values, names = read_series(saved)
+    assert names == [*PANDA_ARM, "panda_finger_joint1"]
+    assert list(times["frame_index"]) == list(range(50))
+    np.testing.assert_allclose(values, q, rtol=0, atol=1e-6)  # the source holds float32 degrees and millimetres
 
 
 def test_a_config_of_several_segments_needs_the_segment_named(examples_dir: Path) -> None:

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..config import Document, expand_edge_specs, load_document, require_schema_valid
-from ..errors import UserError, UserErrors, Where
+from ..errors import UserError, UserErrors, Where, warn
 from ..plan import EdgePlan, Plan, RobotPlan, SourcePlan, TemporalEdgePlan
 from ..sources import kind_of
 from ..urdf import UrdfModel
@@ -126,6 +126,8 @@ def _compile_model(ctx: CompileContext, sources: SourceNames) -> _Model:
         if compiled is not None:
             robots.append(compiled.plan)
             models[key] = compiled.model
+    if data["output"].get("joint_series") and len(robots) == len(data["robots"]) and not any(r.channels for r in robots):
+        warn("no robot of this config is driven by a source: joint_series plots nothing", ctx.where("output", "joint_series"))
 
     edge_specs = expand_edge_specs(data.get("edges", []), ctx.document, problems)  # inline edges and sidecar files, in order
     used = {spec["joints"]["source"] for spec in data["robots"].values() if "joints" in spec}

@@ -365,7 +365,7 @@ def _dataset_plan(ctx: CompileContext, segments: tuple[Segment, ...]) -> Dataset
         manifest = directory / f"{ctx.document.file.stem}.manifest.json"
     if not _outputs_confined(ctx, segments, model, manifest):
         return None
-    return DatasetPlan(layout, segments, model, manifest, ctx.where("output", "segment"))
+    return DatasetPlan(layout, segments, model, manifest, ctx.where("output", "segment"), bool(output.get("joint_series", False)))
 
 
 def _outputs_confined(ctx: CompileContext, segments: tuple[Segment, ...], model: Path | None, manifest: Path) -> bool:

@@ -98,6 +98,8 @@ def segment_hashes(plan: Plan, with_model: bool) -> dict[str, str]:
             "temporal_edges": _canonical(plan.temporal_edges),
             "root": plan.root_frame,
             "meshes": [file_sha256(p) for p in _mesh_files(plan)] if with_model else [],
+            # only when set: the hashes of recordings without the series are what they were before the option
+            **({"joint_series": True} if plan.dataset.joint_series else {}),
         }
     )
     return {

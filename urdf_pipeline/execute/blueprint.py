@@ -1,4 +1,5 @@
-"""The run's blueprint: a 3D view of the whole scene and one per robot, for the config's application id.
+"""The run's blueprint: a 3D view of the whole scene and one per robot, for the config's application id (and, with
+`output.joint_series`, a time series view per driven robot beside them).
 
 It is written once per run as `<config stem>.rbl` beside the outputs (open it in the viewer with the recordings)
 and sent with every segment by `run --spawn` / `--connect`. It is not inside each .rrd: ChunkStore.write_rrd writes
@@ -11,21 +12,34 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..plan import Plan
+from ..plan import Plan, RobotPlan
+from .joint_series import plotted_robots, series_entity
 from .writer import write_file_atomically
 
 if TYPE_CHECKING:
     import rerun.blueprint as rrb
 
 SCENE_VIEW = "scene"
+PLOT_SUFFIX = " joints"  # a robot's time series view: "arm joints"
 
 
 def recording_blueprint(plan: Plan) -> rrb.Blueprint:
+    """The 3D views as tabs; with `output.joint_series`, beside them a column of time series views, one per driven
+    robot, so a jump in a plot and the pose at that time are seen together (the time cursor is shared)."""
     import rerun.blueprint as rrb
 
     views = [rrb.Spatial3DView(origin="/", name=SCENE_VIEW)]
     views += [rrb.Spatial3DView(origin=robot.entity_path_prefix, name=robot.key) for robot in plan.robots]
-    return rrb.Blueprint(rrb.Tabs(*views), collapse_panels=False)
+    spatial = rrb.Tabs(*views)
+    plotted = _plotted(plan)
+    if not plotted:
+        return rrb.Blueprint(spatial, collapse_panels=False)
+    plots = [rrb.TimeSeriesView(origin=series_entity(robot), name=f"{robot.key}{PLOT_SUFFIX}") for robot in plotted]
+    return rrb.Blueprint(rrb.Horizontal(spatial, rrb.Vertical(*plots), column_shares=[3, 2]), collapse_panels=False)
+
+
+def _plotted(plan: Plan) -> tuple[RobotPlan, ...]:
+    return plotted_robots(plan.robots) if plan.dataset.joint_series else ()
 
 
 def blueprint_path(plan: Plan) -> Path:
@@ -40,7 +54,10 @@ def blueprint_key(plan: Plan) -> str:
 
     from .. import __version__
 
-    parts = [__version__, plan.application_id, [[r.key, r.entity_path_prefix] for r in plan.robots]]
+    parts: list[object] = [__version__, plan.application_id, [[r.key, r.entity_path_prefix] for r in plan.robots]]
+    plotted = _plotted(plan)
+    if plotted:  # only then: the key of a blueprint without plots is as before
+        parts.append({"joint_series": [r.key for r in plotted]})
     return hashlib.sha256(json.dumps(parts).encode()).hexdigest()
 
 

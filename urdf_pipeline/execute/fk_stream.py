@@ -6,8 +6,10 @@ from typing import TYPE_CHECKING
 
 import pyarrow as pa
 
+from ..plan import RobotPlan
 from ..sources import CallbackErrors, JointValueMapper, raw_matrix
 from .joint_fk import ClosedFormJointTransforms
+from .joint_series import TRANSFORMS_FIELD, series_lens, with_values
 from .progress_meter import RowMeter
 from .transform_lenses import transform_lenses, transform_stream
 
@@ -26,10 +28,11 @@ class JointTransformBatches:
     """The first lens's function: joint vectors -> per-row batches of joint transforms (Rerun's URDF FK, in closed
     form over whole columns: see joint_fk.py)."""
 
-    def __init__(self, mapper: JointValueMapper, tree: UrdfTree, progress: RowMeter | None = None) -> None:
+    def __init__(self, mapper: JointValueMapper, tree: UrdfTree, progress: RowMeter | None = None, series: bool = False) -> None:
         self.mapper = mapper
         self.progress = progress
         self.transforms = ClosedFormJointTransforms(tree, list(mapper.joint_names))
+        self.series = series  # output.joint_series: the driven values too, beside the transforms (joint_series.py)
 
     def __call__(self, vectors: pa.Array) -> pa.Array:
         # Rows that name their values (MCAP JointState) are mapped by name, row by row; vectors by position.
@@ -40,13 +43,25 @@ class JointTransformBatches:
             batches = pa.ListArray.from_arrays(batches.offsets, batches.values, mask=pa.array(left_out))
         if self.progress is not None:
             self.progress.add(len(values))
+        if self.series:  # the driven joints are the matrix's first columns (mapped, then held, then mimic)
+            return with_values(batches, values[:, : len(self.mapper.columns)], left_out)
         return batches
 
 
-def fk_stream(source: SourceStream, robots: list[tuple[str, str, JointTransformBatches]], errors: CallbackErrors) -> LazyChunkStream:
-    """All robots driven by one source, from one read of it: (robot key, FK entity, batch function) each."""
+def fk_stream(source: SourceStream, robots: list[tuple[RobotPlan, JointTransformBatches]], errors: CallbackErrors) -> LazyChunkStream:
+    """All robots driven by one source, from one read of it: (robot, batch function) each; a robot whose batch
+    function gives the values too gets its time series from the same pass."""
     pairs = [
-        transform_lenses(source, f"/__urdf_pipeline/{key}/joint_transform_batches", _batch_component(key), fk_entity, batches, errors)
-        for key, fk_entity, batches in robots
+        transform_lenses(
+            source,
+            f"/__urdf_pipeline/{robot.key}/joint_transform_batches",
+            _batch_component(robot.key),
+            robot.fk_entity,
+            batches,
+            errors,
+            TRANSFORMS_FIELD if batches.series else "",
+        )
+        for robot, batches in robots
     ]
-    return transform_stream(source, pairs, errors)
+    series = [series_lens(_batch_component(robot.key), robot) for robot, batches in robots if batches.series]
+    return transform_stream(source, pairs, errors, series)

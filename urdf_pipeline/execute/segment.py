@@ -10,12 +10,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
 from ..errors import Problems
-from ..plan import RecordingPlan
+from ..plan import RecordingPlan, RobotPlan
 from ..progress import note as log_note
 from ..progress import say
 from ..sources import CallbackErrors, JointValueMapper, module_for, with_sorting_retry
 from .edges_stream import calibration_stream
 from .fk_stream import JointTransformBatches, fk_stream
+from .joint_series import series_names_stream
 from .limits_report import check_joint_statistics
 from .model_stream import cached_tree, robot_model_stream
 from .progress_meter import RowMeter, source_meter
@@ -111,17 +112,19 @@ def _open(plan: RecordingPlan, parts: Parts, provenance: dict[str, str] | None, 
             streams.append(robot_model_stream(robot, trees[robot.key]))
     if parts != "model":
         for source in plan.sources:
-            driven: list[tuple[str, str, JointTransformBatches]] = []
+            driven: list[tuple[RobotPlan, JointTransformBatches]] = []
             meter = None if quiet else source_meter(plan, source, rows_expected)  # its rows counted once, by the first robot
             meters += [meter] if meter is not None else []
             for robot in plan.robots_for(source.name):
                 mapper = JointValueMapper(robot, source)
                 mappers.append(mapper)
-                batches = JointTransformBatches(mapper, trees[robot.key], None if driven else meter)
-                driven.append((robot.key, robot.fk_entity, batches))
+                series = plan.output.joint_series and bool(robot.channels)
+                driven.append((robot, JointTransformBatches(mapper, trees[robot.key], None if driven else meter, series)))
             if driven:  # a source used only by temporal edges is read there
                 streams.append(fk_stream(module_for(source).open_stream(source), driven, errors))
         streams.append(calibration_stream(plan.edges))
+        if plan.output.joint_series:
+            streams.append(series_names_stream(plan.robots))
     if provenance is not None:
         streams.append(provenance_stream(plan, parts, provenance))
     # Temporal edges (a mobile base, a floating pelvis): their sources are opened again, see temporal_edges.py.

@@ -388,3 +388,14 @@ def test_the_config_at_a_revision_is_read_by_its_commit(run_cli, workspace: Path
     config.write_text(config.read_text().replace("j2: {joint: panda_joint2, sign: -1}", "j2: panda_joint2"))
     result = run_cli("diff", str(config), "--git", "v1^{commit}")
     assert (result.code, result.out) == (0, "robot arm: j2 -> panda_joint2: sign -1 -> 1\n")
+
+
+def test_the_joint_series_option_turned_on(run_cli, workspace: Path) -> None:
+    text = (workspace / "demo.yaml").read_text()
+    series = _variant(workspace, "series.yaml", "  application_id: panda_demo\n", "  application_id: panda_demo\n  joint_series: true\n")
+    (workspace / "series_off.yaml").write_text(series.read_text().replace("joint_series: true", "joint_series: false"))
+    result = run_cli("diff", str(workspace / "demo.yaml"), str(series))
+    assert (result.code, result.out) == (0, "output: joint_series false -> true\n")
+    assert json.loads(run_cli("diff", str(series), str(workspace / "demo.yaml"), "--format", "json").out)["changes"][0]["old"] is True
+    assert run_cli("diff", str(workspace / "demo.yaml"), str(workspace / "series_off.yaml"), "--exit-code").code == 0  # the default
+    assert "joint_series" not in text

@@ -265,3 +265,20 @@ def test_invalid_config_still_fails_with_its_errors(examples_dir: Path, run_cli,
     bad.write_text("version: 1\n")
     result = run_cli("plan", str(bad), "--format", "markdown")
     assert result.code == 1 and result.out == "" and "bad.yaml:1" in result.err
+
+
+def test_the_joint_series_option_is_shown_only_when_set(examples_dir: Path, run_cli) -> None:
+    text = (
+        (examples_dir / "demo.yaml")
+        .read_text()
+        .replace("  application_id: panda_demo\n", "  application_id: panda_demo\n  joint_series: true\n")
+    )
+    config = examples_dir / "demo_series.yaml"
+    config.write_text(text)
+    shown = "joint values also as time series (each driven joint, URDF units), plotted beside the 3D view"
+    assert f"  {shown} (output.joint_series)\n" in run_cli("plan", str(config)).out
+    assert f"- {shown} (`output.joint_series`)\n" in run_cli("plan", str(config), "--format", "markdown").out
+    assert json.loads(run_cli("plan", str(config), "--format", "json").out)["output"]["joint_series"] is True
+    plain = examples_dir / "demo.yaml"
+    assert "joint_series" not in run_cli("plan", str(plain)).out + run_cli("plan", str(plain), "--format", "markdown").out
+    assert "joint_series" not in json.loads(run_cli("plan", str(plain), "--format", "json").out)["output"]

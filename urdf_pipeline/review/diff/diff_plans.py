@@ -177,6 +177,7 @@ def _output_changes(report: _Report, old: Plan, new: Plan) -> None:
     subject = "output"
     report.field("output", subject, "application_id", old.application_id, new.application_id)
     report.field("output", subject, "layout", old.dataset.layout, new.dataset.layout)
+    report.field("output", subject, "joint_series", old.dataset.joint_series, new.dataset.joint_series)
     old_model = report.old_path(old.dataset.model) if old.dataset.model else None
     new_model = report.new_path(new.dataset.model) if new.dataset.model else None
     report.field("output", subject, "model", old_model, new_model)

@@ -342,6 +342,7 @@ def _output(plan: Plan, paths: _Paths) -> OutputEntry:
         segments=segments,
         model=paths(dataset.model) if dataset.model is not None else None,
         manifest=paths(dataset.manifest),
+        joint_series=dataset.joint_series,
     )
 
 

@@ -9,6 +9,7 @@ from ...plan import IndexPlan
 from ..markdown_text import cell, code, code_path, fence_for, link_target, plain
 from .report_model import (
     JOINT_TYPES,
+    SERIES_TEXT,
     EdgeEntry,
     JointRow,
     Observed,
@@ -178,6 +179,8 @@ def _output_markdown(output: OutputEntry) -> list[str]:
     if output.model is not None:
         lines.append(f"- model (meshes, static URDF transforms, written once, static only): {code_path(output.model.relative)}")
     lines.append(f"- manifest: {code_path(output.manifest.relative)}")
+    if output.joint_series:
+        lines.append(f"- {SERIES_TEXT} ({_code('output.joint_series')})")
     what = "layer (forward kinematics, calibration edges)" if output.layout == "split" else "recording"
     lines.append(f"- {_plural(output.segment_count, 'segment')}, each a {what} whose recording_id is the segment id:")
     rows = []

@@ -25,6 +25,7 @@ OriginKind = Literal[
     "urdf_moving_joint", "urdf_fixed_joint", "calibration_inline", "calibration_file", "fixed_chain", "assumed_identity", "temporal"
 ]
 SettingValue = str | int | bool | None | IndexPlan
+SERIES_TEXT = "joint values also as time series (each driven joint, URDF units), plotted beside the 3D view"
 
 
 def rounded(value: float) -> float:
@@ -194,6 +195,7 @@ class OutputEntry:
     segments: tuple[SegmentEntry, ...]
     model: ShownPath | None
     manifest: ShownPath
+    joint_series: bool = False  # output.joint_series: every format shows it only when set
 
     @property
     def segment_count(self) -> int:

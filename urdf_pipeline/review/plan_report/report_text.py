@@ -9,7 +9,7 @@ from typing import Any
 
 from ...errors import neutral_text, shown
 from ..markdown_text import PATH_LIMIT
-from .report_model import EdgeEntry, JointRow, OutputEntry, PlanReport, RobotEntry, SampleEntry, number
+from .report_model import SERIES_TEXT, EdgeEntry, JointRow, OutputEntry, PlanReport, RobotEntry, SampleEntry, number
 
 
 def _mapped_text(row: JointRow) -> str:
@@ -85,8 +85,9 @@ def _edge_lines(edge: EdgeEntry) -> list[str]:
 
 
 def _output_lines(output: OutputEntry) -> list[str]:
+    series = [f"  {SERIES_TEXT} (output.joint_series)"] if output.joint_series else []
     if output.single:
-        return [f"output {output.path.planned} (application_id {output.application_id}, recording_id {output.recording_id})"]
+        return [f"output {output.path.planned} (application_id {output.application_id}, recording_id {output.recording_id})", *series]
     segments = output.segments
     named = ", ".join(s.id for s in segments[:3]) + (f", ... {segments[-1].id}" if len(segments) > 3 else "")
     lines = [f"output: {len(segments)} segments ({named}), layout {output.layout}, application_id {output.application_id}"]
@@ -95,7 +96,7 @@ def _output_lines(output: OutputEntry) -> list[str]:
     what = "layer (forward kinematics, calibration edges)" if output.layout == "split" else "recording"
     lines.append(f"  each segment's {what}: {segments[0].output.planned} ... recording_id = segment id")
     lines.append(f"  manifest: {output.manifest.planned}")
-    return lines
+    return [*lines, *series]
 
 
 def _sample_text(sample: SampleEntry) -> str:

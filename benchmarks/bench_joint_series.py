@@ -1,0 +1,79 @@
+"""What `output.joint_series` costs on bench_all.py's single-episode inputs: `urdf-pipeline run CONFIG --force` with
+the option off and on, in ABBA order, each a whole process measured from outside (wall time, peak RSS), and the
+size of the recording it writes.
+
+    .venv/bin/python benchmarks/bench_joint_series.py --repeat 3                  # panda1m and g1_1m
+    .venv/bin/python benchmarks/bench_joint_series.py --only panda300k --scale 0.01 --repeat 1 --workdir /tmp/bench
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from bench_all import HERE, Runner, Sample, alternate, mb, spread
+
+ROWS = ["panda300k", "panda1m", "g1_1m"]
+
+
+def with_series(config: Path) -> Path:
+    """The same config with `joint_series: true`, beside it (its own manifest; the same output path)."""
+    text = config.read_text()
+    if text.count("\noutput:\n") != 1:
+        raise SystemExit(f"{config}: no top-level output: block to add joint_series to")
+    variant = config.with_name(f"{config.stem}_series.yaml")
+    variant.write_text(text.replace("\noutput:\n", "\noutput:\n  joint_series: true\n"))
+    return variant
+
+
+def measure_row(runner: Runner, row: str, spec: dict, repeat: int) -> str:
+    """One table row: the config off and on, alternated; the recording's size after each."""
+    off, on = Path(spec["config"]), with_series(Path(spec["config"]))
+    output = Path(spec["output"])
+    sizes: dict[str, int] = {}
+
+    def measure(config: Path, name: str) -> Sample:
+        sample = runner.measure(runner.ours(str(config), "--force"), f"{row}-{name}")
+        sizes[name] = output.stat().st_size
+        return sample
+
+    runner.measure([*runner.cli, "validate", str(off), str(on)], f"{row}-validate")  # warms the file cache
+    results = alternate(runner, repeat, {"off": lambda: measure(off, "off"), "on": lambda: measure(on, "on")})
+    cells = [f"{spread([s.seconds for s in results[w]], ' s')}, {mb(max(s.peak_mb for s in results[w]))}" for w in ("off", "on")]
+    ratio = statistics.median(s.seconds for s in results["on"]) / statistics.median(s.seconds for s in results["off"])
+    frames, size_off, size_on = f"{spec['frames']:,}", mb(sizes["off"] / 1e6), mb(sizes["on"] / 1e6)
+    return f"| {row} ({frames} frames) | {cells[0]} | {cells[1]} | {ratio:.2f} | {size_off} / {size_on} |"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--repeat", type=int, default=3, help="rounds per row (default 3)")
+    parser.add_argument("--only", default="panda1m,g1_1m", help=f"comma-separated rows, of {','.join(ROWS)}")
+    parser.add_argument("--scale", type=float, default=1.0, help="multiply every frame count, e.g. 0.01 to test")
+    parser.add_argument("--workdir", type=Path, help="keep inputs (reused next time) and logs here (default: a temporary directory)")
+    args = parser.parse_args()
+    rows = [row for row in args.only.split(",") if row]
+    if unknown := sorted(set(rows) - set(ROWS)):
+        parser.error(f"unknown rows {unknown}; choose from {ROWS}")
+    temporary = None if args.workdir else tempfile.TemporaryDirectory(prefix="bench-series-")
+    workdir = (args.workdir or Path(temporary.name)).resolve()  # type: ignore[union-attr]
+    workdir.mkdir(parents=True, exist_ok=True)
+    try:
+        prepare = [sys.executable, str(HERE / "bench_inputs.py"), str(workdir), "--rows", ",".join(rows), "--scale", str(args.scale)]
+        made = json.loads(subprocess.run(prepare, stdout=subprocess.PIPE, text=True, check=True).stdout.strip().splitlines()[-1])
+        runner = Runner(workdir)
+        lines = ["| row | option off | option on | on / off (time, median) | recording off / on |", "| --- | --- | --- | --- | --- |"]
+        lines += [measure_row(runner, row, made[row], args.repeat) for row in rows]
+        print("\n".join(lines))
+    finally:
+        if temporary is not None:
+            temporary.cleanup()
+
+
+if __name__ == "__main__":
+    main()
