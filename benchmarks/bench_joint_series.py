@@ -1,6 +1,6 @@
 """What `output.joint_series` costs on bench_all.py's single-episode inputs: `urdf-pipeline run CONFIG --force` with
-the option off and on, in ABBA order, each a whole process measured from outside (wall time, peak RSS), and the
-size of the recording it writes.
+the option off and on, in ABBA order, each a whole process measured from outside (wall time, CPU time, peak RSS),
+and the size of the recording it writes. CPU time is the steadier figure on a shared machine.
 
     .venv/bin/python benchmarks/bench_joint_series.py --repeat 3                  # panda1m and g1_1m
     .venv/bin/python benchmarks/bench_joint_series.py --only panda300k --scale 0.01 --repeat 1 --workdir /tmp/bench
@@ -44,10 +44,16 @@ def measure_row(runner: Runner, row: str, spec: dict, repeat: int) -> str:
 
     runner.measure([*runner.cli, "validate", str(off), str(on)], f"{row}-validate")  # warms the file cache
     results = alternate(runner, repeat, {"off": lambda: measure(off, "off"), "on": lambda: measure(on, "on")})
-    cells = [f"{spread([s.seconds for s in results[w]], ' s')}, {mb(max(s.peak_mb for s in results[w]))}" for w in ("off", "on")]
-    ratio = statistics.median(s.seconds for s in results["on"]) / statistics.median(s.seconds for s in results["off"])
+    cells = [
+        f"{spread([s.seconds for s in results[w]], ' s')}, CPU {statistics.median(s.cpu for s in results[w]):.2f} s, {mb(max(s.peak_mb for s in results[w]))}"
+        for w in ("off", "on")
+    ]
+    ratios = [
+        statistics.median(getattr(s, f) for s in results["on"]) / statistics.median(getattr(s, f) for s in results["off"])
+        for f in ("seconds", "cpu")
+    ]
     frames, size_off, size_on = f"{spec['frames']:,}", mb(sizes["off"] / 1e6), mb(sizes["on"] / 1e6)
-    return f"| {row} ({frames} frames) | {cells[0]} | {cells[1]} | {ratio:.2f} | {size_off} / {size_on} |"
+    return f"| {row} ({frames} frames) | {cells[0]} | {cells[1]} | {ratios[0]:.2f} / {ratios[1]:.2f} | {size_off} / {size_on} |"
 
 
 def main() -> None:
@@ -67,7 +73,10 @@ def main() -> None:
         prepare = [sys.executable, str(HERE / "bench_inputs.py"), str(workdir), "--rows", ",".join(rows), "--scale", str(args.scale)]
         made = json.loads(subprocess.run(prepare, stdout=subprocess.PIPE, text=True, check=True).stdout.strip().splitlines()[-1])
         runner = Runner(workdir)
-        lines = ["| row | option off | option on | on / off (time, median) | recording off / on |", "| --- | --- | --- | --- | --- |"]
+        lines = [
+            "| row | option off: wall, CPU (median), peak RSS | option on | on / off: wall / CPU (medians) | recording off / on |",
+            "| --- | --- | --- | --- | --- |",
+        ]
         lines += [measure_row(runner, row, made[row], args.repeat) for row in rows]
         print("\n".join(lines))
     finally:
