@@ -30,7 +30,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         viewer = spawn_viewer()
     many = len(plan.segments) > 1 or plan.dataset.layout == "split"  # a dataset: a progress bar and a summary table
     run = _run_segments(args, plan, many)
-    _say_results(run, many)
+    _say_results(run, many, plan.dataset.joint_series)
     if run.interrupted:
         from ..dataset import signal_name
 
@@ -78,14 +78,15 @@ def _run_segments(args: argparse.Namespace, plan: Plan, many: bool) -> DatasetRu
     return run
 
 
-def _say_results(run: DatasetRun, many: bool) -> None:
+def _say_results(run: DatasetRun, many: bool, joint_series: bool) -> None:
     """The blueprint, the summary (a dataset's table, or one recording's lines), the usable outputs' paths on stdout,
     and the traceback of every bug on stderr."""
     from ..dataset import summary_table, totals_line
     from ..progress import LOGGER, say
 
     if run.blueprint is not None:
-        say(f"blueprint (a 3D view of the scene and one per robot): {run.blueprint}")
+        plots = ", beside plots of the driven joints" if joint_series else ""
+        say(f"blueprint (a 3D view of the scene and one per robot{plots}): {run.blueprint}")
     if many or run.interrupted:
         LOGGER.info(summary_table(run.results))
         say(totals_line(run.results, run.seconds) + f"; manifest {run.manifest}")
