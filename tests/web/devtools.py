@@ -220,10 +220,13 @@ class Page:
     def call(self, method: str, params: dict[str, Any] | None = None, timeout: float = CALL_SECONDS) -> Any:
         return self.browser.call(method, params, self.session, timeout)
 
-    def navigate(self, url: str) -> None:
+    def navigate(self, url: str, timeout: float = 60.0) -> None:
+        """Open `url` in the tab and wait for its load event (its scripts have run; the wasm may still be loading)."""
+        loads = len(self.events("Page.loadEventFired"))
         answer = self.call("Page.navigate", {"url": url})
         if answer.get("errorText"):
             raise DevToolsError(f"cannot open {url}: {answer['errorText']}")
+        self.wait_for(lambda: len(self.events("Page.loadEventFired")) > loads, timeout, f"the load of {url}", poll=0.05)
 
     def evaluate(self, expression: str) -> Any:
         """The expression's value (awaited when it is a promise), or DevToolsError with the exception it threw."""

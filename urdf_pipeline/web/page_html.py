@@ -24,9 +24,10 @@ PAGE_POLICY = (
     "default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' data:; connect-src 'self'; "
     "frame-src 'self'; base-uri 'none'; form-action 'none'"
 )
-# The viewer page: the wasm must be compiled ('wasm-unsafe-eval'); it fetches the recordings from the site.
+# The viewer page, as little as Rerun 0.41's viewer needs in chromium: compiling the wasm ('wasm-unsafe-eval'), fetching
+# the recordings from the site (no inline style, worker, blob or data URL). Other origins' fetches never reach it: boot.js.
 VIEWER_POLICY = (
-    "default-src 'none'; script-src 'self' 'wasm-unsafe-eval'; style-src 'self'; img-src 'self' data:; connect-src 'self'; "
+    "default-src 'none'; script-src 'self' 'wasm-unsafe-eval'; style-src 'self'; img-src 'self'; connect-src 'self'; "
     "base-uri 'none'; form-action 'none'"
 )
 
@@ -70,6 +71,7 @@ def page(title: str, body_html: str, at: str = "index.html", scripts: Sequence[s
         '<meta name="referrer" content="no-referrer">',
         '<meta name="viewport" content="width=device-width, initial-scale=1">',
         f"<title>{html_text(title)}</title>",
+        '<link rel="icon" href="data:,">',  # no icon: else the browser asks the host's root for /favicon.ico
         f'<link rel="stylesheet" href="{relative_href(at, STYLESHEET)}">',
         *(f'<script src="{relative_href(at, script)}" defer></script>' for script in scripts),
         "</head>",

@@ -109,7 +109,7 @@
       return;
     }
     const [accepted, refused] = recordings();
-    say("Loading the Rerun viewer (about 43 MB, compiled once per visit)…", "loading");
+    say("Loading the Rerun viewer (about 43 MB)…", "loading");
     try {
       await wasm_bindgen({ module_or_path: wasmUrl });
       forgetViewerState();
@@ -130,7 +130,7 @@
       return;
     }
     canvas.hidden = false;
-    say("", "started");
+    say(accepted.length || refused.length ? "" : "No recording to show: open this page from a link of the site, which names them.", "started");
     refuse(refused);
     window.addEventListener("hashchange", openNew);
   }
