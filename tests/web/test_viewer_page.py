@@ -7,38 +7,20 @@ read what the page did: its console, its requests, what it shows.
 
 from __future__ import annotations
 
-import io
-import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import urlsplit
 
-import numpy as np
 import pytest
-from PIL import Image
 
 from urdf_pipeline.web import ViewerAssets, html_text, viewer_href, write_site
 
+from .canvas import ROBOT_SHARE, wait_for_robot
 from .conftest import Served
 from .devtools import Browser, Page
 
-ROBOT_SECONDS = 300.0  # generous: the wasm compiles in 45-60 s on 2 busy cores, then the meshes load and draw
 PREFIX = "sites/demo"
-DIFFERENT = 60  # summed |RGB| difference from the view's background that counts as drawn
-ROBOT_SHARE = 0.05  # of the page's centre, inside the 3D view: the Panda covers about a fifth of it
-
-
-def drawn_share(png: bytes) -> float:
-    """The share of the page's centre (inside the viewer's 3D view) whose colour differs from its most common one, the
-    view's background: the robot's pixels (the grid's faint lines stay under the threshold)."""
-    with Image.open(io.BytesIO(png)) as image:
-        pixels = np.asarray(image.convert("RGB"), dtype=np.int32)
-    height, width, _ = pixels.shape
-    centre = pixels[int(height * 0.25) : int(height * 0.65), int(width * 0.35) : int(width * 0.65)].reshape(-1, 3)
-    colours, counts = np.unique(centre, axis=0, return_counts=True)
-    background = colours[counts.argmax()]
-    return float((np.abs(centre - background).sum(axis=1) > DIFFERENT).mean())
 
 
 @dataclass
@@ -64,15 +46,9 @@ def viewer_page(browser: Browser, served: Served, viewer_cache: ViewerAssets, de
         link = page.wait_for(
             lambda: page.evaluate("document.getElementById('open') && document.getElementById('open').href"), 30, "the link"
         )
-        started = time.monotonic()
         page.navigate(link)
-
-        def robot() -> float:
-            share = drawn_share(page.screenshot())
-            return share if share >= ROBOT_SHARE and page.evaluate("document.body.dataset.state") == "started" else 0.0
-
-        share = page.wait_for(robot, ROBOT_SECONDS, f"the robot on the viewer's canvas (console: {page.console_errors()})", poll=1.0)
-        yield ViewerPage(page, site_url, time.monotonic() - started, share)
+        share, seconds = wait_for_robot(page)
+        yield ViewerPage(page, site_url, seconds, share)
     finally:
         page.close()
 

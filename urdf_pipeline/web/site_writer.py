@@ -138,8 +138,8 @@ def _put_in_place(building: Path, target: Path) -> None:
     """The finished site renamed to `target`; an older site there is renamed aside first, then removed."""
     aside = None
     if target.exists():
-        aside = target.with_name(f".{target.name}.old-{os.getpid()}")
-        os.rename(target, aside)
+        aside = Path(tempfile.mkdtemp(prefix=f".{target.name}.old-", dir=target.parent))
+        os.rename(target, aside)  # onto the empty folder just made: a name no other build holds
     try:
         os.rename(building, target)
     except OSError:

@@ -100,6 +100,7 @@
         handle.add_receiver(url);
       }
     }
+    say("", "started");
     refuse(refused);
   }
 
