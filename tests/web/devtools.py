@@ -33,7 +33,6 @@ FLAGS = (
     "--use-angle=swiftshader",
     "--enable-unsafe-swiftshader",
     "--remote-debugging-port=0",
-    "--remote-allow-origins=*",
     # nothing of the browser's own reaches out (updates, sync, field trials, safe browsing): the page's requests only
     "--no-first-run",
     "--no-default-browser-check",
