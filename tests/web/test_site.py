@@ -122,6 +122,9 @@ def test_paths_outside_the_site_are_refused(tmp_path: Path) -> None:
         for name in ("../a.rrd", "a/b.rrd", ".hidden.rrd", ""):
             with pytest.raises(ValueError):
                 site.add_recording(source, name)
+        with pytest.raises(UserError, match="cannot put it into the site") as missing:
+            site.add_recording(tmp_path / "missing.rrd")
+        assert missing.value.where is not None and missing.value.where.file == tmp_path / "missing.rrd"
         assert site.add_recording(source) == "recordings/a.rrd"
         assert site.add_recording(source, "episode 1.rrd") == "recordings/episode 1.rrd"
         site.write_page("index.html", "t", "")

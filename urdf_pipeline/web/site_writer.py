@@ -18,6 +18,7 @@ from importlib.resources import files
 from pathlib import Path
 
 from .. import __version__
+from ..confine import os_cause
 from ..errors import UserError, Where
 from .page_html import STYLESHEET, VIEWER_POLICY, page
 from .viewer_cache import FILES, ViewerAssets, viewer_assets
@@ -57,8 +58,12 @@ class SiteWriter:
         return self.write_text(site_path, page(title, body_html, at=site_path, scripts=scripts, rerun=self.rerun_version))
 
     def add_file(self, source: Path, site_path: str) -> str:
-        """A file put into the site at `site_path`, hard-linked when it can be (same file system), else copied."""
-        link_or_copy(source, self._place(site_path))
+        """A file put into the site at `site_path`, hard-linked when it can be (same file system), else copied; a
+        source that cannot be read (missing, a folder, no permission) is a user error naming it."""
+        try:
+            link_or_copy(source, self._place(site_path))
+        except OSError as exc:
+            raise UserError(f"cannot put it into the site: {os_cause(exc, source)}", Where(source, 0)) from None
         return site_path
 
     def add_recording(self, source: Path, name: str | None = None) -> str:
