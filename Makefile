@@ -3,7 +3,7 @@ PYTHON ?= python3.11
 VENV := .venv
 BIN := $(VENV)/bin
 
-.PHONY: demo test lint docs clean bytecode renderer
+.PHONY: demo test lint docs clean bytecode renderer browser
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -45,6 +45,19 @@ renderer:
 	  echo "note: could not install mesa-vulkan-drivers: the renderer tests will skip"; \
 	else echo "note: no Vulkan driver: the renderer tests will skip; install one: sudo apt-get install mesa-vulkan-drivers"; fi
 
+# The web pages (plan --html, diff --html, browse) are tested in a real browser: Debian's chromium, driven headless over
+# its DevTools protocol (nothing downloads a browser build). Installed here when missing and we are root with apt;
+# otherwise the browser tests skip, saying what to install.
+browser:
+	@if command -v chromium >/dev/null 2>&1; then :; \
+	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	  echo "installing chromium (Debian's) for the browser tests"; \
+	  export DEBIAN_FRONTEND=noninteractive; \
+	  apt-get install -y -qq chromium >/dev/null 2>&1 || \
+	  { apt-get update -qq >/dev/null && apt-get install -y -qq chromium >/dev/null; } || \
+	  echo "note: could not install chromium: the browser tests will skip"; \
+	else echo "note: no chromium: the browser tests will skip; install it: sudo apt-get install chromium"; fi
+
 # The checks CI runs before the tests (and .pre-commit-config.yaml before a commit): lint, format, types
 # (configured in pyproject.toml; mccabe complexity at most 12).
 lint: $(VENV)/.test-installed
@@ -52,7 +65,7 @@ lint: $(VENV)/.test-installed
 	$(BIN)/ruff format --check urdf_pipeline tests benchmarks
 	$(BIN)/mypy
 
-test: lint bytecode renderer
+test: lint bytecode renderer browser
 	$(BIN)/python -m pytest
 
 # The site of docs/, into docs/_build/html (git-ignored). Strict, as tests/docs builds it: any warning (a broken link

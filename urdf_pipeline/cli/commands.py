@@ -232,3 +232,18 @@ def cmd_diff(args: argparse.Namespace) -> int:
             print(neutral_line(f"urdf-pipeline: picture {picture.label}: {picture.path}"), file=sys.stderr)
     sys.stdout.write(render_diff(report, args.format))
     return ExitCode.DIFFERENT if args.exit_code and not report.equivalent else ExitCode.OK
+
+
+def cmd_serve(args: argparse.Namespace) -> int:
+    """A site on http://127.0.0.1:PORT/ until Ctrl-C or SIGTERM (exit 130 or 143, as every command they stop); its URL
+    is the one line on stdout."""
+    from ..progress import say
+    from ..web import SiteServer, serve_site
+
+    def ready(server: SiteServer) -> None:
+        chosen = "a free port" if args.port == 0 else f"port {server.port}"
+        say(f"serving {server.folder} on {chosen} of 127.0.0.1 (only this machine can connect); Ctrl-C stops")
+        print(server.url, flush=True)
+
+    serve_site(Path(args.dir), args.port, ready)
+    return ExitCode.OK

@@ -8,7 +8,7 @@ import sys
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, NoReturn
 
-from .commands import cmd_check, cmd_diff, cmd_init, cmd_plan, cmd_run, cmd_schema, cmd_snapshot, cmd_validate
+from .commands import cmd_check, cmd_diff, cmd_init, cmd_plan, cmd_run, cmd_schema, cmd_serve, cmd_snapshot, cmd_validate
 
 if TYPE_CHECKING:
     from ..render import Size
@@ -18,6 +18,13 @@ def _positive(text: str) -> int:
     value = int(text)
     if value < 1:
         raise argparse.ArgumentTypeError("must be at least 1")
+    return value
+
+
+def _port(text: str) -> int:
+    value = int(text)
+    if not 0 <= value <= 65535:
+        raise argparse.ArgumentTypeError("must be between 0 and 65535 (0: a free port)")
     return value
 
 
@@ -81,7 +88,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=_version())
     _verbosity(parser, False)
     commands = _Commands(parser)
-    for add_command in (_add_run, _add_validate, _add_check, _add_plan, _add_snapshot, _add_schema, _add_init, _add_diff):
+    for add_command in (_add_run, _add_validate, _add_check, _add_plan, _add_snapshot, _add_schema, _add_init, _add_diff, _add_serve):
         add_command(commands)
     return parser
 
@@ -238,3 +245,16 @@ def _render_options(parser: argparse.ArgumentParser, render_help: str) -> None:
     """--render DIR and its --size, the same pair for plan and diff (both draw through render/, at one default size)."""
     parser.add_argument("--render", metavar="DIR", help=render_help)
     parser.add_argument("--size", type=_size, metavar="WxH", help="with --render: the pictures' size in pixels (default 1024x768)")
+
+
+def _add_serve(commands: _Commands) -> None:
+    """serve: the site's folder and the port."""
+    serve = commands.add_parser(
+        "serve",
+        cmd_serve,
+        help="serve a site (plan --html, diff --html, browse -o) on http://127.0.0.1:PORT/ and print its URL",
+        description="Serve the static site in DIR to this machine only (127.0.0.1), for a browser: Rerun's web viewer "
+        "does not load from file://. The URL is printed on stdout; Ctrl-C stops.",
+    )
+    serve.add_argument("dir", metavar="DIR", help="the site's folder (it holds an index.html)")
+    serve.add_argument("--port", type=_port, default=0, metavar="N", help="the port to listen on (default 0: a free port, printed)")

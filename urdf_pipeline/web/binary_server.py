@@ -1,0 +1,113 @@
+"""The installed rerun-sdk's `rerun` binary serving its web viewer for a moment, so `viewer_assets` can copy it.
+
+The child listens on 127.0.0.1 only (`--bind`; its default is every interface), on ports the system picks (0), in a
+session of its own (Ctrl-C in the terminal reaches us, not it), its output in a log file it also tells its port in;
+on Linux it is asked to die with us. It is stopped whatever way the block ends.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+from ..errors import UserError
+
+STARTUP_SECONDS = 30.0
+HOSTING = re.compile(r"Hosting a web-viewer at http://127\.0\.0\.1:(\d+)")
+
+
+def rerun_binary(wanted: str) -> str:
+    """The viewer binary of rerun-sdk (`execute.viewer_binary`), checked to be release `wanted` (`rerun --version`)."""
+    from ..execute import viewer_binary
+
+    binary = viewer_binary()
+    if binary is None:
+        raise UserError(f"the web viewer comes from rerun-sdk's rerun binary, which is missing; reinstall rerun-sdk=={wanted}")
+    try:
+        said = subprocess.run([binary, "--version"], capture_output=True, text=True, timeout=60, env=_environment()).stdout
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        raise UserError(f"cannot run the rerun binary {binary}: {exc}") from None
+    found = said.split()[1] if len(said.split()) > 1 else said.strip()
+    if found != wanted:
+        raise UserError(
+            f"the rerun binary {binary} is release {found or 'unknown'}, not the installed rerun-sdk {wanted}; reinstall rerun-sdk"
+        )
+    return binary
+
+
+def _environment() -> dict[str, str]:
+    """`CI` keeps Rerun's usage analytics off (its native pipeline's own rule); `RERUN_APP_ONLY` its first-run prompt."""
+    return {**os.environ, "CI": "1", "RERUN_APP_ONLY": "true", "RUST_LOG": "info"}
+
+
+@contextlib.contextmanager
+def serving_web_viewer(binary: str, folder: Path) -> Iterator[int]:
+    """`rerun --serve-web` on 127.0.0.1 for the duration of the block; yields the web viewer's HTTP port."""
+    log_path = folder / "rerun.log"
+    args = [binary, "--serve-web", "--bind", "127.0.0.1", "--web-viewer-port", "0", "--port", "0"]
+    with open(log_path, "wb") as log:
+        process = subprocess.Popen(
+            args,
+            stdin=subprocess.DEVNULL,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            cwd=folder,
+            env=_environment(),
+            start_new_session=True,
+            preexec_fn=_die_with_parent() if sys.platform.startswith("linux") else None,
+        )
+    try:
+        yield _announced_port(process, log_path)
+    finally:
+        _stop(process)
+
+
+def _announced_port(process: subprocess.Popen[bytes], log_path: Path) -> int:
+    """The port the binary says it hosts the web viewer on (its log line), once it says so."""
+    deadline = time.monotonic() + STARTUP_SECONDS
+    while True:
+        text = log_path.read_text(encoding="utf-8", errors="replace")
+        found = HOSTING.search(text)
+        if found:
+            return int(found.group(1))
+        if process.poll() is not None or time.monotonic() > deadline:
+            last = [line for line in text.splitlines() if line.strip()][-1:] or ["(no output)"]
+            state = f"stopped (exit status {process.returncode})" if process.returncode is not None else "did not start"
+            raise UserError(f"the rerun binary serving the web viewer {state} within {STARTUP_SECONDS:.0f} s: {last[0][:300]}")
+        time.sleep(0.05)
+
+
+def _die_with_parent() -> Callable[[], None]:
+    """Linux: the child gets SIGTERM when this process dies, even by SIGKILL (prctl PR_SET_PDEATHSIG)."""
+    import ctypes
+
+    libc = ctypes.CDLL(None, use_errno=True)  # loaded here, in the parent: the child only calls it
+
+    def arrange() -> None:
+        libc.prctl(1, signal.SIGTERM)
+
+    return arrange
+
+
+def _stop(process: subprocess.Popen[bytes]) -> None:
+    """SIGTERM to the child's session, SIGKILL after 5 s, with Ctrl-C and SIGTERM held off meanwhile."""
+    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        for sent in (signal.SIGTERM, signal.SIGKILL):
+            if process.poll() is not None:
+                return
+            try:
+                os.killpg(process.pid, sent)
+            except ProcessLookupError:
+                return
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                process.wait(5.0)
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
