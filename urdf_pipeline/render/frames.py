@@ -1,9 +1,10 @@
-"""Link positions over a recording, from the transforms it holds: what the viewer composes, done with numpy.
+"""Link poses over a recording, from the transforms it holds: what the viewer composes, done with numpy.
 
-The camera of a picture frames the robots' links over the whole segment, so it must know where every link is at
-every time. That is read from the recording itself (static edges, the forward kinematics and temporal edges as
+The camera of a picture frames the robots' links and the visuals hanging on them at the time it shows (`snapshot`;
+`plan` and `diff` at rest), so it must know where every link is, and how it is turned, at any time. That is read
+from the recording itself (static edges, the forward kinematics and temporal edges as
 written: Rerun's own FK results), not computed again: column by column, one array per child frame, composed down the
-tree from the root with one matrix product per frame over all sampled times.
+tree from the root with one matrix product per frame over all the times asked for.
 """
 
 from __future__ import annotations

@@ -9,6 +9,7 @@ layer, as `run --spawn` sends it.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -16,12 +17,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import UserError, Where, did_you_mean, listing, shown
-from ..plan import Plan
+from ..plan import Plan, RobotPlan
 from .camera import framing
 from .captions import band_height, burn_caption
-from .frames import Timeline, read_transforms, transform_timelines
+from .frames import RecordedTransforms, Timeline, read_transforms, transform_timelines
 from .headless_viewer import HeadlessViewer, Shot, Size, write_png
-from .mesh_bounds import geometry_boxes
+from .mesh_bounds import GeometryBoxes, geometry_boxes
 from .plan_pictures import DEFAULT_SIZE, Picture, extent, require_picture_path, robot_frames, view_contents
 
 if TYPE_CHECKING:
@@ -66,7 +67,7 @@ def snapshot(plan: Plan, request: SnapshotRequest) -> tuple[Picture, ...]:
     with HeadlessViewer(size) as viewer:
         store = viewer.show(plan.application_id, segment.id, chunks)
         for time, path in shots:
-            points, radii = extent(transforms, boxes, plan.root_frame, robots, whole, _at(time))
+            points, radii = _framed_at(transforms, boxes, plan, robots, whole, time)
             camera = framing(points, size.width, size.height, band, radii)
             png = viewer.draw(store, Shot(camera, view_contents(robots, whole), timeline, time))
             write_png(path, burn_caption(png, [title, time_caption(timeline, time)], band))
@@ -85,10 +86,16 @@ def _recording(plan: Plan, output: Path) -> list[Chunk]:
     return [chunk for file in files for chunk in RrdReader(file).stream().to_chunks()]
 
 
-def _at(time: int | None) -> np.ndarray | None:
-    """The time a picture frames: its own (the pose it shows fills it), or every sampled time for a recording that
-    does not move."""
-    return None if time is None else np.array([time], dtype=np.int64)
+def _framed_at(
+    transforms: RecordedTransforms, boxes: GeometryBoxes, plan: Plan, robots: Sequence[RobotPlan], whole: bool, time: int | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """What the picture at `time` frames: the pose it shows (so it fills the picture), or, should no link be placed yet
+    at that time (or the recording not move), the robots over the whole segment."""
+    if time is not None:
+        points, radii = extent(transforms, boxes, plan.root_frame, robots, whole, np.array([time], dtype=np.int64))
+        if np.isfinite(points).all(axis=1).any():
+            return points, radii
+    return extent(transforms, boxes, plan.root_frame, robots, whole)
 
 
 def time_caption(timeline: Timeline | None, value: int | None) -> str:
