@@ -122,3 +122,10 @@ def test_the_ghost_marks_where_the_old_robot_was_and_nothing_else() -> None:
     assert np.array_equal(out[:20], now[:20]) and np.array_equal(out[60:], now[60:]), "the background left alone"
     with pytest.raises(ValueError, match="different sizes"):
         ghost_over(new, _png(100, 100), background)
+
+
+def test_a_long_line_is_cut_in_its_middle_so_both_ends_stay() -> None:
+    font = ImageFont.load_default(size=14)
+    line = fitted("segment " + "y" * 400 + " · frame_index 42", 300, font, 14)
+    assert line.startswith("segment y") and line.endswith("frame_index 42") and "…" in line
+    assert font.getlength(line) <= 300

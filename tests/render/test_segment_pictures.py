@@ -62,7 +62,9 @@ def test_captions_say_the_time_on_its_timeline() -> None:
     assert time_caption(Timeline("t", "duration"), 1_500_000_000) == "t 1.500 s"
     assert time_caption(Timeline("ts", "timestamp"), 1_700_000_000_123_000_000) == "ts 2023-11-14T22:13:20.123Z"
     assert time_caption(None, None) == "static: the recording has no temporal transform"
-    assert time_caption(Timeline("frame\n::error::x\u202e", "sequence"), 3) == "frame\\n::error::x\\u202e 3", "a timeline name from data, escaped"
+    assert time_caption(Timeline("frame\n::error::x\u202e", "sequence"), 3) == "frame\\n::error::x\\u202e 3", (
+        "a timeline name from data, escaped"
+    )
 
 
 @pytest.fixture

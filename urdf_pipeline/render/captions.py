@@ -82,18 +82,24 @@ def drawable(text: str, pixels: int) -> str:
 
 
 def fitted(text: str, width: float, font: ImageFont.FreeTypeFont | ImageFont.ImageFont, pixels: int) -> str:
-    """`text` as one safe line (errors.shown, then `drawable`), cut with `…` where it is wider than `width` pixels."""
+    """`text` as one safe line (errors.shown, then `drawable`), cut in its middle with `…` where it is wider than `width`
+    pixels: both ends stay (a config's name and the time after it, an edge and how far it moved)."""
     line = drawable(shown(text, LINE_LIMIT), pixels)
     if font.getlength(line) <= width:
         return line
     low, high = 0, len(line)
-    while low < high:  # the longest head that fits with the ellipsis
+    while low < high:  # the most characters kept, half from each end, that fit with the ellipsis
         middle = (low + high + 1) // 2
-        if font.getlength(line[:middle] + "…") <= width:
+        if font.getlength(_cut(line, middle)) <= width:
             low = middle
         else:
             high = middle - 1
-    return line[:low].rstrip() + "…"
+    return _cut(line, low)
+
+
+def _cut(line: str, keep: int) -> str:
+    head, tail = (keep + 1) // 2, keep // 2
+    return line[:head] + "…" + (line[len(line) - tail :] if tail else "")
 
 
 def burn_caption(png: bytes, lines: Sequence[str], band: int) -> bytes:

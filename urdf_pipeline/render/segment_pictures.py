@@ -63,14 +63,14 @@ def snapshot(plan: Plan, request: SnapshotRequest) -> tuple[Picture, ...]:
     for _, path in shots:
         require_picture_path(path)
     pictures = []
-    title = f"{shown(plan.config_path.name)} · segment {shown(segment.id)}" + ("" if whole else f" · robot {shown(request.view)}")
+    title = shown(plan.config_path.name) + ("" if whole else f" · robot {shown(request.view)}")
     with HeadlessViewer(size) as viewer:
         store = viewer.show(plan.application_id, segment.id, chunks)
         for time, path in shots:
             points, radii = _framed_at(transforms, boxes, plan, robots, whole, time)
             camera = framing(points, size.width, size.height, band, radii)
             png = viewer.draw(store, Shot(camera, view_contents(robots, whole), timeline, time))
-            write_png(path, burn_caption(png, [title, time_caption(timeline, time)], band))
+            write_png(path, burn_caption(png, [title, f"segment {shown(segment.id)} · {time_caption(timeline, time)}"], band))
             pictures.append(Picture(_time_label(timeline, time).replace("-", " ", 1), path))
     return tuple(pictures)
 
