@@ -1,4 +1,5 @@
-"""What a picture shows, for the tests: the robot is what is bright against the viewer's dark background and grid."""
+"""What a picture shows, for the tests: the robot is what is bright against the viewer's dark background and grid, or
+(`differing`) what differs from the background drawn by the same camera with nothing in the view."""
 
 from __future__ import annotations
 
@@ -9,7 +10,11 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from urdf_pipeline.render.captions import band_height
+from urdf_pipeline.render.headless_viewer import Size
+
 BRIGHT = 100  # grey level: the background is ~13 and the grid lines stay under ~70; lit meshes are far above
+DIFFERENT = 24  # a channel this far from the background drawn by the same camera is the robot's (or an axis')
 
 
 def grey(picture: Path | bytes) -> np.ndarray:
@@ -37,13 +42,33 @@ class Robot:
         return self.bottom - self.top
 
 
-def robot(picture: Path | bytes) -> Robot:
+def robot(picture: Path | bytes, lines: int = 2) -> Robot:
+    """The bright pixels above the caption band (of `lines` lines: its text is bright too)."""
     pixels = grey(picture)
     mask = pixels > BRIGHT
+    mask[mask.shape[0] - band_height(Size(mask.shape[1], mask.shape[0]), lines) :] = False
     assert mask.any(), "nothing bright in the picture: no robot drawn"
     rows, columns = np.nonzero(mask)
     height, width = mask.shape
     return Robot(float(mask.mean()), columns.min() / width, (columns.max() + 1) / width, rows.min() / height, (rows.max() + 1) / height)
+
+
+def differing(picture: Path | bytes, background: Path | bytes, band: int = 0) -> Robot:
+    """What differs from the background drawn by the same camera (the robot, its frames' axes), above the caption
+    band: its share of the picture and its bounding box, as fractions of the whole picture's width and height."""
+    pixels, empty = rgb(picture), rgb(background)
+    mask = np.abs(pixels - empty).max(axis=2) > DIFFERENT
+    height, width = mask.shape
+    mask[height - band :] = False
+    assert mask.any(), "nothing differs from the background: no robot drawn"
+    rows, columns = np.nonzero(mask)
+    return Robot(float(mask.mean()), columns.min() / width, (columns.max() + 1) / width, rows.min() / height, (rows.max() + 1) / height)
+
+
+def rgb(picture: Path | bytes) -> np.ndarray:
+    source = io.BytesIO(picture) if isinstance(picture, bytes) else picture
+    with Image.open(source) as image:
+        return np.asarray(image.convert("RGB"), dtype=np.int16)
 
 
 def assert_framed(picture: Path | bytes, margin: float = 0.02, share: float = 0.01, extent: float = 0.25) -> Robot:

@@ -15,16 +15,26 @@ import numpy as np
 import psutil
 import pytest
 
+from urdf_pipeline.render.captions import BAND_COLOUR, band_height
 from urdf_pipeline.render.headless_viewer import HeadlessViewer
 
 from ..dataset_helpers import isolated_examples
 from .conftest import SMALL
-from .pixels import assert_framed, grey
+from .pixels import assert_framed, grey, rgb
 
 SIZE = f"{SMALL.width}x{SMALL.height}"
 
 
-def test_snapshot_pictures_differ_where_the_robot_moved(
+def _captioned(picture: Path, lines: int = 2) -> np.ndarray:
+    """The picture above its caption band; the band is there, on its own colour, with text in it."""
+    pixels = rgb(picture)
+    band = band_height(SMALL, lines)
+    below = pixels[SMALL.height - band + 1 :]
+    assert (below == BAND_COLOUR).all(axis=2).mean() > 0.5 and (below != BAND_COLOUR).any(), f"{picture.name}: no caption band"
+    return pixels[: SMALL.height - band]
+
+
+def test_snapshot_pictures_show_each_pose_large_with_a_caption(
     renderer: None, examples_dir: Path, written: dict[str, Path], tmp_path: Path, run_cli
 ) -> None:
     result = run_cli("snapshot", str(examples_dir / "demo.yaml"), "--at", "first,last", "--size", SIZE, "-o", str(tmp_path))
@@ -32,17 +42,29 @@ def test_snapshot_pictures_differ_where_the_robot_moved(
     first, last = (Path(line) for line in result.out.splitlines())
     assert (first.name, last.name) == ("episode_000.scene.frame_index-0.png", "episode_000.scene.frame_index-299.png")
     assert "2 picture(s) drawn by the Rerun viewer" in result.err
-    before, after = assert_framed(first), assert_framed(last)
-    a, b = grey(first), grey(last)
-    assert a.shape == b.shape == (SMALL.height, SMALL.width)
-    changed = np.abs(a - b) > 30
-    assert changed.mean() > 0.002, "the robot moved between the first and the last row"
-    where = np.zeros_like(changed)
-    for found in (before, after):  # the robot's box in either picture, a few pixels wider
-        rows = slice(max(0, int(found.top * a.shape[0]) - 3), int(found.bottom * a.shape[0]) + 3)
-        columns = slice(max(0, int(found.left * a.shape[1]) - 3), int(found.right * a.shape[1]) + 3)
-        where[rows, columns] = True
-    assert changed[where].sum() >= 0.97 * changed.sum(), "what changed is where the robot is: same camera, same background"
+    for picture in (first, last):
+        assert grey(picture).shape == (SMALL.height, SMALL.width)
+        found = assert_framed(picture, extent=0.5)  # each framed on its own pose: half the width or height at least
+        assert found.bottom <= 1 - band_height(SMALL, 2) / SMALL.height, "the robot stays above the caption"
+        _captioned(picture)
+    assert not np.array_equal(grey(first), grey(last)), "the robot moved between the first and the last row"
+
+
+def test_a_hostile_config_name_is_captioned_on_one_line(
+    renderer: None, examples_dir: Path, allow_examples: Path, tmp_path: Path, run_cli
+) -> None:
+    """A config file named with a newline, a workflow command and a bidi override: the caption shows it escaped in its
+    band, the picture keeps its size and the robot its place."""
+    plain = isolated_examples(examples_dir, tmp_path / "hostile", "demo.yaml")
+    hostile = plain.parent / ("demo\n::error::forged\u202e" + "x" * 150 + ".yaml")  # 178 bytes: room for the tool's own suffixes
+    plain.rename(hostile)
+    assert run_cli("run", str(hostile), "--jobs", "1").code == 0
+    result = run_cli("snapshot", str(hostile), "--at", "last", "--size", SIZE, "-o", str(tmp_path / "pictures"))
+    assert result.code == 0, result.err
+    (picture,) = (tmp_path / "pictures").glob("*.png")
+    assert grey(picture).shape == (SMALL.height, SMALL.width)
+    _captioned(picture)
+    assert_framed(picture, extent=0.5)
 
 
 def test_a_robot_view_shows_that_robot_only(renderer: None, examples_dir: Path, written: dict[str, Path], tmp_path: Path, run_cli) -> None:
@@ -77,7 +99,7 @@ def _moved_edge(examples_dir: Path, folder: Path) -> tuple[Path, Path]:
     return old, new
 
 
-def test_diff_render_draws_a_moved_edge_as_two_different_pictures(
+def test_diff_render_draws_a_moved_edge_side_by_side_and_as_a_ghost(
     renderer: None, examples_dir: Path, allow_examples: Path, tmp_path: Path, run_cli
 ) -> None:
     old, new = _moved_edge(examples_dir, tmp_path / "configs")
@@ -85,18 +107,25 @@ def test_diff_render_draws_a_moved_edge_as_two_different_pictures(
     result = run_cli("diff", str(old), str(new), "--render", str(pictures), "--size", SIZE, "--format", "markdown")
     assert result.code == 0, result.err
     assert "edge world -> panda_link0: moved 400.0 mm" in result.out
-    names = ("moved.diff.old.png", "moved.diff.new.png", "moved.diff.png")
-    for label, name in zip(("old", "new", "side by side"), names, strict=True):
+    names = ("moved.diff.old.png", "moved.diff.new.png", "moved.diff.png", "moved.diff.overlay.png")
+    for label, name in zip(("old", "new", "side by side", "overlay"), names, strict=True):
         assert f"[{label}]({pictures / name})" in result.out
     before, after = (assert_framed(pictures / name, share=0.005) for name in names[:2])
     assert not np.array_equal(grey(pictures / names[0]), grey(pictures / names[1]))
     assert abs(before.left - after.left) + abs(before.bottom - after.bottom) > 0.03, "the robot stands elsewhere in the new picture"
     assert grey(pictures / names[2]).shape == (SMALL.height, 2 * SMALL.width + 8)
+    ghost, solid = _captioned(pictures / names[3]), _captioned(pictures / names[1])
+    changed = np.abs(ghost - solid).max(axis=2) > 24
+    assert changed.mean() > 0.002, "the old robot shows over the new picture"
+    assert (ghost[changed][:, 2] > ghost[changed][:, 0]).mean() > 0.9, "as a blue ghost"
+    rows, columns = np.nonzero(changed)
+    assert abs(columns.mean() / SMALL.width - (before.left + before.right) / 2) < 0.15, "where the old robot stood"
     same = run_cli("diff", str(old), str(old), "--render", str(tmp_path / "same"), "--size", SIZE, "--format", "json")
     data = json.loads(same.out)
-    assert data["equivalent"] and [p["label"] for p in data["pictures"]] == ["old", "new", "side by side"]
+    assert data["equivalent"] and [p["label"] for p in data["pictures"]] == ["old", "new", "side by side", "overlay"]
     paths = [Path(p["path"]) for p in data["pictures"]]
-    assert np.array_equal(grey(paths[0]), grey(paths[1])), "equal plans draw equal pictures"
+    assert np.array_equal(_captioned(paths[0]), _captioned(paths[1])), "equal plans draw equal pictures (their captions aside)"
+    assert np.array_equal(_captioned(paths[3]), _captioned(paths[1])), "no ghost where nothing moved"
 
 
 def test_plan_render_draws_the_rest_pose_and_links_it(renderer: None, examples_dir: Path, tmp_path: Path, run_cli) -> None:
@@ -105,7 +134,8 @@ def test_plan_render_draws_the_rest_pose_and_links_it(renderer: None, examples_d
     pictures = json.loads(result.out)["pictures"]
     assert [p["label"] for p in pictures] == ["scene", "left", "right"]
     for picture in pictures:
-        assert_framed(Path(picture["path"]))
+        assert_framed(Path(picture["path"]), extent=0.5)
+        _captioned(Path(picture["path"]))
     markdown = run_cli("plan", str(examples_dir / "demo.yaml"), "--format", "markdown", "--render", str(tmp_path), "--size", SIZE)
     assert f"[scene]({tmp_path / 'demo.plan.scene.png'})" in markdown.out
     plain = run_cli("plan", str(examples_dir / "demo.yaml"), "--format", "json")

@@ -13,7 +13,8 @@ from urdf_pipeline.compile import compile_config
 from urdf_pipeline.render.camera import Camera, framing
 from urdf_pipeline.render.frames import read_transforms, transform_timelines
 from urdf_pipeline.render.headless_viewer import HeadlessViewer, Shot
-from urdf_pipeline.render.plan_pictures import robot_frames
+from urdf_pipeline.render.mesh_bounds import geometry_boxes
+from urdf_pipeline.render.plan_pictures import extent, robot_frames
 
 from .conftest import SMALL
 from .pixels import assert_framed, grey, robot
@@ -27,7 +28,8 @@ def demo(viewer: HeadlessViewer, examples_dir: Path, written: dict[str, Path]):
     chunks = RrdReader(written["demo"]).stream().to_chunks()
     (timeline,) = transform_timelines(chunks, [r.fk_entity for r in plan.robots])
     transforms = read_transforms(chunks, timeline)
-    camera = framing(transforms.positions(plan.root_frame, robot_frames(plan.robots)).reshape(-1, 3), SMALL.width, SMALL.height)
+    points, radii = extent(transforms, geometry_boxes(chunks), plan.root_frame, plan.robots, True)  # the whole segment
+    camera = framing(points, SMALL.width, SMALL.height, radii=radii)
     store = viewer.show(plan.application_id, plan.segments[0].id, chunks)
     return store, timeline, camera
 

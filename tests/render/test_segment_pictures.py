@@ -9,7 +9,7 @@ import pytest
 
 from urdf_pipeline.errors import UserError
 from urdf_pipeline.render.frames import Timeline
-from urdf_pipeline.render.segment_pictures import _time_label, picture_times
+from urdf_pipeline.render.segment_pictures import _time_label, picture_times, time_caption
 
 from ..dataset_helpers import isolated_examples
 
@@ -55,6 +55,16 @@ def test_file_names_say_the_time() -> None:
     assert _time_label(Timeline("t", "duration"), 1_500_000_000) == "t-1.500s"
     assert _time_label(Timeline("ts", "timestamp"), 1_700_000_000_123_000_000) == "ts-2023-11-14T22-13-20.123Z"
     assert _time_label(None, None) == "static"
+
+
+def test_captions_say_the_time_on_its_timeline() -> None:
+    assert time_caption(FRAMES, 450) == "frame_index 450"
+    assert time_caption(Timeline("t", "duration"), 1_500_000_000) == "t 1.500 s"
+    assert time_caption(Timeline("ts", "timestamp"), 1_700_000_000_123_000_000) == "ts 2023-11-14T22:13:20.123Z"
+    assert time_caption(None, None) == "static: the recording has no temporal transform"
+    assert time_caption(Timeline("frame\n::error::x\u202e", "sequence"), 3) == "frame\\n::error::x\\u202e 3", (
+        "a timeline name from data, escaped"
+    )
 
 
 @pytest.fixture

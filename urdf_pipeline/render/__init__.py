@@ -12,7 +12,7 @@ from .. import lazy_surface
 
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
     from .headless_viewer import NO_RENDERER, Size
-    from .plan_pictures import DEFAULT_SIZE, Picture, announce, render_diff, render_plan
+    from .plan_pictures import DEFAULT_SIZE, DiffNames, Picture, announce, render_diff, render_plan
     from .segment_pictures import SCENE, SnapshotRequest, snapshot
 
 if not TYPE_CHECKING:  # the names above, imported when first used

@@ -1,10 +1,14 @@
-"""Where the picture's camera goes: a fixed three-quarter view, as close as it can be with every link in the picture.
+"""Where the picture's camera goes: a fixed three-quarter view, as close as it can be with all of the robot in the picture.
 
 The view direction is fixed (in front of and to the right of a robot facing +x, from above, z up), so pictures of
-one robot are comparable. Along it, the link positions (all of them, over every time pictured or the whole
-segment) are boxed in the view's own axes: the box's middle is what the camera looks at, and the distance is the
-smallest at which every link origin, padded by LINK_PADDING for the meshes around it, lies within `FILL` of the half
-field of view on both axes. The viewer's 3D eye has a fixed vertical field of view of 55 degrees (measured with
+one robot are comparable. What must be in the picture is a set of points: the link origins and the corners of each
+visual's box (mesh_bounds.py), over every time pictured (the whole segment for `snapshot`), each with a radius (0 for
+a corner; a padding where no geometry is known). The camera is the closest one along that fixed direction with every
+point's ball inside the picture's frame: the picture less a margin of (1 - FILL) of its half-size on each side, and
+less the caption band at its bottom. In the view's own axes that is a linear program with a closed-form answer: per
+axis, the two extreme points bound how close the camera may come, and the camera sits midway between them sideways.
+So the robot touches the frame on both sides of its tighter axis: it fills FILL of the picture's width or of its height
+above the band, whatever its size. The viewer's 3D eye has a fixed vertical field of view of 55 degrees (measured with
 rerun-sdk 0.41: a square of known size at a known distance); the horizontal one follows the picture's aspect.
 """
 
@@ -16,11 +20,12 @@ from dataclasses import dataclass
 import numpy as np
 
 FIELD_OF_VIEW_Y = math.radians(55.0)
-FILL = 0.88  # share of the half field of view the padded links may reach: the rest is the margin
+FILL = 0.88  # share of the half picture (from its middle to an edge) the robot may reach: the rest is the margin
 AZIMUTH = math.radians(-50.0)  # from +x towards -y
 ELEVATION = math.radians(28.0)
 UP = (0.0, 0.0, 1.0)  # URDF frames are z-up (REP 103); the recordings set no other up axis
-LINK_PADDING = 0.12  # metres around a link origin: the meshes reach beyond the frames they hang on
+LINK_PADDING = 0.02  # metres around a link origin (the box corners hold the meshes; this keeps a frame's axes whole)
+NEAREST = 0.05  # metres: the camera stays at least this far in front of every point
 
 
 @dataclass(frozen=True)
@@ -45,27 +50,38 @@ def view_axes() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return right, np.cross(right, forward), forward
 
 
-def framing(points: np.ndarray, width: int, height: int) -> Camera:
-    """The three-quarter camera at which every point (N x 3, root frame; NaN rows left out) fits a `width` x
-    `height` picture with a margin."""
-    finite = points[np.isfinite(points).all(axis=1)]
+def frame_bounds(width: int, height: int, band: int = 0) -> tuple[tuple[float, float], tuple[float, float]]:
+    """Where the robot may be, as tangents of the angle off the view's axis: (left, right) and (bottom, top). The
+    picture spans -1..1 of its half-size on each axis; the band takes its bottom `band` pixels."""
+    tan_y = math.tan(FIELD_OF_VIEW_Y / 2)
+    tan_x = tan_y * width / height
+    margin = 1 - FILL
+    bottom = -1 + 2 * min(max(band, 0), height * 0.45) / height + margin
+    return (-FILL * tan_x, FILL * tan_x), (bottom * tan_y, FILL * tan_y)
+
+
+def framing(points: np.ndarray, width: int, height: int, band: int = 0, radii: np.ndarray | float = LINK_PADDING) -> Camera:
+    """The three-quarter camera at which every point (N x 3, root frame; NaN rows left out), each a ball of its radius,
+    lies in a `width` x `height` picture above a `band` pixels high, with a margin; as close as that allows."""
+    spheres = np.broadcast_to(np.asarray(radii, dtype=np.float64), (len(points),))
+    keep = np.isfinite(points).all(axis=1) & np.isfinite(spheres)
+    finite, radius = points[keep], np.abs(spheres[keep])
     if not len(finite):
         raise ValueError("no link position to frame")
     right, up, forward = view_axes()
-    axes = np.stack([right, up, forward])
-    local = finite @ axes.T  # x right, y up, z away from the camera
-    low, high = local.min(axis=0), local.max(axis=0)
-    middle = (low + high) / 2
-    target = middle @ axes
-    x, y, depth = (local - middle).T
-    tan_y = math.tan(FIELD_OF_VIEW_Y / 2) * FILL
-    tan_x = math.tan(FIELD_OF_VIEW_Y / 2) * width / height * FILL
-    # A point at depth offset d (along the view) is inside when |x| + pad <= tan_x * (D + d - pad).
-    distance = float(
-        max(
-            ((np.abs(x) + LINK_PADDING) / tan_x - depth + LINK_PADDING).max(),
-            ((np.abs(y) + LINK_PADDING) / tan_y - depth + LINK_PADDING).max(),
-        )
-    )
-    distance = max(distance, float((high - low)[2]) / 2 + 3 * LINK_PADDING)  # never among the links
-    return Camera(_triple(target - forward * distance), _triple(target))
+    local = finite @ np.stack([right, up, forward]).T  # x right, y up, z away from the camera
+    x_bounds, y_bounds = frame_bounds(width, height, band)
+    depth, sideways = local[:, 2], []
+    nearest = float((depth - radius).min()) - NEAREST
+    for axis, (low, high) in enumerate((x_bounds, y_bounds)):
+        # Inside: low <= (p - c) / (depth - c_z) <= high, for the ball's centre moved in by its radius.
+        value = local[:, axis]
+        lowest = float((value - high * depth + radius * math.hypot(1, high)).max())  # c - high * c_z >= this
+        highest = float((value - low * depth - radius * math.hypot(1, low)).min())  # c - low * c_z <= this
+        nearest = min(nearest, (highest - lowest) / (high - low))
+        sideways.append((lowest, highest, low, high))
+    camera_z = nearest
+    camera_xy = [((lowest + high * camera_z) + (highest + low * camera_z)) / 2 for lowest, highest, low, high in sideways]
+    position = camera_xy[0] * right + camera_xy[1] * up + camera_z * forward
+    reach = max(float(np.median(depth)) - camera_z, NEAREST)
+    return Camera(_triple(position), _triple(position + forward * reach))

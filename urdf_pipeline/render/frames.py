@@ -1,9 +1,10 @@
-"""Link positions over a recording, from the transforms it holds: what the viewer composes, done with numpy.
+"""Link poses over a recording, from the transforms it holds: what the viewer composes, done with numpy.
 
-The camera of a picture frames the robots' links over the whole segment, so it must know where every link is at
-every time. That is read from the recording itself (static edges, the forward kinematics and temporal edges as
+The camera of a picture frames the robots' links and the visuals hanging on them at the time it shows (`snapshot`;
+`plan` and `diff` at rest), so it must know where every link is, and how it is turned, at any time. That is read
+from the recording itself (static edges, the forward kinematics and temporal edges as
 written: Rerun's own FK results), not computed again: column by column, one array per child frame, composed down the
-tree from the root with one matrix product per frame over all sampled times.
+tree from the root with one matrix product per frame over all the times asked for.
 """
 
 from __future__ import annotations
@@ -62,12 +63,21 @@ class RecordedTransforms:
     def positions(self, root: str, frames: Iterable[str], times: np.ndarray | None = None) -> np.ndarray:
         """World positions (times x frames x 3, NaN where a frame is not placed) of `frames` at `times` (default: the
         recording's times, at most MAX_TIMES of them spread evenly)."""
+        return self.poses(root, frames, times)[1]
+
+    def poses(self, root: str, frames: Iterable[str], times: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """World rotations (times x frames x 3 x 3) and positions (times x frames x 3) of `frames`, NaN where a frame
+        is not placed: what a mesh hanging on a frame needs to be placed too."""
         if times is None:
             times = self.sampled_times()
         wanted = list(frames)
         placed = _compose(self, root, times, set(wanted))
-        nowhere = np.full((len(times), 3), np.nan)
-        return np.stack([placed.get(frame, nowhere) for frame in wanted], axis=1) if wanted else np.zeros((len(times), 0, 3))
+        count = len(times)
+        nowhere = (np.full((count, 3, 3), np.nan), np.full((count, 3), np.nan))
+        if not wanted:
+            return np.zeros((count, 0, 3, 3)), np.zeros((count, 0, 3))
+        found = [placed.get(frame, nowhere) for frame in wanted]
+        return np.stack([rotation for rotation, _ in found], axis=1), np.stack([position for _, position in found], axis=1)
 
     def sampled_times(self) -> np.ndarray:
         times = self.times
@@ -174,8 +184,8 @@ def _concatenate(parts: list[_Edges]) -> _Edges:
     )
 
 
-def _compose(transforms: RecordedTransforms, root: str, times: np.ndarray, wanted: set[str]) -> dict[str, np.ndarray]:
-    """World positions (times x 3) of the frames in `wanted` that reach `root`; the latest temporal value at or
+def _compose(transforms: RecordedTransforms, root: str, times: np.ndarray, wanted: set[str]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """World rotations (times x 3 x 3) and positions (times x 3) of the frames in `wanted` that reach `root`; the latest temporal value at or
     before a time overrides the static one, as in the viewer."""
     static, temporal, names = transforms.static, transforms.temporal, transforms.frames
     parent_of = {int(c): int(p) for c, p in zip(static.child, static.parent, strict=True)}  # the last static row wins
@@ -193,7 +203,7 @@ def _compose(transforms: RecordedTransforms, root: str, times: np.ndarray, wante
     code = {name: index for index, name in enumerate(names)}
     top = code.get(root, -2)
     world = {top: (np.broadcast_to(np.eye(3), (count, 3, 3)), np.zeros((count, 3)))}
-    placed: dict[str, np.ndarray] = {root: world[top][1]} if root in wanted else {}
+    placed = {root: world[top]} if root in wanted else {}
     stack = [top]
     while stack:
         parent = stack.pop()
@@ -207,7 +217,7 @@ def _compose(transforms: RecordedTransforms, root: str, times: np.ndarray, wante
                 np.einsum("tij,tj->ti", parent_rotation, translation) + parent_translation,
             )
             if names[child] in wanted:
-                placed[names[child]] = world[child][1]
+                placed[names[child]] = world[child]
             stack.append(child)
     return placed
 

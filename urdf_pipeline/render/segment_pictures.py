@@ -1,24 +1,32 @@
 """`urdf-pipeline snapshot`: pictures of a written recording at chosen times on its timeline.
 
-The camera is one for all the pictures of a command: it frames the links of the robots in the view at every time of
-the segment (at most frames.MAX_TIMES of them), read from the recording (see frames.py), so two pictures of a
-segment differ only where the robot moved. The split layout's model (meshes, static joints) is drawn with each
+Each picture is framed on the pose it shows: the links of the robots in the view and their visuals' boxes
+(mesh_bounds.py) at that time, read from the recording (see frames.py), seen from the one fixed three-quarter direction
+(camera.py). A robot that sweeps a metre over a segment still fills its pictures; the caption band names the config,
+the segment and the time on its timeline. The split layout's model (meshes, static joints) is drawn with each
 layer, as `run --spawn` sends it.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..errors import UserError, Where, did_you_mean, listing
-from ..plan import Plan
+from ..errors import UserError, Where, did_you_mean, listing, shown
+from ..plan import Plan, RobotPlan
 from .camera import framing
-from .frames import Timeline, read_transforms, transform_timelines
-from .headless_viewer import HeadlessViewer, Shot, Size
-from .plan_pictures import DEFAULT_SIZE, Picture, require_picture_path, robot_frames, view_contents
+from .captions import band_height, burn_caption
+from .frames import RecordedTransforms, Timeline, read_transforms, transform_timelines
+from .headless_viewer import HeadlessViewer, Shot, Size, write_png
+from .mesh_bounds import GeometryBoxes, geometry_boxes
+from .plan_pictures import DEFAULT_SIZE, Picture, extent, require_picture_path, robot_frames, view_contents
+
+if TYPE_CHECKING:
+    from rerun.chunk import Chunk
 
 SCENE = "scene"
 KEYWORDS = ("first", "middle", "last")
@@ -34,39 +42,68 @@ class SnapshotRequest:
 
 
 def snapshot(plan: Plan, request: SnapshotRequest) -> tuple[Picture, ...]:
-    from rerun.chunk import RrdReader
-
     segment = plan.segment_named(request.segment, "--segment", first_by_default=True)
     robots = plan.robots if request.view == SCENE else tuple(r for r in plan.robots if r.key == request.view)
     if not robots:
         keys = [r.key for r in plan.robots]
         raise UserError(f"--view {request.view}: no such robot (robots: {listing(keys)}; or 'scene'){did_you_mean(request.view, keys)}")
-    files = ([plan.dataset.model] if plan.dataset.layout == "split" and plan.dataset.model is not None else []) + [segment.output]
-    for file in files:
-        if not file.is_file():
-            raise UserError(f"no recording at {file}: write it first (urdf-pipeline run {plan.config_path})", Where(plan.config_path, 0))
-    chunks = [chunk for file in files for chunk in RrdReader(file).stream().to_chunks()]
+    chunks = _recording(plan, segment.output)
     timelines = transform_timelines(chunks, [robot.fk_entity for robot in robots])
     timeline = timelines[0] if timelines else None
     transforms = read_transforms(chunks, timeline)
     times = picture_times(request.at, timeline, transforms.times)
-    points = transforms.positions(plan.root_frame, robot_frames(robots)).reshape(-1, 3)
-    if not np.isfinite(points).all(axis=1).any():
+    whole = request.view == SCENE
+    if not np.isfinite(transforms.positions(plan.root_frame, robot_frames(robots))).all(axis=2).any():
         raise UserError(f"{segment.output}: no link of {request.view} reaches the root frame {plan.root_frame} in the recording")
     size = request.size
-    camera = framing(points, size.width, size.height)
+    band = band_height(size, 2)
+    boxes = geometry_boxes(chunks)
     folder = request.folder if request.folder is not None else segment.output.parent / "pictures"
     shots = [(time, folder / f"{segment.id}.{request.view}.{_time_label(timeline, time)}.png") for time in times]
     for _, path in shots:
         require_picture_path(path)
     pictures = []
-    contents = view_contents(robots, request.view == SCENE)
+    title = shown(plan.config_path.name) + ("" if whole else f" · robot {shown(request.view)}")
     with HeadlessViewer(size) as viewer:
         store = viewer.show(plan.application_id, segment.id, chunks)
         for time, path in shots:
-            viewer.picture(store, Shot(camera, contents, timeline, time), path)
+            points, radii = _framed_at(transforms, boxes, plan, robots, whole, time)
+            camera = framing(points, size.width, size.height, band, radii)
+            png = viewer.draw(store, Shot(camera, view_contents(robots, whole), timeline, time))
+            write_png(path, burn_caption(png, [title, f"segment {shown(segment.id)} · {time_caption(timeline, time)}"], band))
             pictures.append(Picture(_time_label(timeline, time).replace("-", " ", 1), path))
     return tuple(pictures)
+
+
+def _recording(plan: Plan, output: Path) -> list[Chunk]:
+    """The segment's chunks; the split layout's model (meshes, static joints) first, as `run --spawn` sends it."""
+    from rerun.chunk import RrdReader
+
+    files = ([plan.dataset.model] if plan.dataset.layout == "split" and plan.dataset.model is not None else []) + [output]
+    for file in files:
+        if not file.is_file():
+            raise UserError(f"no recording at {file}: write it first (urdf-pipeline run {plan.config_path})", Where(plan.config_path, 0))
+    return [chunk for file in files for chunk in RrdReader(file).stream().to_chunks()]
+
+
+def _framed_at(
+    transforms: RecordedTransforms, boxes: GeometryBoxes, plan: Plan, robots: Sequence[RobotPlan], whole: bool, time: int | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """What the picture at `time` frames: the pose it shows (so it fills the picture), or, should no link be placed yet
+    at that time (or the recording not move), the robots over the whole segment."""
+    if time is not None:
+        points, radii = extent(transforms, boxes, plan.root_frame, robots, whole, np.array([time], dtype=np.int64))
+        if np.isfinite(points).all(axis=1).any():
+            return points, radii
+    return extent(transforms, boxes, plan.root_frame, robots, whole)
+
+
+def time_caption(timeline: Timeline | None, value: int | None) -> str:
+    """The time on its timeline, as a caption says it: `frame_index 450`, `time 1.500 s`, `ts 2024-01-01T12:00:00.000Z`."""
+    if timeline is None or value is None:
+        return "static: the recording has no temporal transform"
+    unit = " s" if timeline.kind == "duration" else ""
+    return f"{shown(timeline.name)} {_shown(timeline, value)}{unit}"
 
 
 def picture_times(text: str | None, timeline: Timeline | None, times: np.ndarray) -> list[int | None]:

@@ -4,10 +4,12 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..plan import Plan
+from .diff.diff_base import Change
 from .plan_report.report_model import PictureEntry
 
 if TYPE_CHECKING:
@@ -27,10 +29,35 @@ def plan_pictures(plan: Plan, folder: Path, size: Size | None) -> tuple[PictureE
     return _entries(pictures)
 
 
-def diff_pictures(old: Plan, new: Plan, folder: Path, stem: str, size: Size | None) -> tuple[PictureEntry, ...]:
-    from ..render import DEFAULT_SIZE, announce, render_diff
+def diff_pictures(
+    old: Plan, new: Plan, folder: Path, stem: str, size: Size | None, names: tuple[str, str], changes: Sequence[Change] = ()
+) -> tuple[PictureEntry, ...]:
+    """Old, new, side by side, and the old as a ghost over the new whose caption lists `changes` (named as the report
+    names the configs: `OLD`, `CONFIG@REV`)."""
+    from ..render import DEFAULT_SIZE, DiffNames, announce, render_diff
 
     started = time.perf_counter()
-    pictures = render_diff(old, new, folder, stem, size or DEFAULT_SIZE)
+    pictures = render_diff(old, new, folder, stem, size or DEFAULT_SIZE, DiffNames(*names, caption_changes(changes)))
     announce(pictures, time.perf_counter() - started)
     return _entries(pictures)
+
+
+def caption_changes(changes: Sequence[Change]) -> tuple[str, ...]:
+    """The changes as the overlay's caption lists them: what moves the robot first (a moved edge or joint origin, a
+    remapped joint), each a short line (a move without its before/after values); the rest in report order."""
+    return tuple(_short(change) for change in sorted(changes, key=_rank))
+
+
+def _rank(change: Change) -> int:
+    if _moved(change):
+        return 0
+    return 1 if ": remapped " in change.detail else 2
+
+
+def _moved(change: Change) -> bool:
+    return change.detail.startswith("moved ") or ": origin moved " in change.detail
+
+
+def _short(change: Change) -> str:
+    detail = change.detail.split(" (", 1)[0] if _moved(change) else change.detail
+    return f"{change.subject}: {detail}"

@@ -39,7 +39,7 @@ class DiffReport:
     old: str  # "OLD", or "CONFIG@REV" with --git
     new: str
     changes: tuple[Change, ...]
-    pictures: tuple[PictureEntry, ...] = ()  # with --render only: old, new, side by side
+    pictures: tuple[PictureEntry, ...] = ()  # with --render only: old, new, side by side, overlay
 
     @property
     def equivalent(self) -> bool:

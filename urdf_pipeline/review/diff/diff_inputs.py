@@ -63,10 +63,11 @@ def _is_file(path: Path) -> bool:
 
 
 def _report(old: str, new: str, old_plan: Plan, new_plan: Plan, render: Path | None, size: Size | None) -> DiffReport:
-    """The changes; with `render`, the pictures of both plans at the same joint values (named after NEW's file),
-    drawn even when nothing differs: the reviewer sees the robot either way."""
-    pictures = diff_pictures(old_plan, new_plan, render, Path(new).stem, size) if render is not None else ()
-    return DiffReport(old, new, diff_plans(old_plan, new_plan), pictures)
+    """The changes; with `render`, the pictures of both plans at the same joint values (named after NEW's file; the
+    overlay's caption lists the changes), drawn even when nothing differs: the reviewer sees the robot either way."""
+    changes = diff_plans(old_plan, new_plan)
+    pictures = diff_pictures(old_plan, new_plan, render, Path(new).stem, size, (old, new), changes) if render is not None else ()
+    return DiffReport(old, new, changes, pictures)
 
 
 def _renamed_errors(copy: Path, named: Path) -> Plan:

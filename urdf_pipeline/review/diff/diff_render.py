@@ -53,7 +53,9 @@ def render_markdown(report: DiffReport) -> str:
     lines += [f"- {code(change.line, LINE_LIMIT // 2)}" for change in report.changes]
     if report.changes:
         lines.append("")
-    lines += pictures_markdown(report.pictures, "Pictures (old and new at the same joint values, one camera):")
+    lines += pictures_markdown(
+        report.pictures, "Pictures (old and new at the same joint values, one camera; the overlay: old as a blue ghost):"
+    )
     return "\n".join(lines).rstrip("\n") + "\n"
 
 
