@@ -116,36 +116,37 @@ class ValuePreview:
         count = len(channels)
         self.width = 1
         self.rows = 0
-        self.minima = np.full((FINE_BUCKETS, count), np.nan)
-        self.maxima = np.full((FINE_BUCKETS, count), np.nan)
+        self.minima = np.full((FINE_BUCKETS, count), np.inf)  # an empty bucket: min +inf, max -inf
+        self.maxima = np.full((FINE_BUCKETS, count), -np.inf)
         self._lock = threading.Lock()
 
     def add(self, values: np.ndarray, left_out: np.ndarray | None) -> None:
         """A batch of (rows x joints) URDF values, the driven joints first; `left_out` rows count but show nothing."""
         driven = values[:, : len(self.channels)]
-        if not len(driven):
+        rows = len(driven)
+        if not rows:
             return
-        if left_out is not None:  # NaN is what fmin and fmax skip (a value the run refuses, NaN or inf, fails it anyway)
-            driven = np.where(left_out[:, None], np.nan, driven)
+        # Rows left out count as +inf for the minima and -inf for the maxima: np.minimum and np.maximum (4x faster
+        # than fmin and fmax) then need no NaN, which only a run that fails after its pass holds (NaN: its bucket empty).
+        lows = driven if left_out is None else np.where(left_out[:, None], np.inf, driven)
+        highs = driven if left_out is None else np.where(left_out[:, None], -np.inf, driven)
         with self._lock:
-            while self.rows + len(driven) > FINE_BUCKETS * self.width:
+            while self.rows + rows > FINE_BUCKETS * self.width:
                 self._merge_pairs()
             first, width = self.rows, self.width
-            buckets = np.arange(first // width, (first + len(driven) - 1) // width + 1)
+            buckets = np.arange(first // width, (first + rows - 1) // width + 1)
             starts = np.maximum(buckets * width - first, 0)
-            with np.errstate(invalid="ignore"):
-                low, high = np.fmin.reduceat(driven, starts, axis=0), np.fmax.reduceat(driven, starts, axis=0)
-                self.minima[buckets] = np.fmin(self.minima[buckets], low)
-                self.maxima[buckets] = np.fmax(self.maxima[buckets], high)
-            self.rows += len(driven)
+            self.minima[buckets] = np.minimum(self.minima[buckets], np.minimum.reduceat(lows, starts, axis=0))
+            self.maxima[buckets] = np.maximum(self.maxima[buckets], np.maximum.reduceat(highs, starts, axis=0))
+            self.rows += rows
 
     def _merge_pairs(self) -> None:
         """Neighbouring buckets merged: half as many, twice as wide."""
         half = FINE_BUCKETS // 2
-        self.minima[:half] = np.fmin(self.minima[0::2], self.minima[1::2])
-        self.maxima[:half] = np.fmax(self.maxima[0::2], self.maxima[1::2])
-        self.minima[half:] = np.nan
-        self.maxima[half:] = np.nan
+        self.minima[:half] = np.minimum(self.minima[0::2], self.minima[1::2])
+        self.maxima[:half] = np.maximum(self.maxima[0::2], self.maxima[1::2])
+        self.minima[half:] = np.inf
+        self.maxima[half:] = -np.inf
         self.width *= 2
 
     def result(self) -> JointPreview | None:
@@ -157,10 +158,9 @@ class ValuePreview:
         # fine bucket k (rows k*width..) goes to the stored bucket its first row falls in
         owner = (np.arange(used) * self.width * buckets) // self.rows
         starts = np.searchsorted(owner, np.arange(buckets))
-        with np.errstate(invalid="ignore"):
-            minima = np.fmin.reduceat(self.minima[:used], starts, axis=0)
-            maxima = np.fmax.reduceat(self.maxima[:used], starts, axis=0)
-            seen_low, seen_high = np.fmin.reduce(minima, axis=0), np.fmax.reduce(maxima, axis=0)
+        minima = np.minimum.reduceat(self.minima[:used], starts, axis=0)
+        maxima = np.maximum.reduceat(self.maxima[:used], starts, axis=0)
+        seen_low, seen_high = minima.min(axis=0), maxima.max(axis=0)  # +inf and -inf for a joint without a value
         chosen = self._chosen(seen_low, seen_high)
         low, high, limited = self._scales(chosen, seen_low, seen_high)
         codes = quantised(minima[:, chosen], maxima[:, chosen], low, high).reshape(-1)
@@ -181,8 +181,8 @@ class ValuePreview:
         if len(self.channels) <= PREVIEW_JOINTS:
             return np.arange(len(self.channels))
         spans = np.array([_span(c) for c in self.channels])
-        with np.errstate(invalid="ignore"):
-            moved = np.nan_to_num(np.minimum((seen_high - seen_low) / spans, 1.0), nan=-1.0)
+        with np.errstate(invalid="ignore"):  # a joint without a value moved -inf (NaN: -1), so last
+            moved = np.nan_to_num(np.minimum((seen_high - seen_low) / spans, 1.0), nan=-1.0, neginf=-2.0)
         return np.sort(np.argsort(-moved, kind="stable")[:PREVIEW_JOINTS])
 
     def _scales(self, chosen: np.ndarray, seen_low: np.ndarray, seen_high: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -206,12 +206,12 @@ def _span(channel: JointChannel) -> float:
 def quantised(minima: np.ndarray, maxima: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
     """(buckets x joints) minima and maxima as uint8 codes against each joint's [low, high], (joints x 2 x buckets):
     the min rounded down and the max up, so the band holds every value; values beyond the scale are clipped to it;
-    a bucket without values is (255, 0)."""
+    a bucket without values (min +inf, max -inf) or with a NaN is (255, 0)."""
     scale = 255.0 / (high - low)
     with np.errstate(invalid="ignore"):
         lows = np.clip(np.floor((minima - low) * scale), 0, 255)
         highs = np.clip(np.ceil((maxima - low) * scale), 0, 255)
-    empty = np.isnan(minima) | np.isnan(maxima)
+        empty = ~(minima <= maxima)
     lows = np.where(empty, EMPTY[0], lows).astype(np.uint8)
     highs = np.where(empty, EMPTY[1], highs).astype(np.uint8)
     return np.stack([lows.T, highs.T], axis=1)
