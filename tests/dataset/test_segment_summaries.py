@@ -119,3 +119,13 @@ def test_a_manifest_of_the_wrong_shape_lists_nothing(so101_written: Path, text: 
 def test_no_manifest_yet_lists_nothing(examples_dir: Path, tmp_path: Path) -> None:
     config = isolated_examples(examples_dir, tmp_path / "fresh")
     assert segment_summaries(compile_config(config)) == []
+
+
+def test_the_run_report_holds_each_written_segments_summary(so101_written: Path, run_cli, tmp_path: Path) -> None:
+    report = tmp_path / "report.json"
+    result = run_cli("run", str(so101_written), "--force", "--report", str(report))
+    assert result.code == 0, result.err
+    results = {r["label"]: r for r in json.loads(report.read_text())["results"]}
+    assert results["model"]["summary"] is None  # the split layout's model: no time, no values
+    manifest = {s["segment"]: s["summary"] for s in json.loads(_manifest_path(so101_written).read_text())["segments"]}
+    assert {label: r["summary"] for label, r in results.items() if label != "model"} == manifest
