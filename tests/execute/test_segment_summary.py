@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
@@ -263,3 +264,25 @@ def test_a_preview_whose_codes_do_not_fit_its_joints_is_dropped() -> None:
     summary["timelines"][1]["first"] = 3 * 10**9  # after its last
     read = SegmentSummary.from_json(summary)
     assert read is not None and read.previews == () and [t.timeline for t in read.timelines] == ["frame_index"]
+
+
+def test_a_source_out_of_order_is_summarised_once_sorted(examples_dir: Path, tmp_path: Path, run_cli) -> None:
+    """Rows found out of time order part-way (after blocks went through the FK) make the run read the source again,
+    whole and sorted: the summary is the second attempt's alone (no rows counted twice), in time order."""
+    config = isolated_examples(examples_dir, tmp_path, "demo.yaml")
+    demo = pq.read_table(tmp_path / "data" / "episode_000.parquet")
+    table = pa.concat_tables([demo] * (6000 // len(demo) + 1)).slice(0, 6000)
+    order = np.r_[np.arange(5000), np.arange(5000, 6000)[::-1]]  # the last 1000 rows backwards
+    table = table.set_column(0, "frame_index", pa.array(np.arange(6000))).take(order)
+    pq.write_table(table, tmp_path / "late.parquet")
+    edit_config(config, lambda data: data["sources"]["arm_state"].update(parquet="late.parquet"))
+    result = run_cli("run", str(config))
+    assert result.code == 0 and "sorted by frame_index" in result.err, result.err
+    summary = SegmentSummary.from_json(_summary_of(config))
+    assert summary is not None and [(t.first, t.last) for t in summary.timelines] == [(0, 5999)]
+    (preview,) = summary.previews
+    assert preview.rows == 6000
+    values = _demo_values_by_hand(tmp_path / "late.parquet")[np.argsort(order)]  # in time order
+    minima, maxima = reference_bands(values)
+    for joint in range(8):
+        assert_codes_match(preview, joint, minima[:, joint], maxima[:, joint])
