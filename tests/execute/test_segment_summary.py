@@ -126,6 +126,16 @@ def test_rows_left_out_and_not_finite_show_nothing_but_keep_their_place() -> Non
     assert set(preview.codes_of(1)[0]) == {255} and set(preview.codes_of(1)[1]) == {0}
 
 
+@pytest.mark.filterwarnings("error")
+def test_values_far_beyond_any_scale_and_joints_that_never_move_give_codes_not_warnings() -> None:
+    values = np.array([[1e300, 5.0, -1e308], [-1e300, 5.0, 1e308], [0.0, 5.0, 0.0]])
+    preview = _folded(values, (_channel("a", -1.0, 1.0), _channel("still", None, None), _channel("wild", None, None)), [2, 1]).result()
+    assert preview is not None and preview.buckets == 3
+    assert preview.codes_of(0) == (bytes([255, 0, 127]), bytes([255, 0, 128]))  # clipped to the ends of its limits
+    assert preview.low[1] < 5.0 < preview.high[1] and set(preview.codes_of(1)[0]) == {127}  # mid-scale
+    assert all(len(band) == 3 for band in preview.codes_of(2))
+
+
 def test_eight_joints_that_move_most_against_their_limits_in_the_robots_order() -> None:
     count = 11
     channels = tuple(_channel(f"j{i}", -1.0, 1.0) for i in range(count - 1)) + (_channel("wheel", None, None),)

@@ -89,8 +89,11 @@ class SourceTimes:
 
 def _end(batch: pa.RecordBatch, name: str, row: int) -> tuple[TimelineKind, int] | None:
     """The timeline's kind and its value at `row` of the batch (int64: nanoseconds or steps); None for another type
-    or a null."""
-    column = batch.column(name)
+    or a null, or when no column has its name."""
+    position = batch.schema.get_field_index(name)
+    if position < 0:
+        return None
+    column = batch.column(position)
     kind = _kind(column.type)
     value = column.slice(row % len(column), 1).cast("int64")[0].as_py() if kind is not None else None
     return None if kind is None or value is None else (kind, value)
@@ -181,7 +184,7 @@ class ValuePreview:
         if len(self.channels) <= PREVIEW_JOINTS:
             return np.arange(len(self.channels))
         spans = np.array([_span(c) for c in self.channels])
-        with np.errstate(invalid="ignore"):  # a joint without a value moved -inf (NaN: -1), so last
+        with np.errstate(all="ignore"):  # a joint without a value moved -inf (NaN: -1), so last
             moved = np.nan_to_num(np.minimum((seen_high - seen_low) / spans, 1.0), nan=-1.0, neginf=-2.0)
         return np.sort(np.argsort(-moved, kind="stable")[:PREVIEW_JOINTS])
 
@@ -193,7 +196,10 @@ class ValuePreview:
         upper = np.array([c.upper if c.upper is not None else np.nan for c in channels], dtype=np.float64)
         low = np.where(limited, lower, np.nan_to_num(seen_low[chosen], nan=0.0, posinf=0.0, neginf=0.0))
         high = np.where(limited, upper, np.nan_to_num(seen_high[chosen], nan=1.0, posinf=1.0, neginf=1.0))
-        high = np.where(high > low, high, low + 1.0)
+        flat = ~(high > low)  # a joint without limits that never moved: its value mid-scale
+        pad = np.maximum(1.0, np.abs(low))
+        low = np.where(flat, low - pad / 2, low)
+        high = np.where(flat, low + pad, high)
         return low, high, limited
 
 
@@ -206,11 +212,12 @@ def _span(channel: JointChannel) -> float:
 def quantised(minima: np.ndarray, maxima: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
     """(buckets x joints) minima and maxima as uint8 codes against each joint's [low, high], (joints x 2 x buckets):
     the min rounded down and the max up, so the band holds every value; values beyond the scale are clipped to it;
-    a bucket without values (min +inf, max -inf) or with a NaN is (255, 0)."""
-    scale = 255.0 / (high - low)
-    with np.errstate(invalid="ignore"):
-        lows = np.clip(np.floor((minima - low) * scale), 0, 255)
-        highs = np.clip(np.ceil((maxima - low) * scale), 0, 255)
+    a bucket without values (min +inf, max -inf) or with a NaN is (255, 0). Values near the float range (a joint
+    passed through far beyond its limits, `on_violation: ignore`) give codes at the ends, never a warning."""
+    with np.errstate(all="ignore"):
+        scale = 255.0 / (high - low)
+        lows = np.clip(np.nan_to_num(np.floor((minima - low) * scale), nan=0.0), 0, 255)
+        highs = np.clip(np.nan_to_num(np.ceil((maxima - low) * scale), nan=255.0), 0, 255)
         empty = ~(minima <= maxima)
     lows = np.where(empty, EMPTY[0], lows).astype(np.uint8)
     highs = np.where(empty, EMPTY[1], highs).astype(np.uint8)
