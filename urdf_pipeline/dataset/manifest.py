@@ -1,6 +1,10 @@
 """The run's JSON manifest: every output with its content hash, so a re-run skips what is up to date.
 
 It is rewritten atomically as segments finish, so after a crash or Ctrl-C it lists exactly the complete files.
+A written segment's entry also holds its `summary` (execute/segment_summary.py: time ranges, robots, notes, a preview
+of the joint values), which `segment_summaries` reads back for a dataset browser without opening any recording; an
+entry without one (written before summaries, or adopted from its file) stays valid, and FORMAT is unchanged: only a
+key was added, which older versions ignore, and a new FORMAT would make every existing manifest be thrown away.
 An existing file at its path that lacks the manifest's `urdf_pipeline` key is not ours: it is refused, never replaced.
 Entries of segments not selected by this run (another `--episodes` range) are kept while their files exist.
 """
@@ -13,12 +17,15 @@ import stat
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .. import __version__
 from ..confine import resolved_or_written
 from ..errors import Where
-from ..execute import require_ours, write_file_atomically
+from ..execute import SegmentSummary, require_ours, write_file_atomically
+
+if TYPE_CHECKING:
+    from ..plan import Plan
 
 FORMAT = 1
 
@@ -34,6 +41,7 @@ class Manifest:
     files: dict[str, Any] = field(default_factory=dict)  # input path -> [size, mtime_ns, sha256] (fingerprint.py)
     segments: dict[str, dict[str, Any]] = field(default_factory=dict)
     _last_write: float = 0.0
+    _lines: dict[str, tuple[dict[str, Any], str]] = field(default_factory=dict)  # segment id -> (entry, its JSON line)
 
     @classmethod
     def load(cls, path: Path, application_id: str, layout: str, config: Path, where: Where | None = None) -> Manifest:
@@ -107,6 +115,14 @@ class Manifest:
         """(segment id, layer or recording path) of every segment the manifest lists whose file exists."""
         return [(s, self.resolve(e["path"])) for s, e in sorted(self.segments.items()) if _size(self.resolve(e["path"])) is not None]
 
+    def _line(self, label: str, entry: dict[str, Any]) -> str:
+        """A segment's entry as one line of JSON, made once per entry: a 10,000-segment manifest (summaries and all,
+        ~15 MB) is rewritten every second of a run, which json.dumps with indent would take ~0.4 s of the driver to do."""
+        cached = self._lines.get(label)
+        if cached is None or cached[0] is not entry:
+            cached = self._lines[label] = (entry, json.dumps(entry, sort_keys=True))
+        return cached[1]
+
     def write(self, every_seconds: float = 0.0) -> None:
         """Atomically; `every_seconds` throttles the rewrites of a long run (the last one is always forced)."""
         if self.model is None and not self.segments and not self.path.exists():
@@ -115,7 +131,7 @@ class Manifest:
         if every_seconds and now - self._last_write < every_seconds:
             return
         self._last_write = now
-        segments = [e for _, e in sorted(self.segments.items()) if _size(self.resolve(e["path"])) is not None]
+        listed = [(label, e) for label, e in sorted(self.segments.items()) if _size(self.resolve(e["path"])) is not None]
         data = {
             "format": FORMAT,
             "urdf_pipeline": __version__,
@@ -125,10 +141,47 @@ class Manifest:
             "model": self.model,
             "blueprint": self.blueprint,
             "files": self.files,
-            "segments": segments,
         }
-        text = json.dumps(data, indent=1, sort_keys=True) + "\n"
+        head = json.dumps(data, indent=1, sort_keys=True)
+        segments = ",\n".join(f"  {self._line(label, entry)}" for label, entry in listed)
+        text = f'{head[:-2]},\n "segments": [\n{segments}\n ]\n}}\n' if segments else f'{head[:-2]},\n "segments": []\n}}\n'
         write_file_atomically(self.path, lambda partial: partial.write_text(text, encoding="utf-8"), None)  # ours: see load
+
+
+@dataclass(frozen=True)
+class SegmentEntry:
+    """One written segment as the manifest lists it, for a dataset browser: every value checked for its type (a hand-
+    edited manifest gives None, never an exception). `segment` and `path` are as the manifest says: show the id
+    through `errors.shown`, and confine the path before linking it; the summary's names are already shown, bounded."""
+
+    segment: str
+    path: Path  # resolved against the manifest's folder
+    content_sha256: str | None
+    bytes: int | None
+    frames: int | None
+    episode: int | None
+    summary: SegmentSummary | None  # None for an entry written before summaries, or adopted from its file
+
+
+def segment_summaries(plan: Plan) -> list[SegmentEntry]:
+    """The segments the config's manifest lists whose files exist, in the manifest's order (by segment id); empty when
+    there is no manifest yet. A UserError when the file at the manifest's path is not a manifest of ours."""
+    manifest = Manifest.load(plan.dataset.manifest, plan.application_id, plan.dataset.layout, plan.config_path, plan.output_where)
+    return [
+        _segment_entry(label, manifest.resolve(entry["path"]), entry)
+        for label, entry in sorted(manifest.segments.items())
+        if _size(manifest.resolve(entry["path"])) is not None
+    ]
+
+
+def _segment_entry(label: str, path: Path, entry: dict[str, Any]) -> SegmentEntry:
+    def number(key: str) -> int | None:
+        value = entry.get(key)
+        return value if isinstance(value, int) and not isinstance(value, bool) and value >= 0 else None
+
+    sha = entry.get("content_sha256")
+    summary = SegmentSummary.from_json(entry.get("summary"))
+    return SegmentEntry(label, path, sha if isinstance(sha, str) else None, number("bytes"), number("frames"), number("episode"), summary)
 
 
 def _size(path: Path) -> int | None:

@@ -12,7 +12,7 @@ import time
 import traceback
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from ..errors import ExitCode, Problems, UserError
 from ..execute import Parts, SegmentJob, SegmentResult, remove_stale_partials, require_ours, require_writable, run_segment
@@ -167,7 +167,9 @@ class _Bookkeeper:
     def done(self, job: SegmentJob, result: SegmentResult) -> None:
         self.results[job.label] = result
         if result.status == "written":
-            extra = {"episode": job.segment.episode} if job.segment is not None else {}
+            extra: dict[str, Any] = {"episode": job.segment.episode} if job.segment is not None else {}
+            if result.summary is not None:
+                extra["summary"] = result.summary.as_json()
             self.manifest.record(job.label, job.output, job.content_hash, result.frames, extra)
             self.manifest.write(every_seconds=1.0)
         if self.progress is not None:

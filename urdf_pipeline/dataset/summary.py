@@ -7,7 +7,7 @@ import dataclasses
 import json
 from collections import Counter
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from ..errors import UserError, neutral_line, shown
 from ..execute import SegmentResult
@@ -46,6 +46,12 @@ def totals_line(results: tuple[SegmentResult, ...], seconds: float) -> str:
     return f"{len(results)} outputs: {parts}; {frames:,} frames in {seconds:.1f} s{rate}"
 
 
+def _result(result: SegmentResult) -> dict[str, Any]:
+    """A segment's result as JSON: its summary in the manifest's form (its preview's codes in base64)."""
+    summary = result.summary.as_json() if result.summary is not None else None
+    return {**dataclasses.asdict(result), "output": str(result.output), "summary": summary}
+
+
 def write_report(path: Path, plan: Plan, run: DatasetRun, options: RunOptions) -> None:
     """`run --report FILE.json`: what the run did, segment by segment, for CI dashboards and benchmarks."""
     report = {
@@ -55,7 +61,7 @@ def write_report(path: Path, plan: Plan, run: DatasetRun, options: RunOptions) -
         "executor": options.executor,
         "seconds": run.seconds,
         "interrupted": run.interrupted,
-        "results": [{**dataclasses.asdict(r), "output": str(r.output)} for r in run.results],
+        "results": [_result(r) for r in run.results],
     }
     try:
         path.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")

@@ -11,6 +11,7 @@ from ..sources import CallbackErrors, JointValueMapper, raw_matrix
 from .joint_fk import ClosedFormJointTransforms
 from .joint_series import TRANSFORMS_FIELD, series_lens, with_values
 from .progress_meter import RowMeter
+from .segment_summary import ValuePreview
 from .transform_lenses import transform_lenses, transform_stream
 
 if TYPE_CHECKING:
@@ -28,9 +29,17 @@ class JointTransformBatches:
     """The first lens's function: joint vectors -> per-row batches of joint transforms (Rerun's URDF FK, in closed
     form over whole columns: see joint_fk.py)."""
 
-    def __init__(self, mapper: JointValueMapper, tree: UrdfTree, progress: RowMeter | None = None, series: bool = False) -> None:
+    def __init__(
+        self,
+        mapper: JointValueMapper,
+        tree: UrdfTree,
+        progress: RowMeter | None = None,
+        series: bool = False,
+        preview: ValuePreview | None = None,
+    ) -> None:
         self.mapper = mapper
         self.progress = progress
+        self.preview = preview  # the manifest's preview of the values (segment_summary.py)
         self.transforms = ClosedFormJointTransforms(tree, list(mapper.joint_names))
         self.series = series  # output.joint_series: the driven values too, beside the transforms (joint_series.py)
 
@@ -38,6 +47,8 @@ class JointTransformBatches:
         # Rows that name their values (MCAP JointState) are mapped by name, row by row; vectors by position.
         raw = raw_matrix(self.mapper.source, vectors, self.mapper.columns, f"robot '{self.mapper.robot.key}'")
         values, left_out = self.mapper.urdf_values(raw)
+        if self.preview is not None:
+            self.preview.add(values, left_out)
         batches = self.transforms(values)
         if left_out is not None:  # a null batch scatters to a row with no transform: nothing logged at that time
             batches = pa.ListArray.from_arrays(batches.offsets, batches.values, mask=pa.array(left_out))

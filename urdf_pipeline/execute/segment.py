@@ -21,7 +21,9 @@ from .limits_report import check_joint_statistics
 from .model_stream import cached_tree, robot_model_stream
 from .progress_meter import RowMeter, source_meter
 from .provenance import provenance_stream
+from .segment_summary import TimeRanges, ValuePreview, observed, segment_summary
 from .stream_writer import drain_streams
+from .summary_record import SegmentSummary
 from .temporal_stream import TemporalEdgeValues, check_temporal_edges, temporal_edge_streams
 from .writer import write_file_atomically
 
@@ -38,6 +40,7 @@ class RunResult:
     rows: dict[str, int]  # robot key -> rows of joint values
     notes: tuple[str, ...]
     seconds: float
+    summary: SegmentSummary | None = None  # what the manifest lists of it (None for the split layout's model)
 
 
 def _silent(message: str) -> None:
@@ -63,8 +66,8 @@ def execute(
         log(f"reading {len(plan.sources)} source(s), computing forward kinematics for {len(plan.robots)} robot(s)")
     log(f"writing {plan.output.path}")
     # A source found out of time order part-way is read again, whole and sorted: the attempt opens every stream anew.
-    written, rows, notes = with_sorting_retry(lambda: _write(plan, parts, provenance or {}, on_note, quiet, rows_expected))
-    return RunResult(written, rows, notes, time.perf_counter() - started)
+    written, rows, notes, summary = with_sorting_retry(lambda: _write(plan, parts, provenance or {}, on_note, quiet, rows_expected))
+    return RunResult(written, rows, notes, time.perf_counter() - started, summary)
 
 
 @dataclass
@@ -76,6 +79,8 @@ class _Pass:
     mappers: list[JointValueMapper]
     temporal_values: list[TemporalEdgeValues]
     meters: list[RowMeter]  # one per source read, cleared when the pass ends (a terminal's redrawn line)
+    times: TimeRanges  # the summary's time ranges and value previews, gathered as the values pass
+    previews: list[ValuePreview]
 
     def drain(self, sink: Callable[[LazyChunkStream], None]) -> None:
         """The streams into `sink`; the meters are finished however the pass ends (written, failed, interrupted)."""
@@ -98,6 +103,9 @@ class _Pass:
     def rows(self) -> dict[str, int]:
         return {m.robot.key: m.stats.rows for m in self.mappers}
 
+    def summary(self, plan: RecordingPlan, parts: Parts, notes: tuple[str, ...]) -> SegmentSummary | None:
+        return None if parts == "model" else segment_summary(tuple(r.key for r in plan.robots), self.times, self.previews, notes)
+
 
 def _open(plan: RecordingPlan, parts: Parts, provenance: dict[str, str] | None, quiet: bool, rows_expected: int | None) -> _Pass:
     """Every stream of one attempt, opened anew (a retry after a source was found out of order reads it again).
@@ -105,6 +113,8 @@ def _open(plan: RecordingPlan, parts: Parts, provenance: dict[str, str] | None, 
     errors = CallbackErrors()
     mappers: list[JointValueMapper] = []
     meters: list[RowMeter] = []
+    times = TimeRanges()
+    previews: list[ValuePreview] = []
     streams = []
     trees = {robot.key: cached_tree(robot) for robot in plan.robots}
     if parts != "layer":
@@ -118,10 +128,12 @@ def _open(plan: RecordingPlan, parts: Parts, provenance: dict[str, str] | None, 
             for robot in plan.robots_for(source.name):
                 mapper = JointValueMapper(robot, source)
                 mappers.append(mapper)
+                previews.append(ValuePreview(robot.key, robot.channels))
                 series = plan.output.joint_series and bool(robot.channels)
-                driven.append((robot, JointTransformBatches(mapper, trees[robot.key], None if driven else meter, series)))
+                batches = JointTransformBatches(mapper, trees[robot.key], None if driven else meter, series, previews[-1])
+                driven.append((robot, batches))
             if driven:  # a source used only by temporal edges is read there
-                streams.append(fk_stream(module_for(source).open_stream(source), driven, errors))
+                streams.append(fk_stream(observed(module_for(source).open_stream(source), times), driven, errors))
         streams.append(calibration_stream(plan.edges))
         if plan.output.joint_series:
             streams.append(series_names_stream(plan.robots))
@@ -129,12 +141,12 @@ def _open(plan: RecordingPlan, parts: Parts, provenance: dict[str, str] | None, 
         streams.append(provenance_stream(plan, parts, provenance))
     # Temporal edges (a mobile base, a floating pelvis): their sources are opened again, see temporal_edges.py.
     temporal_streams, temporal_values = temporal_edge_streams(plan, errors) if parts != "model" else ([], [])
-    return _Pass(streams + temporal_streams, errors, mappers, temporal_values, meters)
+    return _Pass(streams + temporal_streams, errors, mappers, temporal_values, meters, times, previews)
 
 
 def _write(
     plan: RecordingPlan, parts: Parts, provenance: dict[str, str], on_note: Callable[[str], None], quiet: bool, rows_expected: int | None
-) -> tuple[Path, dict[str, int], tuple[str, ...]]:
+) -> tuple[Path, dict[str, int], tuple[str, ...], SegmentSummary | None]:
     """One attempt: open the streams, write them to the partial file, check what the pass found, rename."""
     opened = _open(plan, parts, provenance, quiet, rows_expected)
     notes: list[str] = []
@@ -146,7 +158,7 @@ def _write(
         notes.extend(opened.check(on_note))
 
     written = write_file_atomically(plan.output.path, write, "recording", plan.output.where)
-    return written, opened.rows(), tuple(notes)
+    return written, opened.rows(), tuple(notes), opened.summary(plan, parts, tuple(notes))
 
 
 def log_segment(plan: RecordingPlan, recording: RecordingStream, on_note: Callable[[str], None] = log_note) -> dict[str, int]:

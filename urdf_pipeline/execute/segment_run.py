@@ -18,6 +18,7 @@ from ..errors import UserError
 from ..plan import Plan, RecordingPlan, Segment
 from ..progress import note, process_identity, warnings_logged, worker_logging
 from .segment import Parts
+from .summary_record import SegmentSummary
 
 Status = Literal["written", "skipped", "failed", "bug", "interrupted"]
 
@@ -64,6 +65,7 @@ class SegmentResult:
     notes: tuple[str, ...] = ()
     worker: str = ""  # host:pid of the process that ran it
     peak_rss_mib: float = 0.0  # that process's peak resident memory so far
+    summary: SegmentSummary | None = None  # a written segment's time ranges, notes and preview, for the manifest
 
 
 def run_segment(job: SegmentJob) -> SegmentResult:
@@ -90,7 +92,8 @@ def run_segment(job: SegmentJob) -> SegmentResult:
     except Exception:
         return _finished(replace(failed, status="bug", reason=traceback.format_exc(), notes=tuple(notes)), started)
     frames = max(result.rows.values(), default=0)
-    written = replace(failed, status="written", frames=frames, bytes=result.output.stat().st_size, notes=tuple(notes))
+    size = result.output.stat().st_size
+    written = replace(failed, status="written", frames=frames, bytes=size, notes=tuple(notes), summary=result.summary)
     return _finished(written, started)
 
 

@@ -46,7 +46,9 @@ def snapshot(plan: Plan, request: SnapshotRequest) -> tuple[Picture, ...]:
     robots = plan.robots if request.view == SCENE else tuple(r for r in plan.robots if r.key == request.view)
     if not robots:
         keys = [r.key for r in plan.robots]
-        raise UserError(f"--view {shown(request.view)}: no such robot (robots: {listing(keys)}; or 'scene'){did_you_mean(request.view, keys)}")
+        raise UserError(
+            f"--view {shown(request.view)}: no such robot (robots: {listing(keys)}; or 'scene'){did_you_mean(request.view, keys)}"
+        )
     chunks = _recording(plan, segment.output)
     timelines = transform_timelines(chunks, [robot.fk_entity for robot in robots])
     timeline = timelines[0] if timelines else None

@@ -1,0 +1,222 @@
+"""The record of a segment a dataset browser lists, and its JSON form in the run's manifest (segment_summary.py
+gathers it during the run's pass).
+
+Per segment: the time range of each timeline the joint values sit on (first and last index value, int64 as the
+timeline holds it; seconds and ISO dates for time timelines), the robots, the run's notes (bounded, as shown), and a
+preview of the driven joints: per robot up to `PREVIEW_JOINTS` joints, `BUCKETS` buckets of rows each, the min and
+max of every bucket as uint8 codes against the joint's scale. About 0.5 KB per robot, so a 10,000-segment manifest
+stays a few MB (about 1.5 KB per segment in all).
+
+`as_json` is written into the segment's manifest entry; `from_json` reads it back tolerating any hand edit: whatever
+has the wrong type or size is dropped, never raised, and names are shown bounded (`errors.shown`).
+"""
+
+from __future__ import annotations
+
+import base64
+import datetime
+import math
+from dataclasses import dataclass
+from typing import Any, Literal, TypeVar
+
+from ..errors import shown
+
+BUCKETS = 32  # buckets of the stored preview (fewer when the segment has fewer rows)
+PREVIEW_JOINTS = 8  # joints per robot in the preview
+NOTES = 16  # notes kept per segment; the rest are counted
+NOTE_LIMIT = 300  # characters of one note (as `errors.shown` shortens it)
+NAME_LIMIT = 200  # characters of a robot, joint or timeline name read back
+EMPTY = (255, 0)  # a bucket without a finite value: min above max
+INT64_MAX = 2**63 - 1  # a timeline's values lie within ±INT64_MAX (i64::MIN is Rerun's static time)
+T = TypeVar("T")
+TimelineKind = Literal["sequence", "timestamp", "duration"]
+_KINDS: tuple[TimelineKind, ...] = ("sequence", "timestamp", "duration")
+_EPOCH = datetime.datetime(1970, 1, 1, tzinfo=datetime.UTC)
+
+
+@dataclass(frozen=True)
+class TimeRange:
+    """A timeline's first and last index value in the segment: nanoseconds for time kinds, steps for a sequence."""
+
+    timeline: str
+    kind: TimelineKind
+    first: int
+    last: int
+
+    @property
+    def seconds(self) -> float | None:
+        """The duration the range spans; None for a sequence (its steps have no unit)."""
+        return None if self.kind == "sequence" else (self.last - self.first) / 1e9
+
+    @property
+    def first_iso(self) -> str | None:
+        return iso_time(self.first) if self.kind == "timestamp" else None
+
+    @property
+    def last_iso(self) -> str | None:
+        return iso_time(self.last) if self.kind == "timestamp" else None
+
+
+def iso_time(nanoseconds: int) -> str:
+    """A timestamp timeline's value as an ISO 8601 UTC date with nanoseconds: `2024-05-01T12:00:00.000000001Z`."""
+    seconds, rest = divmod(nanoseconds, 1_000_000_000)
+    when = _EPOCH + datetime.timedelta(seconds=seconds)
+    return f"{when:%Y-%m-%dT%H:%M:%S}.{rest:09d}Z"
+
+
+@dataclass(frozen=True)
+class JointPreview:
+    """One robot's preview: per joint, `buckets` (min, max) codes; code c stands for low + c / 255 * (high - low)."""
+
+    robot: str
+    rows: int
+    buckets: int
+    joints: tuple[str, ...]
+    low: tuple[float, ...]  # the value of code 0, per joint: its lower limit, or the lowest value seen
+    high: tuple[float, ...]  # the value of code 255
+    limited: tuple[bool, ...]  # low and high are the joint's limits (else the range seen)
+    codes: bytes  # per joint: its buckets' min codes, then their max codes; an empty bucket is (255, 0)
+
+    def codes_of(self, joint: int) -> tuple[bytes, bytes]:
+        """The (min codes, max codes) of the joint at position `joint`."""
+        start = joint * 2 * self.buckets
+        return self.codes[start : start + self.buckets], self.codes[start + self.buckets : start + 2 * self.buckets]
+
+    def bands(self, joint: int) -> list[tuple[float, float] | None]:
+        """The joint's (min, max) per bucket in URDF units (rad or m), within one code; None for an empty bucket."""
+        low, span = self.low[joint], self.high[joint] - self.low[joint]
+        minima, maxima = self.codes_of(joint)
+        return [None if a > b else (low + a / 255 * span, low + b / 255 * span) for a, b in zip(minima, maxima, strict=True)]
+
+
+@dataclass(frozen=True)
+class SegmentSummary:
+    """What a browser lists of one segment (see the module)."""
+
+    robots: tuple[str, ...]
+    timelines: tuple[TimeRange, ...]
+    notes: tuple[str, ...]
+    notes_left_out: int
+    previews: tuple[JointPreview, ...]
+
+    def as_json(self) -> dict[str, Any]:
+        """The manifest's form: plain JSON values, the codes as base64."""
+        return {
+            "robots": list(self.robots),
+            "timelines": [_time_json(t) for t in self.timelines],
+            "notes": list(self.notes),
+            "notes_left_out": self.notes_left_out,
+            "preview": [_preview_json(p) for p in self.previews],
+        }
+
+    @classmethod
+    def from_json(cls, data: Any) -> SegmentSummary | None:
+        """`as_json`'s form read back from a manifest anyone may have edited: a part of the wrong type or size is
+        dropped (a timeline, a preview, a note), a summary that is not a mapping is None; names are shown bounded."""
+        if not isinstance(data, dict):
+            return None
+        timelines = tuple(t for t in map(_time_from_json, _list(data.get("timelines"))[:16]) if t is not None)
+        previews = tuple(p for p in map(_preview_from_json, _list(data.get("preview"))[:64]) if p is not None)
+        left_out = data.get("notes_left_out")
+        return cls(
+            robots=_strings(data.get("robots"), 64, NAME_LIMIT),
+            timelines=timelines,
+            notes=_strings(data.get("notes"), NOTES, NOTE_LIMIT),
+            notes_left_out=_int_in(left_out, 0, INT64_MAX) or 0,
+            previews=previews,
+        )
+
+
+def _time_json(time: TimeRange) -> dict[str, Any]:
+    entry: dict[str, Any] = {"timeline": time.timeline, "kind": time.kind, "first": time.first, "last": time.last}
+    if time.kind != "sequence":
+        entry["seconds"] = time.seconds
+    if time.kind == "timestamp":
+        entry["first_iso"], entry["last_iso"] = time.first_iso, time.last_iso
+    return entry
+
+
+def _preview_json(preview: JointPreview) -> dict[str, Any]:
+    return {
+        "robot": preview.robot,
+        "rows": preview.rows,
+        "buckets": preview.buckets,
+        "joints": list(preview.joints),
+        "low": list(preview.low),
+        "high": list(preview.high),
+        "limited": list(preview.limited),
+        "codes": base64.b64encode(preview.codes).decode("ascii"),
+    }
+
+
+def _list(value: Any) -> list[Any]:
+    return value if isinstance(value, list) else []
+
+
+def _int_in(value: Any, low: int, high: int) -> int | None:
+    """An int (not a bool) within [low, high], else None."""
+    return value if isinstance(value, int) and not isinstance(value, bool) and low <= value <= high else None
+
+
+def _items(value: Any, kind: type[T], count: int) -> list[T] | None:
+    """A JSON list of exactly `count` values of `kind` (bool is no number here), else None."""
+    if (
+        not isinstance(value, list)
+        or len(value) != count
+        or not all(isinstance(v, kind) and (kind is bool or not isinstance(v, bool)) for v in value)
+    ):
+        return None
+    return value
+
+
+def _finite(value: Any, count: int) -> list[float] | None:
+    """A JSON list of `count` finite numbers, as floats, else None."""
+    if not isinstance(value, list) or len(value) != count:
+        return None
+    try:
+        numbers = [float(v) for v in value if isinstance(v, int | float) and not isinstance(v, bool)]
+    except OverflowError:  # an int beyond any float
+        return None
+    return numbers if len(numbers) == count and all(map(math.isfinite, numbers)) else None
+
+
+def _codes(value: Any, size: int) -> bytes | None:
+    """base64 text of exactly `size` bytes, else None."""
+    if not isinstance(value, str) or len(value) > 2 * size + 8:
+        return None
+    try:
+        raw = base64.b64decode(value, validate=True)
+    except ValueError:
+        return None
+    return raw if len(raw) == size else None
+
+
+def _strings(value: Any, count: int, limit: int) -> tuple[str, ...]:
+    """The strings of a JSON list (others dropped), at most `count`, each as `errors.shown` shows it."""
+    return tuple(shown(item, limit) for item in _list(value) if isinstance(item, str))[:count]
+
+
+def _time_from_json(data: Any) -> TimeRange | None:
+    """A timeline's range; the derived values (seconds, ISO) are computed again, never read."""
+    if not isinstance(data, dict) or not isinstance(data.get("timeline"), str) or data.get("kind") not in _KINDS:
+        return None
+    first, last = _int_in(data.get("first"), -INT64_MAX, INT64_MAX), _int_in(data.get("last"), -INT64_MAX, INT64_MAX)
+    if first is None or last is None or first > last:
+        return None
+    return TimeRange(shown(data["timeline"], NAME_LIMIT), data["kind"], first, last)
+
+
+def _preview_from_json(data: Any) -> JointPreview | None:
+    """A robot's preview whose every list has one entry per joint and whose codes fill joints x 2 x buckets bytes."""
+    if not isinstance(data, dict) or not isinstance(data.get("robot"), str) or not isinstance(data.get("joints"), list):
+        return None
+    rows, buckets, count = _int_in(data.get("rows"), 0, INT64_MAX), _int_in(data.get("buckets"), 1, 4 * BUCKETS), len(data["joints"])
+    if rows is None or buckets is None or not 0 < count <= 4 * PREVIEW_JOINTS:
+        return None
+    joints, limited = _items(data["joints"], str, count), _items(data.get("limited"), bool, count)
+    low, high = _finite(data.get("low"), count), _finite(data.get("high"), count)
+    codes = _codes(data.get("codes"), count * 2 * buckets)
+    if joints is None or limited is None or low is None or high is None or codes is None:
+        return None
+    names = tuple(shown(j, NAME_LIMIT) for j in joints)
+    return JointPreview(shown(data["robot"], NAME_LIMIT), rows, buckets, names, tuple(low), tuple(high), tuple(limited), codes)
