@@ -223,3 +223,12 @@ def test_render_puts_the_pictures_into_the_site(run_cli, examples_dir: Path, tmp
         assert (site / "pictures" / f"plan-{number}.png").read_bytes() == drawn.read_bytes()
         assert f"picture {label}: {drawn}" in result.out  # the text report names the files of --render's folder
         assert f"<figcaption>{label}</figcaption>" in (site / "index.html").read_text()
+
+
+def test_the_sample_shows_in_the_page(run_cli, examples_dir: Path, tmp_path: Path) -> None:
+    site = tmp_path / "site"
+    result = run_cli("plan", str(examples_dir / "demo.yaml"), "--sample", "--rows", "50", "--html", str(site))
+    assert result.code == 0, result.err
+    assert_inert_page(site)
+    text = (site / "index.html").read_text()
+    assert "<th>observed (source units)</th>" in text and "sampled: the first 50 rows of source <code>arm_state</code>" in text
