@@ -4,9 +4,11 @@ one exit point, `entry._handle`, prints them). The work is in the stage packages
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -17,6 +19,7 @@ if TYPE_CHECKING:
     from ..dataset import DatasetRun
     from ..execute import SegmentResult
     from ..plan import Plan
+    from ..web import SiteWriter
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -169,8 +172,31 @@ def cmd_plan(args: argparse.Namespace) -> int:
         args.parser.error("--size needs --render DIR")
     rows = (args.rows or 100_000) if args.sample else None
     render = Path(args.render) if args.render is not None else None
-    sys.stdout.write(plan_command(Path(args.config), args.format, rows, render, args.size))
+    with _site(args.html) as site:
+        text = plan_command(Path(args.config), args.format, rows, render, args.size, site)
+    _say_site(args.html)
+    sys.stdout.write(text)
     return ExitCode.OK
+
+
+@contextlib.contextmanager
+def _site(folder: str | None) -> Iterator[SiteWriter | None]:
+    """`--html DIR`: the site being built (a folder that is not a site is refused before any work), in its place when
+    the command succeeds, DIR as it was when it fails; None without --html."""
+    if folder is None:
+        yield None
+        return
+    from ..web import write_site
+
+    with write_site(Path(folder)) as site:
+        yield site
+
+
+def _say_site(folder: str | None) -> None:
+    if folder is not None:
+        from ..progress import say
+
+        say(f"site written to {folder}; look at it with: urdf-pipeline serve {folder}")
 
 
 def cmd_snapshot(args: argparse.Namespace) -> int:
@@ -223,10 +249,12 @@ def cmd_diff(args: argparse.Namespace) -> int:
     if args.size is not None and args.render is None:
         args.parser.error("--size needs --render DIR")
     render = Path(args.render) if args.render is not None else None
-    if args.git is not None:
-        report = diff_git(args.old, args.git, render, args.size)
-    else:
-        report = diff_files(args.old, args.new, render, args.size)
+    with _site(args.html) as site:
+        if args.git is not None:
+            report = diff_git(args.old, args.git, render, args.size, site)
+        else:
+            report = diff_files(args.old, args.new, render, args.size, site)
+    _say_site(args.html)
     if args.format == "text":  # stdout keeps one line per change; the pictures are named on stderr
         for picture in report.pictures:
             print(neutral_line(f"urdf-pipeline: picture {picture.label}: {picture.path}"), file=sys.stderr)

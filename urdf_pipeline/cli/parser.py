@@ -167,6 +167,7 @@ def _add_plan(commands: _Commands) -> None:
     plan.add_argument("--sample", action="store_true", help="read a sample of each source and add the observed range per value")
     plan.add_argument("--rows", type=_positive, help="with --sample: rows read from the start of each source (default 100000)")
     _render_options(plan, "draw each robot at its rest pose into DIR (PNGs, by the Rerun viewer) and link them")
+    _html_option(plan, "the report as a static site in DIR too, with the rest pose in Rerun's web viewer (and the pictures of --render)")
 
 
 def _add_snapshot(commands: _Commands) -> None:
@@ -239,12 +240,18 @@ def _add_diff(commands: _Commands) -> None:
     _render_options(
         diff, "draw the old and the new plan at the same joint values from one camera into DIR (PNGs, and the two side by side)"
     )
+    _html_option(diff, "the report as a static site in DIR too, with old and new in Rerun's web viewer (and the pictures of --render)")
 
 
 def _render_options(parser: argparse.ArgumentParser, render_help: str) -> None:
     """--render DIR and its --size, the same pair for plan and diff (both draw through render/, at one default size)."""
     parser.add_argument("--render", metavar="DIR", help=render_help)
     parser.add_argument("--size", type=_size, metavar="WxH", help="with --render: the pictures' size in pixels (default 1024x768)")
+
+
+def _html_option(parser: argparse.ArgumentParser, html_help: str) -> None:
+    """--html DIR of plan and diff: a site written besides the report on stdout (any --format)."""
+    parser.add_argument("--html", metavar="DIR", help=html_help + "; stdout keeps the --format report; look at it with `serve DIR`")
 
 
 def _add_serve(commands: _Commands) -> None:

@@ -28,6 +28,7 @@ from .diff_plans import diff_plans
 
 if TYPE_CHECKING:
     from ...render import Size
+    from ...web import SiteWriter
 
 
 def compile_quietly(config: Path) -> Plan:
@@ -38,12 +39,15 @@ def compile_quietly(config: Path) -> Plan:
         return compile_config(config)
 
 
-def diff_files(old: str, new: str, render: Path | None = None, size: Size | None = None) -> DiffReport:
-    """OLD and NEW as the user named them. With `render`, the viewer draws both into that folder (see _report)."""
-    return _report(old, new, compile_quietly(Path(old)), compile_quietly(Path(new)), render, size)
+def diff_files(old: str, new: str, render: Path | None = None, size: Size | None = None, site: SiteWriter | None = None) -> DiffReport:
+    """OLD and NEW as the user named them. With `render`, the viewer draws both into that folder; with `site`
+    (`--html`), the report goes into it as HTML with both plans in the web viewer (see _report)."""
+    return _report(old, new, compile_quietly(Path(old)), compile_quietly(Path(new)), render, size, site)
 
 
-def diff_git(config: str, revision: str, render: Path | None = None, size: Size | None = None) -> DiffReport:
+def diff_git(
+    config: str, revision: str, render: Path | None = None, size: Size | None = None, site: SiteWriter | None = None
+) -> DiffReport:
     """The config at `revision` vs the working tree's. Files the old config refers to are read from the working tree."""
     path = Path(config)
     if not _is_file(path):
@@ -52,7 +56,7 @@ def diff_git(config: str, revision: str, render: Path | None = None, size: Size 
         new_plan = compile_quietly(path)
         old_plan = _renamed_errors(old_copy, Path(f"{path}@{revision}"))
         old_plan = _as_if_named(old_plan, old_copy, path)
-    return _report(f"{config}@{revision}", config, old_plan, new_plan, render, size)
+    return _report(f"{config}@{revision}", config, old_plan, new_plan, render, size, site)
 
 
 def _is_file(path: Path) -> bool:
@@ -62,12 +66,20 @@ def _is_file(path: Path) -> bool:
         return False
 
 
-def _report(old: str, new: str, old_plan: Plan, new_plan: Plan, render: Path | None, size: Size | None) -> DiffReport:
+def _report(
+    old: str, new: str, old_plan: Plan, new_plan: Plan, render: Path | None, size: Size | None, site: SiteWriter | None = None
+) -> DiffReport:
     """The changes; with `render`, the pictures of both plans at the same joint values (named after NEW's file; the
-    overlay's caption lists the changes), drawn even when nothing differs: the reviewer sees the robot either way."""
+    overlay's caption lists the changes), drawn even when nothing differs: the reviewer sees the robot either way.
+    With `site`, the site's pages too."""
     changes = diff_plans(old_plan, new_plan)
     pictures = diff_pictures(old_plan, new_plan, render, Path(new).stem, size, (old, new), changes) if render is not None else ()
-    return DiffReport(old, new, changes, pictures)
+    report = DiffReport(old, new, changes, pictures)
+    if site is not None:
+        from ..review_site import write_diff_site
+
+        write_diff_site(site, old_plan, new_plan, report)
+    return report
 
 
 def _renamed_errors(copy: Path, named: Path) -> Plan:

@@ -46,6 +46,7 @@ from .report_text import render_text
 
 if TYPE_CHECKING:
     from ...render import Size
+    from ...web import SiteWriter
     from ..check.check_joints import JointReport
 
 PlanFormat = Literal["text", "markdown", "json"]
@@ -62,10 +63,16 @@ RENDERERS = {"text": render_text, "markdown": render_markdown, "json": render_js
 
 
 def plan_command(
-    config: Path, output_format: PlanFormat, sample_rows: int | None, render: Path | None = None, size: Size | None = None
+    config: Path,
+    output_format: PlanFormat,
+    sample_rows: int | None,
+    render: Path | None = None,
+    size: Size | None = None,
+    site: SiteWriter | None = None,
 ) -> str:
     """The bytes `urdf-pipeline plan` prints. Warnings go to stderr as usual, and into the report. With `render`, the
-    Rerun viewer draws the rest pose into that folder first, and the report links the pictures."""
+    Rerun viewer draws the rest pose into that folder first, and the report links the pictures. With `site` (`--html`),
+    the report goes into it as well, as HTML with the rest pose in the web viewer (review_site.py)."""
     from ...compile import compile_config
 
     warnings: list[ConfigWarning] = []
@@ -79,6 +86,10 @@ def plan_command(
     report = build_report(plan, warnings, sample)
     if render is not None:
         report = replace(report, pictures=plan_pictures(plan, render, size))
+    if site is not None:
+        from ..review_site import write_plan_site
+
+        write_plan_site(site, plan, report)
     return RENDERERS[output_format](report)
 
 
