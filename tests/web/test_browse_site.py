@@ -10,8 +10,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-import pytest
-
 from urdf_pipeline import cli
 from urdf_pipeline.execute import SegmentSummary
 from urdf_pipeline.web import ViewerAssets
