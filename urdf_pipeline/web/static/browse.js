@@ -7,7 +7,8 @@
   const WIDTH = 120;
   const HEIGHT = 28;
   const root = document.getElementById("browse");
-  const rowsPerPage = Number(root.dataset.pageRows) || 50;
+  const defaultRows = Number(root.dataset.pageRows) || 50;
+  let rowsPerPage = defaultRows;
   const search = document.getElementById("search");
   const body = document.querySelector("#segments tbody");
   const status = document.getElementById("status");
@@ -29,13 +30,19 @@
 
   function state() {
     const fragment = new URLSearchParams(location.hash.slice(1));
-    return { query: fragment.get("q") || "", page: Math.max(0, (Number(fragment.get("p")) || 1) - 1) };
+    const rows = Math.floor(Number(fragment.get("n")));
+    return {
+      query: fragment.get("q") || "",
+      page: Math.max(0, (Number(fragment.get("p")) || 1) - 1),
+      rows: rows >= 1 && rows <= 500 ? rows : defaultRows,
+    };
   }
 
   function keep() {
     const fragment = new URLSearchParams();
     if (search.value) fragment.set("q", search.value);
     if (page > 0) fragment.set("p", String(page + 1));
+    if (rowsPerPage !== defaultRows) fragment.set("n", String(rowsPerPage));
     const wanted = fragment.toString();
     if (location.hash.slice(1) !== wanted) history.replaceState(null, "", wanted ? "#" + wanted : location.pathname + location.search);
   }
@@ -170,6 +177,7 @@
     const wanted = state();
     if (wanted.query !== search.value) { search.value = wanted.query; filter(); }
     page = wanted.page;
+    rowsPerPage = wanted.rows;
     render();
   });
 
@@ -187,6 +195,7 @@
       const wanted = state();
       search.value = wanted.query;
       page = wanted.page;
+      rowsPerPage = wanted.rows;
       filter();
       render();
       root.dataset.state = "ready";
