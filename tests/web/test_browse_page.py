@@ -53,7 +53,9 @@ def browse_page(browser: Browser, served: Served, viewer_cache: ViewerAssets, ex
 
 def frame_share(page: Page) -> float:
     """The robot's share of the viewer pane's centre (a screenshot of the iframe's box only)."""
-    box = page.evaluate("(() => { const r = document.getElementById('viewer').getBoundingClientRect(); return [r.x, r.y, r.width, r.height]; })()")
+    box = page.evaluate(
+        "(() => { const r = document.getElementById('viewer').getBoundingClientRect(); return [r.x, r.y, r.width, r.height]; })()"
+    )
     clip = {"x": box[0], "y": box[1], "width": box[2], "height": box[3], "scale": 1}
     png = base64.b64decode(page.call("Page.captureScreenshot", {"format": "png", "clip": clip})["data"])
     return drawn_share(png) if page.evaluate(FRAME_STATE) == "started" else 0.0
@@ -73,7 +75,9 @@ def test_page_two_and_search(browse_page: BrowsePage) -> None:
     assert page.evaluate(ROWS) == browse_page.ids[2:4]
     assert "p=2" in page.evaluate("location.hash")
     wanted = browse_page.ids[-1]
-    page.evaluate(f"(() => {{ const s = document.getElementById('search'); s.value = {wanted[-3:]!r}; s.dispatchEvent(new Event('input')); }})()")
+    page.evaluate(
+        f"(() => {{ const s = document.getElementById('search'); s.value = {wanted[-3:]!r}; s.dispatchEvent(new Event('input')); }})()"
+    )
     page.wait_for(lambda: page.evaluate(ROWS) == [wanted], 10, "the search's one row")
     assert f"q={wanted[-3:]}" in page.evaluate("location.hash")
     page.evaluate("(() => { const s = document.getElementById('search'); s.value = ''; s.dispatchEvent(new Event('input')); })()")
