@@ -1,4 +1,4 @@
-"""`browse`'s site in headless chromium, from the session's `urdf-pipeline serve`: the list, its search and pages, and
+"""`browse`'s site (the SO-101 dataset in the single layout) in headless chromium, from the session's `urdf-pipeline serve`: the list, its search and pages, and
 segments opening in the viewer pane beside it.
 
 One page load is shared by the tests of this module (the wasm compiles on the CPU), in order: the list renders two
@@ -38,7 +38,7 @@ class BrowsePage:
 
 @pytest.fixture(scope="module")
 def browse_page(browser: Browser, served: Served, viewer_cache: ViewerAssets, examples_dir: Path) -> Iterator[BrowsePage]:
-    config = run_variant(examples_dir, "so101_browse_page")
+    config = run_variant(examples_dir, "so101_browse_page", single=True)  # split: see docs/commands.md#browse
     assert cli.main(["browse", str(config), "-o", str(served.root / PREFIX), "-q"]) == 0
     ids = sorted(p.stem for p in (served.root / PREFIX / "recordings").glob("*.rrd"))
     assert len(ids) >= 3

@@ -19,16 +19,19 @@ from urdf_pipeline.web.browse_site import Shared, build_browser
 from ..conftest import CliResult
 
 
-def so101_variant(examples_dir: Path, name: str) -> Path:
-    """configs/so101_dataset.yaml writing into out/NAME (a run of its own: tests may break its outputs)."""
+def so101_variant(examples_dir: Path, name: str, single: bool = False) -> Path:
+    """configs/so101_dataset.yaml writing into out/NAME (a run of its own: tests may break its outputs); `single`:
+    in the single layout (each recording holds the model)."""
     config = examples_dir / f"{name}.yaml"
-    text = (examples_dir / "so101_dataset.yaml").read_text(encoding="utf-8")
-    config.write_text(text.replace("out/so101_dataset", f"out/{name}"), encoding="utf-8")
+    text = (examples_dir / "so101_dataset.yaml").read_text(encoding="utf-8").replace("out/so101_dataset", f"out/{name}")
+    if single:
+        text = re.sub(r"\n  model: [^\n]*", "", text.replace("layout: split", "layout: single"))
+    config.write_text(text, encoding="utf-8")
     return config
 
 
-def run_variant(examples_dir: Path, name: str) -> Path:
-    config = so101_variant(examples_dir, name)
+def run_variant(examples_dir: Path, name: str, single: bool = False) -> Path:
+    config = so101_variant(examples_dir, name, single)
     assert cli.main(["run", str(config), "--jobs", "1", "-q"]) == 0
     return config
 
