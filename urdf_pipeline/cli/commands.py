@@ -262,6 +262,23 @@ def cmd_diff(args: argparse.Namespace) -> int:
     return ExitCode.DIFFERENT if args.exit_code and not report.equivalent else ExitCode.OK
 
 
+def cmd_browse(args: argparse.Namespace) -> int:
+    """A dataset browser over the config's written outputs (from the run's manifest only); the site's folder on stdout."""
+    from ..compile import compile_config
+    from ..progress import say
+    from ..web import browse_config
+
+    plan = compile_config(Path(args.config))
+    result = browse_config(plan, Path(args.output), args.config)
+    missing = f", {result.missing} with something missing" if result.missing else ""
+    say(
+        f"browser of {result.segments} segment(s){missing} written in {result.seconds:.3f} s "
+        f"(segments.json {result.data_bytes / 1e6:.1f} MB); `urdf-pipeline serve {args.output}` shows it"
+    )
+    print(neutral_line(str(result.site)))
+    return ExitCode.OK
+
+
 def cmd_serve(args: argparse.Namespace) -> int:
     """A site on http://127.0.0.1:PORT/ until Ctrl-C or SIGTERM (exit 130 or 143, as every command they stop); its URL
     is the one line on stdout."""

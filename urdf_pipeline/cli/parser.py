@@ -8,7 +8,7 @@ import sys
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, NoReturn
 
-from .commands import cmd_check, cmd_diff, cmd_init, cmd_plan, cmd_run, cmd_schema, cmd_serve, cmd_snapshot, cmd_validate
+from .commands import cmd_browse, cmd_check, cmd_diff, cmd_init, cmd_plan, cmd_run, cmd_schema, cmd_serve, cmd_snapshot, cmd_validate
 
 if TYPE_CHECKING:
     from ..render import Size
@@ -88,7 +88,18 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=_version())
     _verbosity(parser, False)
     commands = _Commands(parser)
-    for add_command in (_add_run, _add_validate, _add_check, _add_plan, _add_snapshot, _add_schema, _add_init, _add_diff, _add_serve):
+    for add_command in (
+        _add_run,
+        _add_validate,
+        _add_check,
+        _add_plan,
+        _add_snapshot,
+        _add_schema,
+        _add_init,
+        _add_diff,
+        _add_browse,
+        _add_serve,
+    ):
         add_command(commands)
     return parser
 
@@ -252,6 +263,20 @@ def _render_options(parser: argparse.ArgumentParser, render_help: str) -> None:
 def _html_option(parser: argparse.ArgumentParser, html_help: str) -> None:
     """--html DIR of plan and diff: a site written besides the report on stdout (any --format)."""
     parser.add_argument("--html", metavar="DIR", help=html_help + "; stdout keeps the --format report; look at it with `serve DIR`")
+
+
+def _add_browse(commands: _Commands) -> None:
+    """browse: the config and the site's folder."""
+    browse = commands.add_parser(
+        "browse",
+        cmd_browse,
+        help="write a dataset browser (a static site) over CONFIG's written outputs into DIR",
+        description="Write a static site listing every segment of CONFIG's run (id, frames, duration and time range, "
+        "robots, the run's notes, a sparkline of the joint values) with search and paging, each segment opening in "
+        "Rerun's web viewer beside the list. Reads the run's manifest only (run CONFIG first); `serve DIR` shows it.",
+    )
+    browse.add_argument("config")
+    browse.add_argument("-o", "--output", required=True, metavar="DIR", help="the site's folder (new, empty, or a site written before)")
 
 
 def _add_serve(commands: _Commands) -> None:

@@ -26,6 +26,8 @@ The API, for the commands that write sites (`plan --html`, `diff --html`, `brows
   percent-encoded links (safe in a quoted attribute as they are) from the page at site path `from_page`.
 - `viewer_assets() -> ViewerAssets`: the pinned release's viewer files in the per-user cache (fetched from the
   rerun binary the first time; `URDF_PIPELINE_WEB_CACHE` points the cache elsewhere).
+- `browse_config(plan, DIR, config_text) -> BrowseResult`: the `browse` command's dataset browser, from the run's
+  manifest and its summaries only (`dataset.segment_summaries`).
 - `serve_site(folder, port=0, ready=None)`, `SiteServer`, `site_folder(folder)`: the `serve` command's server.
 
 The names below are the package's public surface; other packages import them from here, never from its modules.
@@ -38,6 +40,7 @@ from typing import TYPE_CHECKING
 from .. import lazy_surface
 
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
+    from .browse_site import BrowseResult, browse_config
     from .page_html import PAGE_POLICY, VIEWER_POLICY, html_text, page, relative_href, viewer_href
     from .site_writer import MARKER, SiteWriter, write_site
     from .static_server import SiteServer, serve_site, site_folder

@@ -1,0 +1,148 @@
+"""`urdf-pipeline browse CONFIG -o DIR`: a dataset browser over a config's written outputs, as a static site.
+
+It reads the run's manifest only (`dataset.segment_summaries`: ids, frames and each segment's summary, gathered
+during the run), never a recording. `index.html` is a small page; the rows are `segments.json`, which `browse.js`
+fetches, searches and pages, drawing only the current page's rows and sparklines (10,000 segments stay fast). A
+segment opens in the viewer pane beside the list: an iframe of the site's viewer whose address fragment changes,
+so the wasm is loaded once. The recordings are put into the site (hard links where the file system allows, else
+copies): a static host serves only what is inside the site.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from ..errors import UserError
+from .browse_rows import BrowseSegment, segments_json
+from .page_html import html_text, viewer_href
+from .site_writer import SiteWriter, write_site
+
+if TYPE_CHECKING:
+    from ..plan import Plan
+
+DATA = "segments.json"
+SCRIPT = "browse.js"
+ASSETS = "recordings/shared"  # the model and the blueprint: under a folder no segment's file name can take
+PAGE_ROWS = 50
+
+
+@dataclass(frozen=True)
+class BrowseResult:
+    """What `browse` wrote: for its summary line."""
+
+    site: Path
+    segments: int
+    missing: int
+    seconds: float
+    data_bytes: int
+
+
+@dataclass(frozen=True)
+class Shared:
+    """The files every segment opens with its own: the split layout's model, the run's blueprint (when written)."""
+
+    model: Path | None
+    blueprint: Path | None
+
+
+def browse_config(plan: Plan, target: Path, config_text: str) -> BrowseResult:
+    """The browser of `plan`'s written outputs at `target`; a UserError naming the fix when the run never happened."""
+    from ..dataset import segment_summaries
+    from ..execute import blueprint_path
+
+    manifest = plan.dataset.manifest
+    if not manifest.is_file():
+        raise UserError(
+            f"no manifest at {manifest}: the config's outputs were never written; run `urdf-pipeline run {config_text}` first",
+            plan.output_where,
+        )
+    written = {entry.segment: entry for entry in segment_summaries(plan)}
+    rows: list[tuple[BrowseSegment, Path | None]] = []
+    for entry in written.values():
+        missing = "" if entry.summary is not None else "no summary in the manifest (written by an older run: `run --force` adds it)"
+        rows.append((BrowseSegment(entry.segment, entry.frames, entry.summary, missing=missing), entry.path))
+    for segment in plan.segments:
+        if segment.id not in written:
+            missing = f"no written file ({segment.output.name} is missing): `urdf-pipeline run {config_text}` writes it"
+            rows.append((BrowseSegment(segment.id, segment.frames, None, missing=missing), None))
+    rows.sort(key=lambda pair: pair[0].segment)
+    model = plan.dataset.model if plan.dataset.layout == "split" and plan.dataset.model is not None else None
+    blueprint = blueprint_path(plan)
+    shared = Shared(model if model is not None and model.is_file() else None, blueprint if blueprint.is_file() else None)
+    return build_browser(target, plan.application_id, rows, shared)
+
+
+def build_browser(target: Path, title: str, rows: Sequence[tuple[BrowseSegment, Path | None]], shared: Shared) -> BrowseResult:
+    """The site: recordings linked in, `segments.json`, `browse.js` and `index.html`. `rows` pair each segment with
+    its recording (None: nothing to open)."""
+    started = time.perf_counter()
+    with write_site(target) as site:
+        opened = [
+            site.add_file(path, f"{ASSETS}/{name}")
+            for path, name in ((shared.model, "model.rrd"), (shared.blueprint, "blueprint.rbl"))
+            if path
+        ]
+        model = opened[:1] if shared.model is not None else []
+        rest = opened[len(model) :]
+        names = _site_names([path for _, path in rows])
+        placed = [
+            BrowseSegment(row.segment, row.frames, row.summary, _recordings(site, path, name, model, rest), row.missing)
+            for (row, path), name in zip(rows, names, strict=True)
+        ]
+        hrefs = [viewer_href("index.html", row.recordings) if row.recordings else None for row in placed]
+        data = json.dumps(segments_json(title, placed, hrefs), ensure_ascii=False, separators=(",", ":"))
+        site.write_text(DATA, data)
+        site.write_text(SCRIPT, _static(SCRIPT))
+        site.write_page("index.html", f"dataset {title}", _body(title, placed), scripts=[SCRIPT])
+    missing = sum(1 for row in placed if row.missing)
+    return BrowseResult(target, len(placed), missing, time.perf_counter() - started, len(data.encode("utf-8")))
+
+
+def _recordings(site: SiteWriter, path: Path | None, name: str, model: list[str], rest: list[str]) -> tuple[str, ...]:
+    """The site paths a segment opens: the model (split layout), its recording, the blueprint; none without a file."""
+    if path is None:
+        return ()
+    return (*model, site.add_recording(path, name), *rest)
+
+
+def _site_names(paths: Sequence[Path | None]) -> list[str]:
+    """A plain file name in `recordings/` per recording: its own when that is plain and not taken, else a made one
+    (a manifest may name `../x.rrd`, `.hidden.rrd` or the same name in two folders)."""
+    taken: set[str] = set()
+    names = []
+    for number, path in enumerate(paths):
+        name = path.name if path is not None else ""
+        if not name or name in taken or name.startswith(".") or "\\" in name or not name.isprintable():
+            name = f"segment_{number:06d}{path.suffix if path is not None and path.suffix.isalnum() else '.rrd'}"
+        taken.add(name)
+        names.append(name)
+    return names
+
+
+def _body(title: str, rows: Sequence[BrowseSegment]) -> str:
+    """The page's skeleton; browse.js fills the table from segments.json (no row is in the HTML: 10,000 would be MBs)."""
+    missing = sum(1 for row in rows if row.missing)
+    counts = f"{len(rows)} segments" + (f", {missing} with something missing" if missing else "")
+    return f"""<div class="browse" id="browse" data-src="{DATA}" data-page-rows="{PAGE_ROWS}">
+<section class="browse-list">
+<h1>Dataset {html_text(title)}</h1>
+<p class="muted" id="counts">{html_text(counts)}</p>
+<p class="browse-controls"><input id="search" type="search" placeholder="search by id, robot or note" aria-label="search segments">
+<button id="previous" type="button">previous</button> <span id="page-info" class="muted"></span> <button id="next" type="button">next</button></p>
+<p id="status" class="muted">Loading the segments… (this page needs JavaScript)</p>
+<table id="segments"><thead><tr><th>segment</th><th class="number">frames</th><th class="number">seconds</th><th>time range</th><th>robots</th><th>preview</th><th>notes</th></tr></thead>
+<tbody></tbody></table>
+</section>
+<section class="browse-viewer"><p id="viewer-hint" class="muted">Click a segment to open it in Rerun's viewer here.</p><iframe id="viewer" title="Rerun viewer" hidden></iframe></section>
+</div>"""
+
+
+def _static(name: str) -> str:
+    from importlib.resources import files
+
+    return (files(__package__) / "static" / name).read_text(encoding="utf-8")
