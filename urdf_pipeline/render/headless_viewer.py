@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..child_process import die_with_parent, stop_session
 from ..errors import UserError
 from .camera import Camera
 from .frames import Timeline
@@ -266,7 +267,7 @@ class HeadlessViewer:
                     recording.stream.disconnect()
             finally:
                 if process is not None:
-                    _stop(process)
+                    stop_session(process)
                 shutil.rmtree(self._folder, ignore_errors=True)
         finally:
             if blocked is not None:
@@ -324,35 +325,8 @@ def _start(folder: Path, log_path: Path, size: Size, port: int) -> subprocess.Po
             cwd=folder,
             env=environment,
             start_new_session=True,
-            preexec_fn=_die_with_parent() if sys.platform.startswith("linux") else None,
+            preexec_fn=die_with_parent(),
         )
-
-
-def _die_with_parent() -> Callable[[], None]:
-    """Linux: the viewer gets SIGTERM when this process dies, even by SIGKILL (prctl PR_SET_PDEATHSIG)."""
-    import ctypes
-
-    libc = ctypes.CDLL(None, use_errno=True)  # loaded here, in the parent: the child only calls it
-
-    def arrange() -> None:
-        libc.prctl(1, signal.SIGTERM)
-
-    return arrange
-
-
-def _stop(process: subprocess.Popen[bytes]) -> None:
-    if process.poll() is not None:
-        return
-    for sent, wait in ((signal.SIGTERM, 5.0), (signal.SIGKILL, 5.0)):
-        try:
-            os.killpg(process.pid, sent)
-        except ProcessLookupError:
-            return
-        try:
-            process.wait(wait)
-            return
-        except subprocess.TimeoutExpired:
-            continue
 
 
 def _cropped(png: bytes, size: Size) -> bytes:

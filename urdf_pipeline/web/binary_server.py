@@ -10,13 +10,12 @@ from __future__ import annotations
 import contextlib
 import os
 import re
-import signal
 import subprocess
-import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 
+from ..child_process import die_with_parent, stop_session
 from ..errors import UserError
 
 STARTUP_SECONDS = 30.0
@@ -61,12 +60,12 @@ def serving_web_viewer(binary: str, folder: Path) -> Iterator[int]:
             cwd=folder,
             env=_environment(),
             start_new_session=True,
-            preexec_fn=_die_with_parent() if sys.platform.startswith("linux") else None,
+            preexec_fn=die_with_parent(),
         )
     try:
         yield _announced_port(process, log_path)
     finally:
-        _stop(process)
+        stop_session(process)
 
 
 def _announced_port(process: subprocess.Popen[bytes], log_path: Path) -> int:
@@ -82,32 +81,3 @@ def _announced_port(process: subprocess.Popen[bytes], log_path: Path) -> int:
             state = f"stopped (exit status {process.returncode})" if process.returncode is not None else "did not start"
             raise UserError(f"the rerun binary serving the web viewer {state} within {STARTUP_SECONDS:.0f} s: {last[0][:300]}")
         time.sleep(0.05)
-
-
-def _die_with_parent() -> Callable[[], None]:
-    """Linux: the child gets SIGTERM when this process dies, even by SIGKILL (prctl PR_SET_PDEATHSIG)."""
-    import ctypes
-
-    libc = ctypes.CDLL(None, use_errno=True)  # loaded here, in the parent: the child only calls it
-
-    def arrange() -> None:
-        libc.prctl(1, signal.SIGTERM)
-
-    return arrange
-
-
-def _stop(process: subprocess.Popen[bytes]) -> None:
-    """SIGTERM to the child's session, SIGKILL after 5 s, with Ctrl-C and SIGTERM held off meanwhile."""
-    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
-    try:
-        for sent in (signal.SIGTERM, signal.SIGKILL):
-            if process.poll() is not None:
-                return
-            try:
-                os.killpg(process.pid, sent)
-            except ProcessLookupError:
-                return
-            with contextlib.suppress(subprocess.TimeoutExpired):
-                process.wait(5.0)
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
