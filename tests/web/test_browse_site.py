@@ -1,6 +1,6 @@
 """`urdf-pipeline browse CONFIG -o DIR`: the site it writes from a run's manifest (no browser here; see
 test_browse_page.py): the split layout's links, segments that lack a file or a summary, hostile strings kept inert,
-10,000 segments, and a config never run."""
+10,000 segments, a config never run, and `--base` (base recordings opened with their layer, a row note without)."""
 
 from __future__ import annotations
 
@@ -164,3 +164,48 @@ def test_ten_thousand_segments(viewer_cache: ViewerAssets, tmp_path: Path) -> No
     data = site_data(tmp_path / "site")
     assert len(data["segments"]) == 10_000 and len(data["names"]) == 2 + 3  # robots and joints interned once (6 joints: 3 per robot)
     assert len(list((tmp_path / "site" / "recordings").iterdir())) == 10_001  # one made name each, and shared/
+
+
+def base_recording(path: Path, recording_id: str, application_id: str = "so101_dataset") -> None:
+    """A base recording as an importer would write it: a few points under the segment's id."""
+    import numpy as np
+    import rerun as rr
+
+    stream = rr.RecordingStream(application_id=application_id, recording_id=recording_id)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    stream.save(str(path))
+    stream.log("base/points", rr.Points3D(np.zeros((3, 3), dtype=np.float32)))
+    stream.disconnect()
+
+
+def test_base_recordings_open_with_their_layer(examples_dir: Path, viewer_cache: ViewerAssets, tmp_path: Path, run_cli) -> None:
+    config = run_variant(examples_dir, "so101_browse_base")
+    ids = [
+        s["segment"] for s in json.loads(next((examples_dir / "out" / "so101_browse_base").glob("*.manifest.json")).read_text())["segments"]
+    ]
+    base = tmp_path / "base"  # outside the config's folder: a command-line argument, read as `run --base` reads it
+    base_recording(base / f"{ids[0]}.rrd", ids[0])
+    base_recording(base / "nested" / '"><img src=x onerror=alert(1)>.rrd', ids[1], application_id=HOSTILE)
+    result = run_cli("browse", str(config), "-o", str(tmp_path / "site"), "--base", str(base))
+    assert result.code == 0, result.err
+    rows = {s["id"]: s for s in site_data(tmp_path / "site")["segments"]}
+    first, second, last = rows[ids[0]], rows[ids[1]], rows[ids[-1]]
+    assert first["base"] == ["recordings/shared/base_000000.rrd"] and "missing" not in first
+    assert first["href"] == (
+        "viewer/index.html#url=../recordings/shared/model.rrd&url=../recordings/shared/base_000000.rrd"
+        f"&url=../recordings/{ids[0]}.rrd&url=../recordings/shared/blueprint.rbl"
+    )
+    assert (tmp_path / "site" / "recordings" / "shared" / "base_000000.rrd").samefile(base / f"{ids[0]}.rrd")
+    assert second["base"] == ["recordings/shared/base_000001.rrd"] and "img" not in second["href"]  # the file's name never shows
+    assert "application_id" in second["missing"] and "shows them apart" in second["missing"]
+    assert "no base recording" in last["missing"] and "base" not in last and last["href"]
+    shared = sorted(p.name for p in (tmp_path / "site" / "recordings" / "shared").iterdir())
+    assert shared == ["base_000000.rrd", "base_000001.rrd", "blueprint.rbl", "model.rrd"]  # each base file once
+
+    glob = run_cli("browse", str(config), "-o", str(tmp_path / "site"), "--base", str(base / "*.rrd"), "-q")
+    assert glob.code == 0 and "base" in site_data(tmp_path / "site")["segments"][0]
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    refused = run_cli("browse", str(config), "-o", str(tmp_path / "other"), "--base", str(empty))
+    assert refused.code == 1 and "--base" in refused.err and "no .rrd file in" in refused.err
+    assert not (tmp_path / "other").exists()

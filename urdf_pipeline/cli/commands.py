@@ -269,7 +269,7 @@ def cmd_browse(args: argparse.Namespace) -> int:
     from ..web import browse_config
 
     plan = compile_config(Path(args.config))
-    result = browse_config(plan, Path(args.output), args.config)
+    result = browse_config(plan, Path(args.output), args.config, args.base)
     missing = f", {result.missing} with something missing" if result.missing else ""
     say(
         f"browser of {result.segments} segment(s){missing} written in {result.seconds:.3f} s "

@@ -273,10 +273,16 @@ def _add_browse(commands: _Commands) -> None:
         help="write a dataset browser (a static site) over CONFIG's written outputs into DIR",
         description="Write a static site listing every segment of CONFIG's run (id, frames, duration and time range, "
         "robots, the run's notes, a sparkline of the joint values) with search and paging, each segment opening in "
-        "Rerun's web viewer beside the list. Reads the run's manifest only (run CONFIG first); `serve DIR` shows it.",
+        "Rerun's web viewer beside the list. Reads the run's manifest only (run CONFIG first); `serve DIR` shows it. With --base, each segment opens "
+        "together with its base recording (same recording_id: the viewer merges them).",
     )
     browse.add_argument("config")
     browse.add_argument("-o", "--output", required=True, metavar="DIR", help="the site's folder (new, empty, or a site written before)")
+    browse.add_argument(
+        "--base",
+        metavar="DIR_OR_GLOB",
+        help="base .rrd recordings (as run --base): a segment opens with the one whose recording_id is its id (else a row note)",
+    )
 
 
 def _add_serve(commands: _Commands) -> None:

@@ -33,6 +33,7 @@ class BrowseSegment:
     summary: SegmentSummary | None
     recordings: tuple[str, ...] = ()  # site paths the viewer opens for it (empty: nothing to open)
     missing: str = ""  # what is missing, said to the reader ("" when the segment is whole)
+    base: tuple[str, ...] = ()  # site paths of the base recordings it opens with (`browse --base`), in `recordings` too
 
 
 class NameTable:
@@ -69,6 +70,8 @@ def _row(row: BrowseSegment, href: str | None, names: NameTable) -> dict[str, An
         entry["missing"] = row.missing
     if href is not None:
         entry["href"] = href
+    if row.base:
+        entry["base"] = list(row.base)
     if summary is None:
         return entry
     seconds, when = time_text(summary.timelines, row.frames)

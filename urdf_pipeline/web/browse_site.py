@@ -6,18 +6,23 @@ fetches, searches and pages, drawing only the current page's rows and sparklines
 segment opens in the viewer pane beside the list: an iframe of the site's viewer whose address fragment changes,
 so the wasm is loaded once. The recordings are put into the site (hard links where the file system allows, else
 copies): a static host serves only what is inside the site.
+
+With `--base DIR_OR_GLOB` (`browse_base`), a segment whose id is a base recording's opens with the base files too:
+same recording id, so the viewer merges base and layer into one recording. A segment without one gets a row note,
+not an error as in `run --base`: `run` refuses to write a layer that would never attach; `browse` shows what exists.
 """
 
 from __future__ import annotations
 
 import json
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..errors import UserError
+from ..errors import UserError, shown
+from .browse_base import BaseRecording, base_files
 from .browse_rows import BrowseSegment, segments_json
 from .page_html import html_text, viewer_href
 from .site_writer import SiteWriter, write_site
@@ -50,8 +55,9 @@ class Shared:
     blueprint: Path | None
 
 
-def browse_config(plan: Plan, target: Path, config_text: str) -> BrowseResult:
-    """The browser of `plan`'s written outputs at `target`; a UserError naming the fix when the run never happened."""
+def browse_config(plan: Plan, target: Path, config_text: str, base: str | None = None) -> BrowseResult:
+    """The browser of `plan`'s written outputs at `target`; a UserError naming the fix when the run never happened.
+    `base`: `--base DIR_OR_GLOB`, the base recordings segments open with (read before anything is written)."""
     from ..dataset import segment_summaries
     from ..execute import blueprint_path
 
@@ -61,6 +67,7 @@ def browse_config(plan: Plan, target: Path, config_text: str) -> BrowseResult:
             f"no manifest at {manifest}: the config's outputs were never written; run `urdf-pipeline run {config_text}` first",
             plan.output_where,
         )
+    found = base_files(base) if base is not None else None
     written = {entry.segment: entry for entry in segment_summaries(plan)}
     rows: list[tuple[BrowseSegment, Path | None]] = []
     for entry in written.values():
@@ -71,15 +78,43 @@ def browse_config(plan: Plan, target: Path, config_text: str) -> BrowseResult:
             missing = f"no written file ({segment.output.name} is missing): `urdf-pipeline run {config_text}` writes it"
             rows.append((BrowseSegment(segment.id, segment.frames, None, missing=missing), None))
     rows.sort(key=lambda pair: pair[0].segment)
+    bases: dict[str, tuple[Path, ...]] = {}
+    if found is not None:
+        rows = [(_with_base_note(row, found, plan.application_id), path) for row, path in rows]
+        bases = {row.segment: tuple(f.path for f in found.get(row.segment, ())) for row, _ in rows}
     model = plan.dataset.model if plan.dataset.layout == "split" and plan.dataset.model is not None else None
     blueprint = blueprint_path(plan)
     shared = Shared(model if model is not None and model.is_file() else None, blueprint if blueprint.is_file() else None)
-    return build_browser(target, plan.application_id, rows, shared)
+    return build_browser(target, plan.application_id, rows, shared, bases)
 
 
-def build_browser(target: Path, title: str, rows: Sequence[tuple[BrowseSegment, Path | None]], shared: Shared) -> BrowseResult:
+def _with_base_note(row: BrowseSegment, found: Mapping[str, Sequence[BaseRecording]], application_id: str) -> BrowseSegment:
+    """The row with what its base lacks added to its note: no base recording of its id, or one of another
+    application (opened all the same: the viewer shows the two apart)."""
+    files = found.get(row.segment, ())
+    others = sorted({f.application_id for f in files if f.application_id != application_id})
+    note = (
+        "no base recording (none in --base has this segment's id as its recording_id)"
+        if not files
+        else f"the base recording's application_id is {shown(others[0], 80)!r}, not {shown(application_id, 80)!r}: the viewer shows them apart"
+        if others
+        else ""
+    )
+    if not note:
+        return row
+    return BrowseSegment(row.segment, row.frames, row.summary, row.recordings, "; ".join(filter(None, (row.missing, note))))
+
+
+def build_browser(
+    target: Path,
+    title: str,
+    rows: Sequence[tuple[BrowseSegment, Path | None]],
+    shared: Shared,
+    bases: Mapping[str, Sequence[Path]] | None = None,
+) -> BrowseResult:
     """The site: recordings linked in, `segments.json`, `browse.js` and `index.html`. `rows` pair each segment with
-    its recording (None: nothing to open)."""
+    its recording (None: nothing to open); `bases`: per segment id, the base files it opens with (each put into the
+    site once, under a made name: base files are often named as the segments' own)."""
     started = time.perf_counter()
     with write_site(target) as site:
         opened = [
@@ -90,10 +125,12 @@ def build_browser(target: Path, title: str, rows: Sequence[tuple[BrowseSegment, 
         model = opened[:1] if shared.model is not None else []
         rest = opened[len(model) :]
         names = _site_names([path for _, path in rows])
-        placed = [
-            BrowseSegment(row.segment, row.frames, row.summary, _recordings(site, path, name, model, rest), row.missing)
-            for (row, path), name in zip(rows, names, strict=True)
-        ]
+        placed_bases: dict[Path, str] = {}
+        placed = []
+        for (row, path), name in zip(rows, names, strict=True):
+            base = tuple(_placed_base(site, file, placed_bases) for file in (bases or {}).get(row.segment, ())) if path else ()
+            recordings = (*model, *base, site.add_recording(path, name), *rest) if path else ()
+            placed.append(BrowseSegment(row.segment, row.frames, row.summary, recordings, row.missing, base))
         hrefs = [viewer_href("index.html", row.recordings) if row.recordings else None for row in placed]
         data = json.dumps(segments_json(title, placed, hrefs), ensure_ascii=False, separators=(",", ":"))
         site.write_text(DATA, data)
@@ -103,11 +140,12 @@ def build_browser(target: Path, title: str, rows: Sequence[tuple[BrowseSegment, 
     return BrowseResult(target, len(placed), missing, time.perf_counter() - started, len(data.encode("utf-8")))
 
 
-def _recordings(site: SiteWriter, path: Path | None, name: str, model: list[str], rest: list[str]) -> tuple[str, ...]:
-    """The site paths a segment opens: the model (split layout), its recording, the blueprint; none without a file."""
-    if path is None:
-        return ()
-    return (*model, site.add_recording(path, name), *rest)
+def _placed_base(site: SiteWriter, file: Path, placed: dict[Path, str]) -> str:
+    """The base file's site path, put into the site the first time a segment asks for it (`base_N.rrd` beside the
+    shared model: no segment's file name can take it, and the base's own name never reaches a link)."""
+    if file not in placed:
+        placed[file] = site.add_file(file, f"{ASSETS}/base_{len(placed):06d}.rrd")
+    return placed[file]
 
 
 def _site_names(paths: Sequence[Path | None]) -> list[str]:
