@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 from .. import lazy_surface
 
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
-    from .base_check import check_base
+    from .base_check import BaseRecording, base_files, check_base
     from .interrupts import exit_status, handle_sigterm, keep_sigterm_handler, restore_sigterm_handler, signal_name, signal_number
     from .manifest import SegmentEntry, segment_summaries
     from .run import DatasetRun, RunOptions, register_outputs, run_dataset

@@ -7,31 +7,46 @@ episode. Reads only each base file's manifest (its store ids), not its data.
 from __future__ import annotations
 
 import glob
+from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import UserError, Where, listing
+from ..errors import UserError, Where, listing, shown
 from ..plan import Plan
 
 WHERE = Where(Path("--base"), 0)
 
 
-def base_recordings(base: str) -> dict[str, str]:
-    """recording_id -> application_id of every .rrd in a directory (recursively) or matching a glob."""
+@dataclass(frozen=True)
+class BaseRecording:
+    """A base file holding a recording: the file and the recording's application id."""
+
+    path: Path
+    application_id: str
+
+
+def base_files(base: str) -> dict[str, tuple[BaseRecording, ...]]:
+    """recording_id -> the base files that hold it (a recording may span files), in path order: every .rrd in a
+    directory (recursively) or matching a glob. `run --base` checks the ids, `browse --base` opens the files."""
     from rerun.chunk import RrdReader
 
     root = Path(base)
     paths = sorted(root.glob("**/*.rrd")) if root.is_dir() else sorted(Path(p) for p in glob.glob(base, recursive=True))
     if not paths:
-        raise UserError(f"no .rrd file in {base} (give a directory of base recordings or a glob such as 'base/*.rrd')", WHERE)
-    found: dict[str, str] = {}
+        raise UserError(f"no .rrd file in {shown(base)} (give a directory of base recordings or a glob such as 'base/*.rrd')", WHERE)
+    found: dict[str, list[BaseRecording]] = {}
     for path in paths:
         try:
             entries = RrdReader(path).recordings()
         except (OSError, ValueError, RuntimeError) as exc:
-            raise UserError(f"cannot read base recording {path}: {exc}", WHERE) from None
+            raise UserError(f"cannot read base recording {shown(path)}: {shown(exc)}", WHERE) from None
         for entry in entries:
-            found[str(entry.recording_id)] = str(entry.application_id)
-    return found
+            found.setdefault(str(entry.recording_id), []).append(BaseRecording(path, str(entry.application_id)))
+    return {recording: tuple(files) for recording, files in found.items()}
+
+
+def base_recordings(base: str) -> dict[str, str]:
+    """recording_id -> application_id (of the last file holding it, in path order)."""
+    return {recording: files[-1].application_id for recording, files in base_files(base).items()}
 
 
 def check_base(plan: Plan, base: str) -> int:

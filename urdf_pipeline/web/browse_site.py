@@ -7,7 +7,7 @@ segment opens in the viewer pane beside the list: an iframe of the site's viewer
 so the wasm is loaded once. The recordings are put into the site (hard links where the file system allows, else
 copies): a static host serves only what is inside the site.
 
-With `--base DIR_OR_GLOB` (`browse_base`), a segment whose id is a base recording's opens with the base files too:
+With `--base DIR_OR_GLOB` (`dataset.base_files`, as `run --base` reads them), a segment whose id is a base recording's opens with the base files too:
 same recording id, so the viewer merges base and layer into one recording. A segment without one gets a row note,
 not an error as in `run --base`: `run` refuses to write a layer that would never attach; `browse` shows what exists.
 """
@@ -22,12 +22,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..errors import UserError, shown
-from .browse_base import BaseRecording, base_files
 from .browse_rows import BrowseSegment, segments_json
 from .page_html import html_text, viewer_href
 from .site_writer import SiteWriter, write_site
 
 if TYPE_CHECKING:
+    from ..dataset import BaseRecording
     from ..plan import Plan
 
 DATA = "segments.json"
@@ -58,13 +58,13 @@ class Shared:
 def browse_config(plan: Plan, target: Path, config_text: str, base: str | None = None) -> BrowseResult:
     """The browser of `plan`'s written outputs at `target`; a UserError naming the fix when the run never happened.
     `base`: `--base DIR_OR_GLOB`, the base recordings segments open with (read before anything is written)."""
-    from ..dataset import segment_summaries
+    from ..dataset import base_files, segment_summaries
     from ..execute import blueprint_path
 
     manifest = plan.dataset.manifest
     if not manifest.is_file():
         raise UserError(
-            f"no manifest at {manifest}: the config's outputs were never written; run `urdf-pipeline run {config_text}` first",
+            f"no manifest at {shown(manifest)}: the config's outputs were never written; run `urdf-pipeline run {config_text}` first",
             plan.output_where,
         )
     found = base_files(base) if base is not None else None
