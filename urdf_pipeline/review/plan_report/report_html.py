@@ -9,12 +9,12 @@ from collections.abc import Sequence
 from ...plan import IndexPlan
 from ...web import html_text, relative_href
 from ..markdown_text import PATH_LIMIT
+from .report_cells import Markup, driver_cell, limits_cell, map_cell, observed_cell
 from .report_model import (
     JOINT_TYPES,
     SERIES_TEXT,
     EdgeEntry,
     JointRow,
-    Observed,
     OutputEntry,
     PictureEntry,
     PlanReport,
@@ -22,7 +22,6 @@ from .report_model import (
     SampleEntry,
     SourceEntry,
     number,
-    rounded,
 )
 
 HTML_SEGMENTS = 500  # segment rows on the page; json lists them all
@@ -58,6 +57,16 @@ def text(value: object, limit: int = PATH_LIMIT) -> str:
 def code(value: object, limit: int = PATH_LIMIT) -> str:
     """A name from input as inline code."""
     return f"<code>{html_text(value, limit)}</code>"
+
+
+MARKUP = Markup(
+    code=code,
+    text=text,
+    literal=str,
+    bad=lambda word: f'<strong class="bad">{word}</strong>',
+    good=lambda word: f'<span class="good">{word}</span>',
+    count=lambda rows: f"{rows:,}",
+)
 
 
 def table(header: Sequence[str], rows: Sequence[Sequence[str]], numbers: Sequence[int] = ()) -> str:
@@ -118,50 +127,6 @@ def _sources(sources: Sequence[SourceEntry], many_segments: bool) -> list[str]:
     return [f'<h2 id="sources">{heading}</h2>', table(["source", "kind", "file", "reads", "values"], rows, numbers=(4,))]
 
 
-def _map_cell(row: JointRow) -> str:
-    parts = []
-    if row.wrap is not None:
-        parts.append(f"wrap {number(row.wrap.period)} around {number(row.wrap.center)}")
-    if row.source_range is not None:
-        parts.append(f"source_range [{_ns(row.source_range)}] → [{_ns(row.target_range or ())}]")
-    elif row.scale is not None and rounded(row.scale) != 1:
-        parts.append(f"× {number(row.scale)}")
-    return "; ".join(parts) or DASH
-
-
-def _limits_cell(row: JointRow) -> str:
-    if row.kind != "mapped":
-        return DASH
-    if row.limits_source_units is None:
-        return "none"
-    low, high = row.limits_source_units
-    return f"{number(low)} .. {number(high)}" + (f" ± {text(row.slack_text)}" if row.slack_text != "0" else "")
-
-
-def _driver_cell(row: JointRow) -> str:
-    if row.kind == "held" and row.hold is not None:
-        return f"hold = {number(row.hold)}"
-    if row.kind == "mimic" and row.mimic is not None:
-        return f"{code(row.mimic.driver)} × {number(row.mimic.multiplier)} + {number(row.mimic.offset)}"
-    return DASH
-
-
-def _observed_cell(observed: Observed | None) -> str:
-    if observed is None:
-        return DASH
-    if observed.min is None or observed.max is None:
-        return f"no finite values in {observed.rows:,} rows"
-    if observed.verdict == "no limits":
-        status = "no limits"
-    elif not observed.fits:
-        status = '<strong class="bad">outside the limits</strong>'
-    elif observed.slack_rows:
-        status = f"fits; {observed.slack_rows:,} rows within the slack"
-    else:
-        status = '<span class="good">fits</span>'
-    return f"{number(observed.min)} .. {number(observed.max)} ({status})"
-
-
 def _names(names: Sequence[str]) -> str:
     more = f" and {len(names) - HTML_NAMES:,} more" if len(names) > HTML_NAMES else ""
     return ", ".join(code(name) for name in names[:HTML_NAMES]) + more
@@ -175,11 +140,11 @@ def _joint_cells(row: JointRow, sample: SampleEntry | None) -> list[str]:
         text(row.unit) if row.unit else DASH,
         number(row.sign) if row.sign is not None else DASH,
         number(row.offset) if row.offset is not None else DASH,
-        _map_cell(row),
-        _limits_cell(row),
-        _driver_cell(row),
+        map_cell(row),
+        limits_cell(row, MARKUP),
+        driver_cell(row, MARKUP),
     ]
-    return [*cells, _observed_cell(row.observed)] if sample is not None else cells
+    return [*cells, observed_cell(row.observed, MARKUP)] if sample is not None else cells
 
 
 def _robot(robot: RobotEntry, sample: SampleEntry | None) -> list[str]:

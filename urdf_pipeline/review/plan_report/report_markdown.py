@@ -7,12 +7,11 @@ from collections.abc import Sequence
 from ...errors import LINE_LIMIT, neutral_text
 from ...plan import IndexPlan
 from ..markdown_text import cell, code, code_path, fence_for, link_target, plain
+from .report_cells import Markup, driver_cell, limits_cell, map_cell, observed_cell
 from .report_model import (
     JOINT_TYPES,
     SERIES_TEXT,
     EdgeEntry,
-    JointRow,
-    Observed,
     OutputEntry,
     PictureEntry,
     PlanReport,
@@ -20,7 +19,6 @@ from .report_model import (
     SampleEntry,
     SourceEntry,
     number,
-    rounded,
 )
 
 MARKDOWN_SEGMENTS = 20  # segment rows shown in markdown; json lists them all
@@ -40,6 +38,7 @@ def _ns(values: Sequence[float]) -> str:
 
 
 _code = code  # every name from the config, URDF or data is a code span (markdown_text.py: inert whatever it holds)
+MARKUP = Markup(code=_code, text=str, literal=lambda expression: f"`{expression}`", bad=lambda word: f"**{word}**", good=str, count=str)
 
 
 def _names(names: Sequence[str]) -> str:
@@ -72,50 +71,6 @@ def _source_details(source: SourceEntry) -> str:
             shown = plain(value)  # a dataset, column, topic, ... as the config names it
         parts.append(f"{key}: {shown}")
     return "; ".join(parts)
-
-
-def _map_cell(row: JointRow) -> str:
-    parts = []
-    if row.wrap is not None:
-        parts.append(f"wrap {_n(row.wrap.period)} around {_n(row.wrap.center)}")
-    if row.source_range is not None:
-        parts.append(f"source_range [{_ns(row.source_range)}] → [{_ns(row.target_range or ())}]")
-    elif row.scale is not None and rounded(row.scale) != 1:
-        parts.append(f"× {_n(row.scale)}")
-    return "; ".join(parts) or DASH
-
-
-def _limits_cell(row: JointRow) -> str:
-    if row.kind != "mapped":
-        return DASH
-    if row.limits_source_units is None:
-        return "none"
-    low, high = row.limits_source_units
-    return f"{_n(low)} .. {_n(high)}" + (f" ± {row.slack_text}" if row.slack_text != "0" else "")
-
-
-def _driver_cell(row: JointRow) -> str:
-    if row.kind == "held" and row.hold is not None:
-        return f"`hold = {_n(row.hold)}`"
-    if row.kind == "mimic" and row.mimic is not None:
-        return f"{_code(row.mimic.driver)} × {_n(row.mimic.multiplier)} + {_n(row.mimic.offset)}"
-    return DASH
-
-
-def _observed_cell(observed: Observed | None) -> str:
-    if observed is None:
-        return DASH
-    if observed.min is None or observed.max is None:
-        return f"no finite values in {observed.rows} rows"
-    if observed.verdict == "no limits":
-        status = "no limits"
-    elif not observed.fits:
-        status = "**outside the limits**"
-    elif observed.slack_rows:
-        status = f"fits; {observed.slack_rows} rows within the slack"
-    else:
-        status = "fits"
-    return f"{_n(observed.min)} .. {_n(observed.max)} ({status})"
 
 
 def _robot_markdown(robot: RobotEntry, sample: SampleEntry | None) -> list[str]:
@@ -154,12 +109,12 @@ def _robot_markdown(robot: RobotEntry, sample: SampleEntry | None) -> list[str]:
             row.unit or DASH,
             _n(row.sign) if row.sign is not None else DASH,
             _n(row.offset) if row.offset is not None else DASH,
-            _map_cell(row),
-            _limits_cell(row),
-            _driver_cell(row),
+            map_cell(row),
+            limits_cell(row, MARKUP),
+            driver_cell(row, MARKUP),
         ]
         if sample is not None:
-            cells.append(_observed_cell(row.observed))
+            cells.append(observed_cell(row.observed, MARKUP))
         rows.append(cells)
     return [*lines, "", *_table(header, rows), ""]
 
