@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 
 from urdf_pipeline import cli
+from urdf_pipeline.child_process import die_with_parent
 from urdf_pipeline.web import CACHE_VARIABLE, ViewerAssets, viewer_assets
 
 from ..conftest import REPO
@@ -76,6 +77,7 @@ def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Served]:
         stderr=subprocess.PIPE,
         text=True,
         env=environment,
+        preexec_fn=die_with_parent(),  # killed outright, the test session takes its server with it
     )
     try:
         assert process.stdout is not None

@@ -26,6 +26,8 @@ from typing import Any
 
 import websocket
 
+from urdf_pipeline.child_process import die_with_parent
+
 # RERUN-0.41-FACTS.md: the flags under which Debian's chromium renders Rerun's web viewer headless with software WebGL2.
 FLAGS = (
     "--headless=new",
@@ -95,6 +97,7 @@ class Browser:
             stdout=self._log,
             stderr=subprocess.STDOUT,
             start_new_session=True,
+            preexec_fn=die_with_parent(),  # a test session killed outright (SIGKILL, a CI timeout) takes chromium with it
         )
         self._ids = itertools.count(1)
         self._answers: dict[int, dict[str, Any]] = {}
