@@ -1,4 +1,4 @@
-"""The joint table's cells that Markdown and HTML share: what a cell says is decided once, here; each renderer gives
+"""The joint table's cells and the output section that Markdown and HTML share: what a cell says is decided once, here; each renderer gives
 its own markup (`Markup`) for names, free text, verdicts and counts."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from .report_model import JointRow, Observed, number, rounded
+from .report_model import SERIES_TEXT, JointRow, Observed, OutputEntry, SegmentEntry, number, rounded
 
 DASH = "—"
 
@@ -16,6 +16,7 @@ class Markup:
     """How one renderer marks up the parts of a cell."""
 
     code: Callable[[object], str]  # a name from input (a joint), inert in this format
+    path: Callable[[object], str]  # a path from input, as this format shows one
     text: Callable[[object], str]  # free text from input (the slack as written)
     literal: Callable[[str], str]  # an expression of ours shown as code (`hold = 0.5`)
     bad: Callable[[str], str]  # a verdict to see first
@@ -71,3 +72,26 @@ def observed_cell(observed: Observed | None, markup: Markup) -> str:
     else:
         status = markup.good("fits")
     return f"{number(observed.min)} .. {number(observed.max)} ({status})"
+
+
+def output_items(output: OutputEntry, markup: Markup) -> list[str]:
+    """What the run writes: layout, model, manifest, series, and the line that heads the segment table."""
+    items = [f"layout {markup.code(output.layout)}, application_id {markup.code(output.application_id)}"]
+    if output.model is not None:
+        items.append(f"model (meshes, static URDF transforms, written once, static only): {markup.path(output.model.relative)}")
+    items.append(f"manifest: {markup.path(output.manifest.relative)}")
+    if output.joint_series:
+        items.append(f"{SERIES_TEXT} ({markup.code('output.joint_series')})")
+    what = "layer (forward kinematics, calibration edges)" if output.layout == "split" else "recording"
+    count = output.segment_count
+    items.append(f"{markup.count(count)} segment{'' if count == 1 else 's'}, each a {what} whose recording_id is the segment id:")
+    return items
+
+
+def segment_cells(segment: SegmentEntry, markup: Markup) -> list[str]:
+    """One row of the segment table: id, input (episode, file), frames, output."""
+    source = f"episode {segment.episode}" if segment.episode is not None else ""
+    if segment.stem is not None:
+        source = f"file {markup.code(segment.stem)}" + (f" ({source})" if source else "")
+    frames = markup.count(segment.frames) if segment.frames is not None else DASH
+    return [markup.code(segment.id), source or DASH, frames, markup.path(segment.output.relative)]

@@ -9,10 +9,9 @@ from collections.abc import Sequence
 from ...plan import IndexPlan
 from ...web import html_text, relative_href
 from ..markdown_text import PATH_LIMIT
-from .report_cells import Markup, driver_cell, limits_cell, map_cell, observed_cell
+from .report_cells import Markup, driver_cell, limits_cell, map_cell, observed_cell, output_items, segment_cells
 from .report_model import (
     JOINT_TYPES,
-    SERIES_TEXT,
     EdgeEntry,
     JointRow,
     OutputEntry,
@@ -61,6 +60,7 @@ def code(value: object, limit: int = PATH_LIMIT) -> str:
 
 MARKUP = Markup(
     code=code,
+    path=code,
     text=text,
     literal=str,
     bad=lambda word: f'<strong class="bad">{word}</strong>',
@@ -198,21 +198,8 @@ def frame_tree(root: str, edges: Sequence[EdgeEntry]) -> str:
 
 
 def _output(output: OutputEntry) -> list[str]:
-    items = [f"layout {code(output.layout)}, application_id {code(output.application_id)}"]
-    if output.model is not None:
-        items.append(f"model (meshes, static URDF transforms, written once, static only): {code(output.model.relative)}")
-    items.append(f"manifest: {code(output.manifest.relative)}")
-    if output.joint_series:
-        items.append(f"{SERIES_TEXT} ({code('output.joint_series')})")
-    what = "layer (forward kinematics, calibration edges)" if output.layout == "split" else "recording"
-    items.append(f"{plural(output.segment_count, 'segment')}, each a {what} whose recording_id is the segment id:")
-    rows = []
-    for segment in output.segments[:HTML_SEGMENTS]:
-        source = f"episode {segment.episode}" if segment.episode is not None else ""
-        if segment.stem is not None:
-            source = f"file {code(segment.stem)}" + (f" ({source})" if source else "")
-        frames = f"{segment.frames:,}" if segment.frames is not None else DASH
-        rows.append([code(segment.id), source or DASH, frames, code(segment.output.relative)])
+    items = output_items(output, MARKUP)
+    rows = [segment_cells(segment, MARKUP) for segment in output.segments[:HTML_SEGMENTS]]
     hidden = output.segment_count - len(rows)
     if hidden > 0:
         rows.append([f"… {hidden:,} more (all in <code>plan --format json</code>)", "", "", ""])

@@ -7,10 +7,9 @@ from collections.abc import Sequence
 from ...errors import LINE_LIMIT, neutral_text
 from ...plan import IndexPlan
 from ..markdown_text import cell, code, code_path, fence_for, link_target, plain
-from .report_cells import Markup, driver_cell, limits_cell, map_cell, observed_cell
+from .report_cells import Markup, driver_cell, limits_cell, map_cell, observed_cell, output_items, segment_cells
 from .report_model import (
     JOINT_TYPES,
-    SERIES_TEXT,
     EdgeEntry,
     OutputEntry,
     PictureEntry,
@@ -38,7 +37,9 @@ def _ns(values: Sequence[float]) -> str:
 
 
 _code = code  # every name from the config, URDF or data is a code span (markdown_text.py: inert whatever it holds)
-MARKUP = Markup(code=_code, text=str, literal=lambda expression: f"`{expression}`", bad=lambda word: f"**{word}**", good=str, count=str)
+MARKUP = Markup(
+    code=_code, path=code_path, text=str, literal=lambda expression: f"`{expression}`", bad=lambda word: f"**{word}**", good=str, count=str
+)
 
 
 def _names(names: Sequence[str]) -> str:
@@ -130,21 +131,8 @@ def _edge_cells(edge: EdgeEntry) -> list[str]:
 
 
 def _output_markdown(output: OutputEntry) -> list[str]:
-    lines = ["#### Output", "", f"- layout {_code(output.layout)}, application_id {_code(output.application_id)}"]
-    if output.model is not None:
-        lines.append(f"- model (meshes, static URDF transforms, written once, static only): {code_path(output.model.relative)}")
-    lines.append(f"- manifest: {code_path(output.manifest.relative)}")
-    if output.joint_series:
-        lines.append(f"- {SERIES_TEXT} ({_code('output.joint_series')})")
-    what = "layer (forward kinematics, calibration edges)" if output.layout == "split" else "recording"
-    lines.append(f"- {_plural(output.segment_count, 'segment')}, each a {what} whose recording_id is the segment id:")
-    rows = []
-    for segment in output.segments[:MARKDOWN_SEGMENTS]:
-        source = f"episode {segment.episode}" if segment.episode is not None else ""
-        if segment.stem is not None:
-            source = f"file {_code(segment.stem)}" + (f" ({source})" if source else "")
-        frames = str(segment.frames) if segment.frames is not None else DASH
-        rows.append([_code(segment.id), source or DASH, frames, code_path(segment.output.relative)])
+    lines = ["#### Output", "", *(f"- {item}" for item in output_items(output, MARKUP))]
+    rows = [segment_cells(segment, MARKUP) for segment in output.segments[:MARKDOWN_SEGMENTS]]
     hidden = output.segment_count - len(rows)
     if hidden > 0:
         rows.append([f"… {hidden} more", "", "", ""])
