@@ -292,5 +292,25 @@ class Page:
                     request.blocked = params.get("blockedReason") or params.get("corsErrorStatus", {}).get("corsError")
         return list(found.values())
 
+    def viewer_state(self) -> bytes:
+        """The state of the Rerun viewer in the tab's first frame (the Viewer Control API's GetStateResponse,
+        protobuf: its recordings, their timelines, its views), from the frame's WebHandle, read in the frame's own
+        JavaScript context (the viewer's `wasm_bindgen` is no property of the window)."""
+        tree = self.call("Page.getFrameTree")["frameTree"]
+        frame = tree["childFrames"][0]["frame"]["id"]
+        contexts = [e["params"]["context"] for e in self.events("Runtime.executionContextCreated")]
+        context = [c["id"] for c in contexts if c.get("auxData", {}).get("frameId") == frame and c["auxData"].get("isDefault")][-1]
+        prototype = self.call("Runtime.evaluate", {"expression": "wasm_bindgen.WebHandle.prototype", "contextId": context})["result"]
+        handles = self.call("Runtime.queryObjects", {"prototypeObjectId": prototype["objectId"]})["objects"]
+        answer = self.call(
+            "Runtime.callFunctionOn",
+            {
+                "objectId": handles["objectId"],
+                "functionDeclaration": "function () { return Array.from(this[0].viewer_state()); }",
+                "returnByValue": True,
+            },
+        )
+        return bytes(answer["result"]["value"])
+
     def close(self) -> None:
         self.browser.call("Target.closeTarget", {"targetId": self.target})

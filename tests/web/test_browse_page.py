@@ -1,9 +1,12 @@
-"""`browse`'s site (the SO-101 dataset in the single layout) in headless chromium, from the session's `urdf-pipeline serve`: the list, its search and pages, and
-segments opening in the viewer pane beside it.
+"""`browse`'s site (the SO-101 dataset in the split layout, its first episode with a base recording) in headless
+chromium, from the session's `urdf-pipeline serve`: the list, its search and pages, and segments opening in the viewer
+pane beside it.
 
 One page load is shared by the tests of this module (the wasm compiles on the CPU), in order: the list renders two
-rows a page (`#n=2`), page 2 and a search work, the first segment opens in the viewer pane and the robot shows, then a
-second segment opens in the same running viewer. The last tests read the page's console and requests.
+rows a page (`#n=2`), page 2 and a search work, the first segment opens in the viewer pane and the robot shows (its
+meshes are the model asset's, added to the layer's recording by boot.js) in ONE recording with its base, then a second
+segment opens in the same running viewer. The last tests read the page's console and requests, then give the viewer
+an asset that is no .rrd.
 """
 
 from __future__ import annotations
@@ -23,9 +26,10 @@ from urdf_pipeline.web import ViewerAssets
 from .canvas import ROBOT_SECONDS, ROBOT_SHARE, drawn_share
 from .conftest import Served
 from .devtools import Browser, Page
-from .test_browse_site import run_variant
+from .test_browse_site import base_recording, run_variant
 
 PREFIX = "sites/browse"
+BASE_TIMELINE = "base_tick"  # the base recording's own timeline: in the viewer's state of the segment's recording
 ROWS = "Array.from(document.querySelectorAll('#segments tbody tr')).map(r => r.dataset.id)"
 FRAME_STATE = "(() => { const f = document.getElementById('viewer'); return f.contentDocument && f.contentDocument.body && f.contentDocument.body.dataset.state; })()"
 
@@ -37,10 +41,14 @@ class BrowsePage:
 
 
 @pytest.fixture(scope="module")
-def browse_page(browser: Browser, served: Served, viewer_cache: ViewerAssets, examples_dir: Path) -> Iterator[BrowsePage]:
-    config = run_variant(examples_dir, "so101_browse_page", single=True)  # split: see docs/commands.md#browse
-    assert cli.main(["browse", str(config), "-o", str(served.root / PREFIX), "-q"]) == 0
-    ids = sorted(p.stem for p in (served.root / PREFIX / "recordings").glob("*.rrd"))
+def browse_page(
+    browser: Browser, served: Served, viewer_cache: ViewerAssets, examples_dir: Path, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[BrowsePage]:
+    config = run_variant(examples_dir, "so101_browse_page")
+    ids = sorted(p.stem for p in (examples_dir / "out" / "so101_browse_page").glob("episode_*.rrd"))
+    base = tmp_path_factory.mktemp("browse-base")
+    base_recording(base / "first.rrd", ids[0], timeline=BASE_TIMELINE)
+    assert cli.main(["browse", str(config), "-o", str(served.root / PREFIX), "--base", str(base), "-q"]) == 0
     assert len(ids) >= 3
     page = browser.page(1600, 900)
     try:
@@ -92,12 +100,18 @@ def test_a_segment_opens_in_the_viewer_pane_and_a_second_one_after_it(browse_pag
     print(f"first robot pixels {time.monotonic() - started:.1f} s after the click; {share:.0%} of the pane's centre")
     first, second = browse_page.ids[:2]
     assert page.evaluate("document.querySelector('#segments tr.selected').dataset.id") == first
+    state = page.viewer_state()  # one recording: the layer, its base and the model asset under the segment's id
+    assert b"recording_id=" + first.encode() in state and b"urdf_model" not in state
+    assert BASE_TIMELINE.encode() in state and b"frame_index" in state
     page.evaluate("document.querySelectorAll('#segments tbody tr a')[1].click()")
     page.wait_for(lambda: [r for r in page.requests() if r.url.endswith(f"/recordings/{second}.rrd") and r.status == 200], 60, second)
     assert page.evaluate("document.querySelector('#segments tr.selected').dataset.id") == second
     assert second in page.evaluate("document.getElementById('viewer').contentWindow.location.hash")
     assert len([r for r in page.requests() if r.url.endswith("/re_viewer_bg.wasm")]) == 1  # the viewer kept running
+    assert len([r for r in page.requests() if r.url.endswith("/recordings/shared/model.rrd")]) == 1  # the model: fetched once
     assert page.wait_for(lambda: frame_share(page) >= ROBOT_SHARE, 60, "the robot after the switch")
+    state = page.viewer_state()
+    assert b"recording_id=" + second.encode() in state and b"urdf_model" not in state
 
 
 def test_the_page_logs_no_error_and_asks_only_this_machine(browse_page: BrowsePage) -> None:
@@ -107,3 +121,13 @@ def test_the_page_logs_no_error_and_asks_only_this_machine(browse_page: BrowsePa
     assert [r.url for r in requests if urlsplit(r.url).hostname != "127.0.0.1"] == []
     assert [r.url for r in requests if not urlsplit(r.url).path.startswith(f"/{PREFIX}/")] == []
     assert [r for r in requests if r.status not in (200, 304)] == []
+
+
+def test_an_asset_that_is_no_rrd_is_said_on_the_page(browse_page: BrowsePage) -> None:
+    """Last (it logs an error): an `asset` the viewer page cannot read is named in its status and console."""
+    page = browse_page.page
+    page.evaluate("document.getElementById('viewer').contentWindow.location.hash = '#asset=../index.html&into=x'")
+    page.wait_for(lambda: page.evaluate(FRAME_STATE) == "failed", 30, "the viewer page's failed state")
+    status = page.evaluate("document.getElementById('viewer').contentDocument.getElementById('status').textContent")
+    assert "model could not be added" in status and "not an .rrd stream" in status
+    assert any("not an .rrd stream" in error for error in page.console_errors())

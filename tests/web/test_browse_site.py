@@ -52,8 +52,9 @@ def test_the_split_layout_opens_model_layer_and_blueprint(examples_dir: Path, vi
     segments = data["segments"]
     assert [s["id"] for s in segments] == sorted(s["id"] for s in segments) and len(segments) >= 2
     first = segments[0]
-    assert first["href"] == (
-        f"viewer/index.html#url=../recordings/shared/model.rrd&url=../recordings/{first['id']}.rrd&url=../recordings/shared/blueprint.rbl"
+    assert first["href"] == (  # the model is added to the layer's recording (boot.js), not opened as a recording of its own
+        f"viewer/index.html#url=../recordings/{first['id']}.rrd&url=../recordings/shared/blueprint.rbl"
+        f"&asset=../recordings/shared/model.rrd&into={first['id']}"
     )
     for path in ("recordings/shared/model.rrd", "recordings/shared/blueprint.rbl", f"recordings/{first['id']}.rrd", "browse.js"):
         assert (site / path).is_file(), path
@@ -166,15 +167,16 @@ def test_ten_thousand_segments(viewer_cache: ViewerAssets, tmp_path: Path) -> No
     assert len(list((tmp_path / "site" / "recordings").iterdir())) == 10_001  # one made name each, and shared/
 
 
-def base_recording(path: Path, recording_id: str, application_id: str = "so101_dataset") -> None:
-    """A base recording as an importer would write it: a few points under the segment's id."""
-    import numpy as np
+def base_recording(path: Path, recording_id: str, application_id: str = "so101_dataset", timeline: str = "tick") -> None:
+    """A base recording as an importer would write it: a few scalars under the segment's id, on `timeline`."""
     import rerun as rr
 
     stream = rr.RecordingStream(application_id=application_id, recording_id=recording_id)
     path.parent.mkdir(parents=True, exist_ok=True)
     stream.save(str(path))
-    stream.log("base/points", rr.Points3D(np.zeros((3, 3), dtype=np.float32)))
+    for tick in range(3):
+        stream.set_time(timeline, sequence=tick)
+        stream.log("base/gripper_force", rr.Scalars(float(tick)))
     stream.disconnect()
 
 
@@ -192,8 +194,8 @@ def test_base_recordings_open_with_their_layer(examples_dir: Path, viewer_cache:
     first, second, last = rows[ids[0]], rows[ids[1]], rows[ids[-1]]
     assert first["base"] == ["recordings/shared/base_000000.rrd"] and "missing" not in first
     assert first["href"] == (
-        "viewer/index.html#url=../recordings/shared/model.rrd&url=../recordings/shared/base_000000.rrd"
-        f"&url=../recordings/{ids[0]}.rrd&url=../recordings/shared/blueprint.rbl"
+        f"viewer/index.html#url=../recordings/shared/base_000000.rrd&url=../recordings/{ids[0]}.rrd"
+        f"&url=../recordings/shared/blueprint.rbl&asset=../recordings/shared/model.rrd&into={ids[0]}"
     )
     assert (tmp_path / "site" / "recordings" / "shared" / "base_000000.rrd").samefile(base / f"{ids[0]}.rrd")
     assert second["base"] == ["recordings/shared/base_000001.rrd"] and "img" not in second["href"]  # the file's name never shows

@@ -100,30 +100,10 @@ def diff_page(
     opened.page.close()
 
 
-def _viewer_state(page: Page) -> bytes:
-    """The embedded viewer's state (the Viewer Control API's GetStateResponse, protobuf), from its WebHandle, read in
-    the iframe's own JavaScript context (the viewer's `wasm_bindgen` is no property of the window)."""
-    tree = page.call("Page.getFrameTree")["frameTree"]
-    frame = tree["childFrames"][0]["frame"]["id"]
-    contexts = [e["params"]["context"] for e in page.events("Runtime.executionContextCreated")]
-    context = [c["id"] for c in contexts if c.get("auxData", {}).get("frameId") == frame and c["auxData"].get("isDefault")][-1]
-    prototype = page.call("Runtime.evaluate", {"expression": "wasm_bindgen.WebHandle.prototype", "contextId": context})["result"]
-    handles = page.call("Runtime.queryObjects", {"prototypeObjectId": prototype["objectId"]})["objects"]
-    answer = page.call(
-        "Runtime.callFunctionOn",
-        {
-            "objectId": handles["objectId"],
-            "functionDeclaration": "function () { return Array.from(this[0].viewer_state()); }",
-            "returnByValue": True,
-        },
-    )
-    return bytes(answer["result"]["value"])
-
-
 def test_the_plan_page_shows_the_rest_pose(plan_page: SitePage) -> None:
     assert plan_page.share >= ROBOT_SHARE
     print(f"plan page: first robot pixels {plan_page.seconds_to_robot:.1f} s after it was opened; {plan_page.share:.0%} of the centre")
-    state = _viewer_state(plan_page.page)
+    state = plan_page.page.viewer_state()
     assert b"app_id=panda_demo&recording_id=rest_pose" in state
 
 
@@ -134,7 +114,7 @@ def test_the_diff_page_holds_old_and_new(diff_page: SitePage) -> None:
     page = diff_page.page
 
     def both() -> bytes | None:
-        state = _viewer_state(page)
+        state = page.viewer_state()
         return state if b"recording_id=old" in state and b"recording_id=new" in state else None
 
     state = page.wait_for(both, 60, "old and new in the viewer")

@@ -57,6 +57,10 @@ def test_viewer_links_are_relative_and_survive_odd_file_names() -> None:
     assert [unquote(value) for value in values] == ["../recordings/episode 0#1&x=%.rrd", "../recordings/demo.rbl"]
     assert viewer_href("segments/a.html", ["recordings/a.rrd"]) == "../viewer/index.html#url=../recordings/a.rrd"
     assert viewer_href("index.html", []) == "viewer/index.html"
+    joined = viewer_href("index.html", ["recordings/a.rrd"], "recordings/shared/model.rrd", 'ep 0&url=//x.org/"<')
+    assert (
+        joined == "viewer/index.html#url=../recordings/a.rrd&asset=../recordings/shared/model.rrd&into=ep%200%26url%3D%2F%2Fx.org%2F%22%3C"
+    )
     assert html.escape(href) == href.replace("&", "&amp;")  # nothing else in it needs escaping in an attribute
 
 

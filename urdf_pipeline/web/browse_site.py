@@ -122,16 +122,16 @@ def build_browser(
             for path, name in ((shared.model, "model.rrd"), (shared.blueprint, "blueprint.rbl"))
             if path
         ]
-        model = opened[:1] if shared.model is not None else []
-        rest = opened[len(model) :]
+        model = opened[0] if shared.model is not None else None
+        rest = opened[1:] if model is not None else opened
         names = _site_names([path for _, path in rows])
         placed_bases: dict[Path, str] = {}
         placed = []
         for (row, path), name in zip(rows, names, strict=True):
             base = tuple(_placed_base(site, file, placed_bases) for file in (bases or {}).get(row.segment, ())) if path else ()
-            recordings = (*model, *base, site.add_recording(path, name), *rest) if path else ()
+            recordings = (*base, site.add_recording(path, name), *rest) if path else ()
             placed.append(BrowseSegment(row.segment, row.frames, row.summary, recordings, row.missing, base))
-        hrefs = [viewer_href("index.html", row.recordings) if row.recordings else None for row in placed]
+        hrefs = [viewer_href("index.html", row.recordings, model, row.segment) if row.recordings else None for row in placed]
         data = json.dumps(segments_json(title, placed, hrefs), ensure_ascii=False, separators=(",", ":"))
         site.write_text(DATA, data)
         site.write_text(SCRIPT, _static(SCRIPT))

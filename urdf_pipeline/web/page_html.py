@@ -49,12 +49,17 @@ def relative_href(from_page: str, target: str) -> str:
     return quote(relative, safe="/")
 
 
-def viewer_href(from_page: str, recordings: Sequence[str]) -> str:
+def viewer_href(from_page: str, recordings: Sequence[str], asset: str | None = None, into: str | None = None) -> str:
     """The relative link, from the page at `from_page`, that opens the site's `recordings` (site paths of `.rrd` and
     `.rbl` files, e.g. what `SiteWriter.add_recording` returned) together in the site's viewer:
     `viewer/index.html#url=../recordings/a.rrd&url=...`. Each recording is written relative to the viewer page (the
-    viewer's boot.js resolves it against its own address). Percent-encoded: safe in a quoted attribute as it is."""
-    fragment = "&".join("url=" + quote(relative_href(VIEWER_PAGE, recording), safe="/") for recording in recordings)
+    viewer's boot.js resolves it against its own address). `asset` and `into`: a split layout's model (site path),
+    added by boot.js to the recording whose recording id is `into` (the segment's). Percent-encoded: safe in a quoted
+    attribute as it is."""
+    parts = [("url", relative_href(VIEWER_PAGE, recording)) for recording in recordings]
+    if asset is not None and into is not None:
+        parts += [("asset", relative_href(VIEWER_PAGE, asset)), ("into", into)]
+    fragment = "&".join(f"{name}={quote(value, safe='/' if name != 'into' else '')}" for name, value in parts)
     return relative_href(from_page, VIEWER_PAGE) + (f"#{fragment}" if fragment else "")
 
 

@@ -6,6 +6,9 @@
 // any path prefix on any static host. Each is made absolute here (the viewer loads an absolute URL, not a relative
 // one) and must stay on this page's own origin: anything else is refused and named on the page. A later change of the
 // fragment opens its new recordings in the running viewer (no second load of the wasm).
+//
+// `asset=MODEL&into=RECORDING_ID` (browse, split layout): the model asset's chunks are added to the recording
+// RECORDING_ID (the segment's layer), as a Rerun catalog applies a dataset asset to each segment: see `joinAsset`.
 "use strict";
 
 (function () {
@@ -53,12 +56,12 @@
     document.body.dataset.state = state;
   }
 
-  // The `url` parameters of the query and the fragment, resolved against this page; [accepted, refused].
-  function recordings() {
+  // The `url` (or `asset`) parameters of the query and the fragment, resolved against this page; [accepted, refused].
+  function recordings(name = "url") {
     const accepted = [];
     const refused = [];
     for (const part of [location.search, location.hash]) {
-      for (const value of new URLSearchParams(part.slice(1)).getAll("url")) {
+      for (const value of new URLSearchParams(part.slice(1)).getAll(name)) {
         let url = null;
         try {
           url = new URL(value, location.href);
@@ -102,6 +105,94 @@
     }
     say("", "started");
     refuse(refused);
+    openAssets();
+  }
+
+  // A split layout's model is one recording (id `urdf_model`) of static chunks; each segment's layer is a recording of
+  // its own id. The viewer merges only chunks of one recording id, and a static site has no catalog to apply an asset
+  // to a segment, nor room for a copy of the model per segment. So the model is fetched once and, per segment, given
+  // to the viewer under the segment's recording id: each message of the .rrd stream gets one protobuf field appended
+  // (its store id's recording_id), which the viewer's own decoder merges over the message's field, as it reads a
+  // message written with that id. Nothing of the model is decoded here: only the stream's frames (kind, length) are
+  // walked. The stream's end and footer (an index of byte offsets) are left out: the bytes moved.
+  const FRAME_END = 0n;
+  const TAILS = [
+    [1n, [2, 2]], // SetStoreInfo { info (2): StoreInfo { store_id (2): StoreId { recording_id (2) } } }
+    [2n, [1]], // ArrowMsg { store_id (1): StoreId { recording_id (2) } }
+    [3n, null], // BlueprintActivationCommand: none in a model; dropped
+  ];
+  const assetBytes = new Map(); // asset URL -> Promise of its bytes (fetched once per page)
+  const joined = new Set(); // asset URL + recording id given to the viewer already
+  let channels = 0;
+
+  // `bytes` as a length-delimited protobuf field `number`.
+  function field(number, bytes) {
+    const head = [(number << 3) | 2];
+    for (let n = bytes.length; ; n = Math.floor(n / 128)) {
+      head.push(n >= 128 ? (n % 128) | 128 : n);
+      if (n < 128) break;
+    }
+    const out = new Uint8Array(head.length + bytes.length);
+    out.set(head, 0);
+    out.set(bytes, head.length);
+    return out;
+  }
+
+  // The .rrd stream `bytes` with every message's store id set to `recordingId` (kind and application id kept).
+  function joinAsset(bytes, recordingId) {
+    if (bytes.length < 12 || String.fromCharCode(...bytes.subarray(0, 4)) !== "RRF2") {
+      throw new Error("not an .rrd stream of this Rerun release");
+    }
+    const storeId = field(2, new TextEncoder().encode(recordingId));
+    const tails = new Map(TAILS.map(([kind, path]) => [kind, path && path.reduceRight((inner, number) => field(number, inner), storeId)]));
+    const view = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength);
+    const frames = [bytes.subarray(0, 12)]; // the stream header: magic, version, options
+    let offset = 12;
+    while (offset + 16 <= bytes.length) {
+      const kind = view.getBigUint64(offset, true);
+      const length = Number(view.getBigUint64(offset + 8, true));
+      if (kind === FRAME_END) break;
+      const tail = tails.get(kind);
+      if (tail === undefined || offset + 16 + length > bytes.length) throw new Error("an .rrd frame this page does not know");
+      if (tail) {
+        const frame = new Uint8Array(16 + length + tail.length);
+        frame.set(bytes.subarray(offset, offset + 16 + length), 0);
+        new DataView(frame.buffer).setBigUint64(8, BigInt(length + tail.length), true);
+        frame.set(tail, 16 + length);
+        frames.push(frame);
+      }
+      offset += 16 + length;
+    }
+    const out = new Uint8Array(frames.reduce((sum, frame) => sum + frame.length, 0));
+    frames.reduce((at, frame) => (out.set(frame, at), at + frame.length), 0);
+    return out;
+  }
+
+  function openAssets() {
+    const [assets, refused] = recordings("asset");
+    refuse(refused);
+    const into = new URLSearchParams(location.hash.slice(1)).get("into");
+    if (!into) return;
+    for (const url of assets) {
+      const key = JSON.stringify([url, into]);
+      if (joined.has(key)) continue;
+      joined.add(key);
+      if (!assetBytes.has(url)) {
+        assetBytes.set(url, siteFetch(url).then((response) => {
+          if (!response.ok) throw new Error(response.status + " " + response.statusText);
+          return response.arrayBuffer();
+        }));
+      }
+      assetBytes.get(url).then((buffer) => {
+        const channel = "asset-" + ++channels;
+        handle.open_channel(channel, url.slice(url.lastIndexOf("/") + 1));
+        handle.send_rrd_to_channel(channel, joinAsset(new Uint8Array(buffer), into));
+        handle.close_channel(channel);
+      }).catch((error) => {
+        console.error("urdf-pipeline viewer: the model " + url + " was not added to " + JSON.stringify(into.slice(0, 200)) + ": " + error);
+        say("The robot's model could not be added to this segment: " + error, "failed");
+      });
+    }
   }
 
   async function start() {
@@ -133,6 +224,7 @@
     canvas.hidden = false;
     say(accepted.length || refused.length ? "" : "No recording to show: open this page from a link of the site, which names them.", "started");
     refuse(refused);
+    openAssets();
     window.addEventListener("hashchange", openNew);
   }
 
