@@ -1,0 +1,20 @@
+"""Data where teams keep it: `s3://` objects and `hf://` LeRobot datasets on the Hugging Face Hub, as sources and
+outputs. Which URLs a config may name (only under what the environment allows: `URDF_PIPELINE_ALLOW_URLS`), what an
+object is (its ETag, or the Hub's commit), its metadata read by range requests, and a local, content-addressed cache
+that `run` downloads into before Rerun's readers read the files as local ones. Credentials come from the standard
+chains (AWS, Hugging Face), never from a config, and never reach output.
+
+The names below are the package's public surface; other packages import them from here, never from its modules.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from .. import lazy_surface
+
+if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
+    from .locations import ALLOW_URLS_ENV, RemoteUrl, check_allowed, is_remote, parse_url, remote_location
+
+if not TYPE_CHECKING:  # the names above, imported when first used
+    __all__, __getattr__ = lazy_surface(__name__, __file__)
