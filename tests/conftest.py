@@ -84,3 +84,53 @@ def run_cli(capsys: pytest.CaptureFixture[str]):
         return CliResult(code, captured.out, captured.err)
 
     return run
+
+
+@dataclass(frozen=True)
+class S3:
+    """The session's S3 endpoint as a test sees it: a fresh bucket of its own, the environment set (endpoint,
+    credentials, URDF_PIPELINE_ALLOW_URLS allowing the bucket) for this process and the commands it starts."""
+
+    endpoint: str
+    bucket: str
+
+    def url(self, key: str = "") -> str:
+        return f"s3://{self.bucket}/{key}"
+
+    def client(self):  # boto3's client of this endpoint, for a test to put and read objects itself
+        import boto3
+
+        return boto3.session.Session().client("s3", endpoint_url=self.endpoint)
+
+
+@pytest.fixture(scope="session")
+def s3_endpoint() -> Iterator[str]:
+    """One moto_server for the session (tests/s3_server.py); skipped where moto is not installed."""
+    from .s3_server import moto_server
+    from .s3_server import s3_endpoint as started
+
+    if moto_server() is None:
+        pytest.skip("no moto_server: pip install 'moto[server]' (the test extra has it)")
+    with started() as (url, _):
+        yield url
+
+
+@pytest.fixture
+def s3(s3_endpoint: str, monkeypatch: pytest.MonkeyPatch, request: pytest.FixtureRequest) -> S3:
+    from urdf_pipeline.remote.s3_objects import client
+
+    from .s3_server import CREDENTIALS
+
+    for name, value in CREDENTIALS.items():
+        monkeypatch.setenv(name, value)
+    monkeypatch.setenv("AWS_ENDPOINT_URL", s3_endpoint)
+    bucket = "t-" + "".join(c if c.isalnum() else "-" for c in request.node.name.lower())[:40].strip("-") + f"-{len(_BUCKETS)}"
+    _BUCKETS.append(bucket)
+    monkeypatch.setenv("URDF_PIPELINE_ALLOW_URLS", f"s3://{bucket}/")
+    client.cache_clear()
+    found = S3(s3_endpoint, bucket)
+    found.client().create_bucket(Bucket=bucket)
+    return found
+
+
+_BUCKETS: list[str] = []

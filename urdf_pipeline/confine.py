@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import errno
 import os
+import re
 import site
 import stat
 import sys
@@ -31,11 +32,30 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Literal
 
-from .errors import UserError, Where
+from .errors import UserError, Where, shown
 
 ALLOW_ENV = "URDF_PIPELINE_ALLOW_PATHS"  # os.pathsep-separated folders a config may also read and write under
 NAME_MAX = 255  # bytes in one file name on every file system a run writes to (ext4, xfs, btrfs, tmpfs, APFS)
 PARTIAL_ROOM = len("..partial-") + 10  # execute/writer.py writes `.NAME.partial-PID` beside NAME first
+
+
+URL = re.compile(r"^([A-Za-z][A-Za-z0-9+.-]*):(//|\\\\)")  # any SCHEME:// (`s3://`, `https://`, `file://`), or SCHEME:\\
+
+
+def is_remote(text: str) -> bool:
+    """True for anything written as a URL (`SCHEME://`): such a string is never read as a local path, whatever its
+    scheme, so `s3://x` can never become the relative file `s3:/x`."""
+    return bool(URL.match(text))
+
+
+def refuse_url(text: str, what: str, where: Where | None) -> None:
+    """A URL where only a local path is read (a URDF, a xacro file, a source kind not read remotely): said, not
+    looked up as a relative file name."""
+    if is_remote(text):
+        raise UserError(
+            f"{what} {shown(text)} is a URL; it is read from a local path (relative to the config file): download it first",
+            where,
+        )
 
 
 class Unresolvable(Exception):

@@ -27,6 +27,18 @@ class IndexPlan:
 
 
 @dataclass(frozen=True)
+class RemoteObject:
+    """A remote file a source reads (`s3://BUCKET/KEY`), as it was when the config was compiled: `version` is what
+    its bytes are (the object's ETag), so a run downloads exactly those bytes or refuses (never a mix of versions).
+    A source plan that holds one has, as its `path`, where the download cache keeps the file on the machine that
+    compiled the plan; a machine that runs it (a Ray worker) fetches into its own cache."""
+
+    url: str
+    version: str
+    size: int
+
+
+@dataclass(frozen=True)
 class ParquetSourcePlan:
     """A parquet file: one list<number> `column` per row, or (column None) a wide table, one column per name."""
 
@@ -37,6 +49,7 @@ class ParquetSourcePlan:
     names: tuple[str, ...]
     where: Where
     duplicates: str = "error"  # two rows at one index value: "error" or "keep_last" (the later row wins)
+    remote: RemoteObject | None = None  # `parquet: s3://...`: the object `path` is downloaded from
 
 
 @dataclass(frozen=True)

@@ -16,8 +16,9 @@ from pathlib import Path
 from typing import Any
 
 from ..confine import Unresolvable, file_state, resolved, resolved_or_written
-from ..errors import UserError, Where, listing
+from ..errors import UserError, Where, listing, shown
 from ..plan import DatasetPlan, LeRobotSourcePlan, Segment, SourcePlan
+from ..remote import is_remote, remote_glob
 from ..sources import KINDS, kind_of, refuse_control_characters
 from .context import CompileContext
 
@@ -52,8 +53,10 @@ def compile_sources(ctx: CompileContext) -> CompiledSources:
 
 def _compile_glob(ctx: CompileContext, name: str, kind: str, spec: dict[str, Any]) -> dict[str, SourcePlan]:
     """Every file a source's glob matches, each checked like a single file (metadata only), keyed by stem."""
-    pattern = spec[kind] if Path(spec[kind]).is_absolute() else str(ctx.config_dir / spec[kind])
     where = ctx.where("sources", name, kind)
+    if is_remote(spec[kind]):
+        return _compile_remote_glob(ctx, name, kind, spec, where)
+    pattern = spec[kind] if Path(spec[kind]).is_absolute() else str(ctx.config_dir / spec[kind])
     # The folder the glob walks from must be readable; each match is checked again, as a file, by compile_source.
     fixed = itertools.takewhile(lambda part: not GLOB_CHARACTERS.search(part), Path(pattern).parts)
     ctx.confinement.check_read(Path(*fixed), f"{kind} glob folder", where)
@@ -70,6 +73,30 @@ def _compile_glob(ctx: CompileContext, name: str, kind: str, spec: dict[str, Any
         seen[stem] = path
         try:
             by_stem[stem] = KINDS[kind].compile_source(name, {**spec, kind: str(path)}, ctx.document, ctx.config_dir)
+        except UserError as exc:
+            ctx.problems.extend(exc)
+    return by_stem
+
+
+def _compile_remote_glob(ctx: CompileContext, name: str, kind: str, spec: dict[str, Any], where: Where) -> dict[str, SourcePlan]:
+    """An `s3://BUCKET/PREFIX/*.parquet` source: one listing, then each object's footer (ranged GETs), keyed by stem."""
+    if kind != "parquet":
+        raise UserError(f"a {kind} source cannot be read from S3 yet (parquet can): download it and name the local path", where)
+    objects = remote_glob(spec[kind], where, f"{kind} glob")
+    if not objects:
+        raise UserError(f"'{shown(spec[kind])}' matches no object", where)
+    by_stem: dict[str, SourcePlan] = {}
+    seen: dict[str, str] = {}
+    for remote in objects:
+        stem = remote.url.rsplit("/", 1)[-1].split(".", 1)[0]
+        if stem in seen:
+            ctx.problems.add(
+                f"two objects matched by '{shown(spec[kind])}' share the stem '{stem}' ({seen[stem]} and {remote.url}); rename one", where
+            )
+            continue
+        seen[stem] = remote.url
+        try:
+            by_stem[stem] = KINDS[kind].compile_source(name, {**spec, kind: remote.url}, ctx.document, ctx.config_dir)
         except UserError as exc:
             ctx.problems.extend(exc)
     return by_stem
@@ -329,6 +356,8 @@ def _inputs_of(ctx: CompileContext, plan: SourcePlan) -> tuple[Path, ...]:
     the read rule here (a data file linked out of the dataset, or a data_path leading out of it, is refused)."""
     from ..sources import lerobot
 
+    if getattr(plan, "remote", None) is not None:
+        return ()  # a remote file: its URL and version are part of the plan, and so of the content hash; no bytes here
     if not isinstance(plan, LeRobotSourcePlan):
         return (plan.path,)
     inputs = lerobot.episode_inputs(plan)

@@ -2,7 +2,8 @@
 
 What goes in: the pipeline's version, the compiled plan for that output (joint mapping, corrections, edges, the
 resolved URDF text: what the YAML means, not its comments or key order), and the bytes of the files it reads
-(the segment's input files; for outputs holding the model, the mesh files).
+(the segment's input files; for outputs holding the model, the mesh files). A remote input goes in as its URL and
+its version (the S3 ETag), read by one HEAD when the config is compiled: an unchanged object is not downloaded.
 """
 
 from __future__ import annotations
@@ -62,9 +63,11 @@ def _file_sha256(path: Path, size: int, mtime_ns: int) -> str:  # size and mtime
 def _canonical(value: Any) -> Any:
     """JSON-able form of a plan part; `where` (config line numbers) is left out: moving a line changes no output."""
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        # a remote file is its URL and version; its `path` is where this machine's download cache keeps it
+        left_out = {"where", "path"} if getattr(value, "remote", None) is not None else {"where"}
         return {
             "type": type(value).__name__,
-            **{f.name: _canonical(getattr(value, f.name)) for f in dataclasses.fields(value) if f.name != "where"},
+            **{f.name: _canonical(getattr(value, f.name)) for f in dataclasses.fields(value) if f.name not in left_out},
         }
     if isinstance(value, tuple | list):
         return [_canonical(v) for v in value]

@@ -21,6 +21,7 @@ from .limits_report import check_joint_statistics
 from .model_stream import cached_tree, robot_model_stream
 from .progress_meter import RowMeter, source_meter
 from .provenance import provenance_stream
+from .remote_inputs import local_inputs
 from .segment_summary import TimeRanges, ValuePreview, observed, segment_summary
 from .stream_writer import drain_streams
 from .summary_record import SegmentSummary
@@ -66,7 +67,8 @@ def execute(
         log(f"reading {len(plan.sources)} source(s), computing forward kinematics for {len(plan.robots)} robot(s)")
     log(f"writing {plan.output.path}")
     # A source found out of time order part-way is read again, whole and sorted: the attempt opens every stream anew.
-    written, rows, notes, summary = with_sorting_retry(lambda: _write(plan, parts, provenance or {}, on_note, quiet, rows_expected))
+    with local_inputs(plan) as local:  # remote sources fetched into this machine's cache, held while read
+        written, rows, notes, summary = with_sorting_retry(lambda: _write(local, parts, provenance or {}, on_note, quiet, rows_expected))
     return RunResult(written, rows, notes, time.perf_counter() - started, summary)
 
 

@@ -18,15 +18,16 @@ import re
 from dataclasses import dataclass
 from typing import Literal
 
+from ..confine import URL, is_remote
 from ..errors import UserError, Where, shown
 
 ALLOW_URLS_ENV = "URDF_PIPELINE_ALLOW_URLS"
 SCHEMES = ("s3", "hf")
 URL_LIMIT = 1024  # characters: S3 keys are at most 1024 bytes
-# `s3://`, `hf://`, and anything else a person might write as a URL (`https://`, `gs://`, `file://`): refused by name
-SCHEME = re.compile(r"^([A-Za-z][A-Za-z0-9+.-]*):(//|\\\\)")
+SCHEME = URL  # `s3://`, `hf://`, and anything else a person might write as a URL (`https://`, `gs://`, `file://`)
 BUCKET = re.compile(r"^[a-z0-9][a-z0-9.-]{1,61}[a-z0-9]$")  # S3's bucket names (no uppercase, no underscore)
 HUB_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,95}$")  # an ORG or NAME on the Hub
+HUB_ORGANISATION = re.compile(r"^hf://datasets/([A-Za-z0-9][A-Za-z0-9._-]{0,95})/?$")  # an allow entry: a whole organisation
 REVISION = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._/-]{0,199}$")  # a branch, tag or commit sha
 
 
@@ -54,6 +55,10 @@ class RemoteUrl:
         joined = f"{self.key.rstrip('/')}/{key}" if self.key else key
         return RemoteUrl(self.scheme, self.bucket, self.repo, self.revision, joined)
 
+    def child_prefix(self, prefix: str) -> RemoteUrl:
+        """The listing prefix `prefix/` in the same bucket or dataset ("" for all of it)."""
+        return RemoteUrl(self.scheme, self.bucket, self.repo, self.revision, f"{prefix}/" if prefix else "")
+
     def with_revision(self, revision: str) -> RemoteUrl:
         return RemoteUrl(self.scheme, self.bucket, self.repo, revision, self.key)
 
@@ -63,19 +68,13 @@ class RemoteUrl:
         return self.key.rstrip("/").rsplit("/", 1)[-1] or self.repo.rsplit("/", 1)[-1] or self.bucket
 
 
-def is_remote(text: str) -> bool:
-    """True for anything written as a URL (`SCHEME://`): such a string is never read as a local path, whatever its
-    scheme, so `s3://x` can never become the relative file `s3:/x`."""
-    return bool(SCHEME.match(text))
-
-
 def parse_url(text: str, where: Where | None = None, what: str = "location") -> RemoteUrl:
     """`text` as a RemoteUrl, or a UserError at `where` naming what is wrong and the forms that are right."""
     if len(text) > URL_LIMIT:
         raise UserError(f"{what} {shown(text)} is longer than {URL_LIMIT} characters", where)
     if any(ord(c) < 32 or ord(c) == 127 for c in text) or "\\" in text:
         raise UserError(f"{what} {shown(text)} holds a control character or a backslash; write the URL plainly", where)
-    match = SCHEME.match(text)
+    match = SCHEME.match(text) if is_remote(text) else None
     scheme = match.group(1).lower() if match else ""
     if scheme not in SCHEMES:
         raise UserError(
@@ -128,6 +127,8 @@ class AllowedPrefix:
 
     def allows(self, url: RemoteUrl) -> bool:
         mine = self.location
+        if mine.repo.endswith("/"):  # hf://datasets/ORG/: every dataset of the organisation
+            return url.scheme == "hf" and url.repo.startswith(mine.repo)
         if (mine.scheme, mine.bucket, mine.repo) != (url.scheme, url.bucket, url.repo):
             return False
         if mine.revision and mine.revision != url.revision:
@@ -146,6 +147,10 @@ def allowed_prefixes(environ: dict[str, str] | None = None) -> tuple[AllowedPref
     entries = [entry.strip() for entry in text.split(",") if entry.strip()]
     prefixes = []
     for entry in entries:
+        organisation = HUB_ORGANISATION.match(entry)
+        if organisation:
+            prefixes.append(AllowedPrefix(RemoteUrl("hf", "", organisation.group(1) + "/", "", "")))
+            continue
         try:
             prefixes.append(AllowedPrefix(parse_url(entry, None, f"{ALLOW_URLS_ENV} entry")))
         except UserError as exc:

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from ..config import Document
-from ..confine import Unresolvable, confinement_for, file_state, resolved
+from ..confine import Unresolvable, confinement_for, file_state, refuse_url, resolved
 from ..errors import UserError, Where, escaped, has_control_character
 from .stream import SourceStream
 
@@ -75,6 +75,12 @@ class SourceKind(Protocol):
 
     def describe(self, name: str, path: str, part: str | None, document: Document) -> SourceDescription: ...
 
+    def check_download(self, plan: Any) -> None: ...  # a remote file's data checks, once `run` downloaded it
+
+
+def no_remote_files(plan: Any) -> None:
+    """`check_download` of a kind that reads no remote file yet (its plans never hold one)."""
+
 
 def resolve_input(document: Document, config_dir: Path, path: str, *where: str | int, directory: bool = False) -> Path:
     """A path from the config, relative to the config file; it must exist. A path the OS cannot follow (a symlink
@@ -82,6 +88,7 @@ def resolve_input(document: Document, config_dir: Path, path: str, *where: str |
     located = document.where(*where)
     what = f"{where[-1]} {'folder' if directory else 'file'}"  # "parquet file", "lerobot folder"
     refuse_control_characters(path, what, located)
+    refuse_url(path, what, located)  # a kind that reads remote files takes its URL before this
     named = config_dir / path  # an absolute `path` stays itself, and is shown as given (a glob's match, a link)
     try:
         real = named if Path(path).is_absolute() else resolved(named)

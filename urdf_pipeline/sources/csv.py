@@ -19,12 +19,13 @@ import pyarrow.csv as pa_csv
 from ..config import Document
 from ..errors import UserError, Where
 from ..plan import CsvSourcePlan
-from .base import SourceDescription, file_input, resolve_input
+from .base import SourceDescription, file_input, no_remote_files, resolve_input
 from .ordering import with_duplicates
 from .stream import SourceStream
 from .time_range import index_problem
 from .wide import describe_wide, reading_error, wide_columns, wide_stream
 
+check_download = no_remote_files
 PLAN_TYPE = CsvSourcePlan
 SPEC_FORM = "csv:FILE"
 SUFFIXES = (".csv",)

@@ -13,12 +13,13 @@ from typing import Any
 from ..config import Document
 from ..errors import UserError, Where, listing
 from ..plan import Hdf5SourcePlan, IndexPlan
-from .base import EntryField, SourceDescription, file_input, resolve_input
+from .base import EntryField, SourceDescription, file_input, no_remote_files, resolve_input
 from .integrity import HDF5_BLOCK_ROWS, check_hdf5_datasets, hdf5_file_problem, hdf5_storage_problem
 from .ordering import in_blocks, in_time_order, with_duplicates
 from .stream import SourceStream, compile_index, index_column
 from .time_range import check_index_batches
 
+check_download = no_remote_files
 PLAN_TYPE = Hdf5SourcePlan
 SPEC_FORM = "hdf5:FILE#/DATASET"
 SUFFIXES = (".h5", ".hdf5")

@@ -15,7 +15,7 @@ from ..config import Document
 from ..confine import file_state
 from ..errors import UserError, Where
 from ..plan import IndexPlan, LeRobotSourcePlan
-from .base import EntryField, SourceDescription, resolve_input
+from .base import EntryField, SourceDescription, no_remote_files, resolve_input
 from .integrity import check_parquet_pages
 from .ordering import in_time_order, with_duplicates
 from .stream import SourceStream
@@ -24,6 +24,7 @@ if TYPE_CHECKING:
     from rerun.chunk import Chunk
 
 T = TypeVar("T")
+check_download = no_remote_files
 PLAN_TYPE = LeRobotSourcePlan
 SPEC_FORM = "lerobot:DIR[#FEATURE]"
 SUFFIXES: tuple[str, ...] = ()  # a folder: `is_dataset` says it

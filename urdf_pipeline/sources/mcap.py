@@ -18,7 +18,7 @@ import pyarrow.compute as pc
 from ..config import Document
 from ..errors import UserError, Where, listing
 from ..plan import McapSourcePlan
-from .base import EntryField, SourceDescription, file_input, resolve_input
+from .base import EntryField, SourceDescription, file_input, no_remote_files, resolve_input
 from .mcap_probe import MESSAGE_COMPONENT, probe, topic_entity, topic_messages
 from .named_rows import NAME_FIELD, NAMED_COMPONENT, VALUE_FIELD, named_rows_column
 from .ordering import in_time_order, with_duplicates
@@ -28,6 +28,7 @@ from .time_range import INT64_MAX
 if TYPE_CHECKING:
     from rerun.chunk import Chunk, McapChannelInfo
 
+check_download = no_remote_files
 PLAN_TYPE = McapSourcePlan
 SPEC_FORM = "mcap:FILE[#TOPIC]"
 SUFFIXES = (".mcap",)

@@ -4,6 +4,7 @@ wide table, one numeric column per name (no `column` in the config; read with py
 from __future__ import annotations
 
 from collections.abc import Iterator
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -11,8 +12,9 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from ..config import Document
-from ..errors import UserError, listing
+from ..errors import UserError, Where, listing
 from ..plan import ParquetSourcePlan
+from ..remote import is_remote
 from .base import EntryField, SourceDescription, file_input, resolve_input
 from .integrity import check_parquet_pages, refuse_empty_parquet
 from .ordering import in_time_order, with_duplicates
@@ -38,19 +40,46 @@ def _numeric_list_width(field_type: pa.DataType) -> int | None | bool:
 
 def compile_source(name: str, spec: dict[str, Any], document: Document, config_dir: Path) -> ParquetSourcePlan:
     here = ("sources", name)
+    if is_remote(spec["parquet"]):
+        return _compile_remote(name, spec, document)
     path = resolve_input(document, config_dir, spec["parquet"], *here, "parquet")
     try:
         schema = pq.read_schema(path)
     except (pa.ArrowInvalid, OSError) as exc:
         raise UserError(f"cannot read parquet schema of {path}: {exc}", document.where(*here, "parquet")) from None
+    plan = _checked(name, spec, document, path, path.name, schema)
+    refuse_empty_parquet(path, document.where(*here, "parquet"))  # from the footer, before any data page
+    _check_data(plan, document.where(*here, "parquet"), document.where(*here, "index"))
+    return plan
+
+
+def _compile_remote(name: str, spec: dict[str, Any], document: Document) -> ParquetSourcePlan:
+    """`parquet: s3://BUCKET/KEY`: the object's ETag and footer only (ranged GETs), never its data pages; those are
+    checked when `run` has downloaded it (`check_download`)."""
+    from ..remote import cached_path, open_range, remote_file
+
+    where = document.where("sources", name, "parquet")
+    remote = remote_file(spec["parquet"], where, "parquet file")
+    try:
+        with open_range(remote, where) as reader:
+            metadata = pq.read_metadata(reader)
+    except (pa.ArrowInvalid, OSError) as exc:
+        raise UserError(f"cannot read the parquet footer of {remote.url}: {exc}", where) from None
+    plan = _checked(name, spec, document, cached_path(remote), remote.url.rsplit("/", 1)[-1], metadata.schema.to_arrow_schema())
+    if metadata.num_rows == 0:
+        raise UserError(f"parquet file {remote.url} has zero rows (its footer says so); a source with zero rows moves nothing", where)
+    return replace(plan, remote=remote)
+
+
+def _checked(name: str, spec: dict[str, Any], document: Document, path: Path, shown_name: str, schema: pa.Schema) -> ParquetSourcePlan:
+    """The plan, from the schema alone: the column and index exist and have types that fit."""
+    here = ("sources", name)
     if "column" not in spec:  # a wide table: checked from the footer alone; pyarrow reads it (no page check needed)
-        index, names = wide_columns(spec, "parquet", path, schema, document, here)
-        refuse_empty_parquet(path, document.where(*here, "parquet"))
-        check_parquet_index(path, index, document.where(*here, "index"))  # the index column alone: times that fit
+        index, names = wide_columns(spec, "parquet", Path(shown_name), schema, document, here)
         return with_duplicates(ParquetSourcePlan(name, path, None, index, names, document.where(*here)), spec)
     column = spec["column"]
     if column not in schema.names:
-        raise UserError(f"column '{column}' not in {path.name}; it has: {', '.join(schema.names)}", document.where(*here, "column"))
+        raise UserError(f"column '{column}' not in {shown_name}; it has: {', '.join(schema.names)}", document.where(*here, "column"))
     width = _numeric_list_width(schema.field(column).type)
     if width is False:
         raise UserError(
@@ -63,15 +92,26 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
     index = compile_index(spec["index"])
     if index.column not in schema.names:
         raise UserError(
-            f"index column '{index.column}' not in {path.name}; it has: {', '.join(schema.names)}", document.where(*here, "index")
+            f"index column '{index.column}' not in {shown_name}; it has: {', '.join(schema.names)}", document.where(*here, "index")
         )
     problem = index_type_problem(index.column, schema.field(index.column).type, index.kind)
     if problem is not None:
         raise UserError(problem, document.where(*here, "index"))
-    refuse_empty_parquet(path, document.where(*here, "parquet"))  # from the footer, before any data page
-    # corrupt pages: a user error here; in the same pass, index values beyond int64 ns (Rerun's reader would wrap them)
-    check_parquet_pages(path, [column, index.column], document.where(*here, "parquet"), index, document.where(*here, "index"))
     return with_duplicates(ParquetSourcePlan(name, path, column, index, names, document.where(*here)), spec)
+
+
+def _check_data(plan: ParquetSourcePlan, where: Where, index_where: Where) -> None:
+    """What only the data pages tell: they decode, and the index values fit a timeline."""
+    if plan.column is None:
+        check_parquet_index(plan.path, plan.index, index_where)  # the index column alone: times that fit
+    else:
+        # corrupt pages: a user error here; in the same pass, index values beyond int64 ns (Rerun's reader would wrap them)
+        check_parquet_pages(plan.path, [plan.column, plan.index.column], where, plan.index, index_where)
+
+
+def check_download(plan: ParquetSourcePlan) -> None:
+    """A remote file's data checks, once `run` has downloaded it to `plan.path` (compile read its footer only)."""
+    _check_data(plan, plan.where, plan.where)
 
 
 def _batches(plan: ParquetSourcePlan) -> Iterator[pa.RecordBatch]:

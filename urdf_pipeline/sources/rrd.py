@@ -18,7 +18,7 @@ import pyarrow.compute as pc
 from ..config import Document
 from ..errors import UserError
 from ..plan import RrdSourcePlan
-from .base import EntryField, SourceDescription, file_input, resolve_input
+from .base import EntryField, SourceDescription, file_input, no_remote_files, resolve_input
 from .lerobot import VECTOR_COMPONENT
 from .named_rows import NAMED_COMPONENT, named_rows_column
 from .ordering import in_time_order, read_all, with_duplicates
@@ -27,6 +27,7 @@ from .stream import SourceStream
 if TYPE_CHECKING:
     from rerun.chunk import Chunk, LazyStore
 
+check_download = no_remote_files
 PLAN_TYPE = RrdSourcePlan
 SPEC_FORM = "rrd:FILE#ENTITY"
 SUFFIXES = (".rrd",)

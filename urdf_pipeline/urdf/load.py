@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..confine import Confinement
+from ..confine import Confinement, refuse_url
 from ..errors import UserError, Where
 from .xacro_guard import XacroBudget, XacroRequest, expand_xacro
 
@@ -60,6 +60,7 @@ def _read(path: Path, where: Where) -> str:
 
 
 def _plain(urdf: str, config_dir: Path, confinement: Confinement, where: Where) -> LoadedUrdf:
+    refuse_url(urdf, "URDF", where)
     if Path(urdf).name.endswith(".xacro"):
         raise UserError(f"'{urdf}' is a xacro file, not a URDF; use the xacro form: urdf: {{xacro: {urdf}, args: {{...}}}}", where)
     path = confinement.check_read(
@@ -79,6 +80,7 @@ def _xacro(
     budget: XacroBudget | None,
 ) -> LoadedUrdf:
     """Expanded in a bounded child process that refuses code, the environment and files outside the config's roots."""
+    refuse_url(str(spec["xacro"]), "xacro file", where)
     path = confinement.check_read(
         Path(os.path.abspath(config_dir / spec["xacro"])), "xacro file", where
     )  # resolved; OS errors are user errors

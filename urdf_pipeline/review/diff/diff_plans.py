@@ -142,7 +142,11 @@ def _source_files(path_value: Callable[[Path], PathValue], plan: Plan, name: str
     segments = plan.dataset.segments
     plans = [s for segment in segments for s in segment.sources if s.name == name] or [plan.for_segment(plan.segments[0]).source(name)]
     for source in plans:
-        value = path_value(source.root if isinstance(source, LeRobotSourcePlan) else source.path)
+        remote = getattr(source, "remote", None)
+        if remote is not None:  # a remote file is its URL (a new version of it is no change to the config)
+            value = PathValue(remote.url, remote.url)
+        else:
+            value = path_value(source.root if isinstance(source, LeRobotSourcePlan) else source.path)
         if value not in files:
             files.append(value)
     return files

@@ -160,7 +160,7 @@ def _source(source: SourcePlan, paths: _Paths) -> SourceEntry:
     settings: list[tuple[str, SettingValue]] = []
     for item in fields(source):
         value = getattr(source, item.name)
-        if item.name in ("name", "where", "names", file_key):
+        if item.name in ("name", "where", "names", file_key, "remote"):
             continue
         assert value is None or isinstance(value, str | int | bool | IndexPlan), f"{item.name}: {value!r}"
         settings.append((item.name, value))
@@ -168,7 +168,7 @@ def _source(source: SourcePlan, paths: _Paths) -> SourceEntry:
         source.name,
         type(source).__name__.removesuffix("SourcePlan").lower(),
         file_key,
-        paths(getattr(source, file_key)),
+        ShownPath(source.path, remote.url) if (remote := getattr(source, "remote", None)) is not None else paths(getattr(source, file_key)),
         tuple(source.names),
         tuple(sorted(settings, key=lambda s: s[0])),
     )
