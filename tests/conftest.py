@@ -117,8 +117,6 @@ def s3_endpoint() -> Iterator[str]:
 
 @pytest.fixture
 def s3(s3_endpoint: str, monkeypatch: pytest.MonkeyPatch, request: pytest.FixtureRequest) -> S3:
-    from urdf_pipeline.remote.s3_objects import client
-
     from .s3_server import CREDENTIALS
 
     for name, value in CREDENTIALS.items():
@@ -127,7 +125,6 @@ def s3(s3_endpoint: str, monkeypatch: pytest.MonkeyPatch, request: pytest.Fixtur
     bucket = "t-" + "".join(c if c.isalnum() else "-" for c in request.node.name.lower())[:40].strip("-") + f"-{len(_BUCKETS)}"
     _BUCKETS.append(bucket)
     monkeypatch.setenv("URDF_PIPELINE_ALLOW_URLS", f"s3://{bucket}/")
-    client.cache_clear()
     found = S3(s3_endpoint, bucket)
     found.client().create_bucket(Bucket=bucket)
     return found

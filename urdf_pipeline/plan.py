@@ -327,6 +327,18 @@ class Segment:
 
 
 @dataclass(frozen=True)
+class RemoteOutputs:
+    """Outputs in one S3 bucket: every output path of the plan is under `staging` (this machine's folder mirroring the
+    bucket), where a recording is written as locally before it is uploaded to its URL and removed."""
+
+    staging: Path
+    url_root: str  # s3://BUCKET/
+
+    def url_of(self, path: Path) -> str:
+        return self.url_root + path.relative_to(self.staging).as_posix()
+
+
+@dataclass(frozen=True)
 class DatasetPlan:
     """The segments of a run and how they are written."""
 
@@ -336,6 +348,7 @@ class DatasetPlan:
     manifest: Path
     where: Where  # output.segment, for errors about segments
     joint_series: bool = False  # output.joint_series: each segment also holds its driven joints' values as time series
+    remote: RemoteOutputs | None = None  # outputs in S3: the staged paths above and their URLs
 
 
 @dataclass(frozen=True)

@@ -95,8 +95,8 @@ def _say_results(run: DatasetRun, many: bool, joint_series: bool) -> None:
         say(totals_line(run.results, run.seconds) + f"; manifest {run.manifest}")
     else:
         _print_single(run.results[0])
-    for output in run.outputs:
-        print(neutral_line(str(output)))
+    for output in run.locations:
+        print(neutral_line(output))
     for result in run.bugs:
         print(neutral_text(f"{result.label}: {result.reason}"), file=sys.stderr)
 

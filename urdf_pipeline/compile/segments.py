@@ -15,12 +15,13 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from ..confine import Unresolvable, file_state, resolved, resolved_or_written
+from ..confine import Unresolvable, file_state, resolved
 from ..errors import UserError, Where, listing, shown
 from ..plan import DatasetPlan, LeRobotSourcePlan, Segment, SourcePlan
 from ..remote import is_remote, remote_glob
 from ..sources import KINDS, kind_of, refuse_control_characters
 from .context import CompileContext
+from .output_paths import dataset_plan, output_paths
 
 GLOB_CHARACTERS = re.compile(r"[*?\[]")
 EPISODES_RANGE = re.compile(r"^(\d*):(\d*)$")
@@ -211,7 +212,7 @@ def expand_segments(ctx: CompileContext, sources: CompiledSources, episodes_over
     ids = _segment_ids(ctx, output["segment"], keys, where_segment)
     if ids is None:
         return None
-    paths = _output_paths(ctx, output["path"], ids)
+    paths = output_paths(ctx, output["path"], ids)
     if paths is None:
         return None
     segments = []
@@ -220,7 +221,7 @@ def expand_segments(ctx: CompileContext, sources: CompiledSources, episodes_over
         inputs = tuple(dict.fromkeys(p for plan in own for p in _inputs_of(ctx, plan)))
         rows = frames.get(episode) if episodic and episode is not None else None
         segments.append(Segment(segment_id, episode, stem, own, path, rows, inputs))
-    return _dataset_plan(ctx, tuple(segments))
+    return dataset_plan(ctx, tuple(segments))
 
 
 NOTHING_TO_SELECT = "episodes selects LeRobot episodes (a lerobot source without `episode:`) or globbed files; this config has neither"
@@ -260,9 +261,9 @@ def check_segments_without_data(ctx: CompileContext) -> None:
         pinned = [spec["episode"] for spec in specs.values() if kind_of(spec) == "lerobot"]
         key = (pinned[0] if len(pinned) == 1 else None, None)
     ids = _segment_ids(ctx, output["segment"], [key], ctx.where("output", "segment"))
-    paths = _output_paths(ctx, output["path"], ids) if ids is not None else None
+    paths = output_paths(ctx, output["path"], ids) if ids is not None else None
     if ids is not None and paths is not None:
-        _dataset_plan(ctx, (Segment(ids[0], key[0], key[1], (), paths[0], None, ()),))
+        dataset_plan(ctx, (Segment(ids[0], key[0], key[1], (), paths[0], None, ()),))
 
 
 def _common_stems(ctx: CompileContext, files: dict[str, dict[str, SourcePlan]]) -> list[str] | None:
@@ -326,22 +327,6 @@ def _segment_ids(ctx: CompileContext, template: str, keys: list[tuple[int | None
     return ids
 
 
-def _output_paths(ctx: CompileContext, template: str, ids: list[str]) -> list[Path] | None:
-    problems = ctx.problems
-    where = ctx.where("output", "path")
-    fields = [name for _, name, _, _ in string.Formatter().parse(template) if name is not None]
-    unknown = [name for name in fields if name != "segment"]
-    if unknown:
-        problems.add(
-            f"output.path uses unknown placeholder(s) {listing(['{' + n + '}' for n in unknown])}; only {{segment}} is known", where
-        )
-        return None
-    if len(ids) > 1 and "segment" not in fields:
-        problems.add(f"{len(ids)} segments would all be written to '{template}'; put {{segment}} in output.path", where)
-        return None
-    return [resolved_or_written(ctx.config_dir / template.format(segment=i)) for i in ids]
-
-
 def _source_for(plan: SourcePlan, sources: CompiledSources, episode: int | None, stem: str | None) -> SourcePlan:
     if isinstance(plan, LeRobotSourcePlan) and plan.per_segment:
         assert episode is not None  # segments of per-episode sources are keyed by episode
@@ -364,60 +349,3 @@ def _inputs_of(ctx: CompileContext, plan: SourcePlan) -> tuple[Path, ...]:
     for file in inputs[1:]:  # one iteration per data file
         ctx.confinement.check_read(file, f"episode {plan.episode}: LeRobot data file", plan.where)
     return inputs
-
-
-def _dataset_plan(ctx: CompileContext, segments: tuple[Segment, ...]) -> DatasetPlan | None:
-    problems, output, config_dir = ctx.problems, ctx.data["output"], ctx.config_dir
-    layout = output.get("layout", "single")
-    model: Path | None = None
-    if layout == "split":
-        if "model" not in output:
-            problems.add(
-                "layout: split writes the robot model once: give its path in output.model (e.g. out/model.rrd)",
-                ctx.where("output", "layout"),
-            )
-            return None
-        if "{" in output["model"]:
-            problems.add("output.model is written once for all segments: it takes no placeholder", ctx.where("output", "model"))
-            return None
-        model = resolved_or_written(config_dir / output["model"])
-        if any(s.output == model for s in segments):
-            problems.add(f"output.model {model} is also a segment's output path", ctx.where("output", "model"))
-            return None
-    elif "model" in output:
-        problems.add("output.model is only used with layout: split; remove it or set layout: split", ctx.where("output", "model"))
-        return None
-    if "manifest" in output:
-        manifest = resolved_or_written(config_dir / output["manifest"])
-    else:
-        directory = _fixed_directory(output["path"], config_dir)
-        manifest = directory / f"{ctx.document.file.stem}.manifest.json"
-    if not _outputs_confined(ctx, segments, model, manifest):
-        return None
-    return DatasetPlan(layout, segments, model, manifest, ctx.where("output", "segment"), bool(output.get("joint_series", False)))
-
-
-def _outputs_confined(ctx: CompileContext, segments: tuple[Segment, ...], model: Path | None, manifest: Path) -> bool:
-    """Every file a run writes (recordings, model, manifest, the blueprint beside it) obeys confine.py's write rule."""
-    confinement = ctx.confinement
-    blueprint = manifest.parent / f"{ctx.document.file.stem}.rbl"
-    writes = [(s.output, "the recording", ("output", "path")) for s in segments]
-    writes += [(model, "the model", ("output", "model"))] if model is not None else []
-    manifest_key = ("output", "manifest") if "manifest" in ctx.data["output"] else ("output", "path")
-    writes += [(manifest, "the manifest", manifest_key), (blueprint, "the blueprint", manifest_key)]
-    refused: set[tuple[str, ...]] = set()
-    for path, what, key in writes:
-        if key in refused:
-            continue  # one error per key: every segment of a template outside the folder is outside
-        try:  # the rule, then what is on disk: a folder in the way, a name too long, a symlink loop
-            confinement.check_write(path, what, ctx.where(*key))
-        except UserError as error:
-            refused.add(key)
-            ctx.problems.extend(error)
-    return not refused
-
-
-def _fixed_directory(template: str, base: Path) -> Path:
-    """The deepest directory of output.path before any placeholder: where the manifest goes by default."""
-    fixed = itertools.takewhile(lambda part: "{" not in part, Path(template).parent.parts)
-    return resolved_or_written(base.joinpath(*fixed))

@@ -56,7 +56,18 @@ def _start_fork_server() -> None:
         signal.pthread_sigmask(signal.SIG_SETMASK, previous_mask)
 
 
-def _start_worker(initializer: Callable[..., None] | None, initargs: tuple[object, ...], scratch: str, main: int, no_pandas: bool) -> None:
+def _start_worker(
+    initializer: Callable[..., None] | None,
+    initargs: tuple[object, ...],
+    scratch: str,
+    main: int,
+    no_pandas: bool,
+    environment: dict[str, str],
+) -> None:
+    # The fork server keeps the environment it was started with (an earlier run of this process, in a notebook or a
+    # test session); a worker runs with the run's own (credentials' chains, the allow lists, the caches' folders).
+    os.environ.clear()
+    os.environ.update(environment)
     if no_pandas and not PandasLeftOut.installed():  # as in the run's own process: pyarrow's first array would import it
         sys.meta_path.insert(0, PandasLeftOut())
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -150,7 +161,7 @@ def _start_pool(
         helpers,
         mp_context=context,
         initializer=_start_worker,
-        initargs=(initializer, initargs, scratch, os.getpid(), PandasLeftOut.installed()),
+        initargs=(initializer, initargs, scratch, os.getpid(), PandasLeftOut.installed(), dict(os.environ)),
     )
     ready = threading.Event()
 

@@ -76,11 +76,12 @@ class Manifest:
             return False
         return self.resolve(entry["path"]) == output and _size(output) == entry.get("bytes")
 
-    def record(self, label: str, output: Path, content_hash: str, frames: int, extra: dict[str, Any]) -> None:
+    def record(self, label: str, output: Path, content_hash: str, frames: int, extra: dict[str, Any], size: int | None = None) -> None:
+        """`extra` may hold an uploaded output's `url` and `etag` (its staged file is gone: `size` says its bytes)."""
         entry = {
             "path": os.path.relpath(output, self.path.parent),
             "content_sha256": content_hash,
-            "bytes": output.stat().st_size,
+            "bytes": output.stat().st_size if size is None else size,
             "frames": frames,
             **extra,
         }
@@ -113,7 +114,7 @@ class Manifest:
 
     def outputs(self) -> list[tuple[str, Path]]:
         """(segment id, layer or recording path) of every segment the manifest lists whose file exists."""
-        return [(s, self.resolve(e["path"])) for s, e in sorted(self.segments.items()) if _size(self.resolve(e["path"])) is not None]
+        return [(s, self.resolve(e["path"])) for s, e in sorted(self.segments.items()) if _exists(self, e)]
 
     def _line(self, label: str, entry: dict[str, Any]) -> str:
         """A segment's entry as one line of JSON, made once per entry: a 10,000-segment manifest (summaries and all,
@@ -131,7 +132,7 @@ class Manifest:
         if every_seconds and now - self._last_write < every_seconds:
             return
         self._last_write = now
-        listed = [(label, e) for label, e in sorted(self.segments.items()) if _size(self.resolve(e["path"])) is not None]
+        listed = [(label, e) for label, e in sorted(self.segments.items()) if _exists(self, e)]
         data = {
             "format": FORMAT,
             "urdf_pipeline": __version__,
@@ -182,6 +183,12 @@ def _segment_entry(label: str, path: Path, entry: dict[str, Any]) -> SegmentEntr
     sha = entry.get("content_sha256")
     summary = SegmentSummary.from_json(entry.get("summary"))
     return SegmentEntry(label, path, sha if isinstance(sha, str) else None, number("bytes"), number("frames"), number("episode"), summary)
+
+
+def _exists(manifest: Manifest, entry: dict[str, Any]) -> bool:
+    """The entry's output is there: its file, or (uploaded to S3, `etag`) its object as the run that wrote it saw it
+    (`run` compares the bucket's listing before it trusts an entry)."""
+    return isinstance(entry.get("etag"), str) or _size(manifest.resolve(entry["path"])) is not None
 
 
 def _size(path: Path) -> int | None:

@@ -16,12 +16,14 @@ from typing import TYPE_CHECKING, Any
 
 from ..errors import ExitCode, Problems, UserError
 from ..execute import Parts, SegmentJob, SegmentResult, remove_stale_partials, require_ours, require_writable, run_segment
-from ..plan import Plan
+from ..plan import Plan, RemoteOutputs
 from ..progress import LOGGER, SegmentProgress, process_identity
 from .executors import ExecutorName, executor_for
 from .fingerprint import file_hashes_used, model_hash, remember_file_hashes, segment_hashes
 from .interrupts import exit_status, signal_name, signal_number
 from .manifest import Manifest
+from .remote_outputs import BucketState, adopted, bucket_state, fetch_manifest, refuse_foreign, upload_run_files
+from .remote_outputs import up_to_date as remote_up_to_date
 
 if TYPE_CHECKING:
     from .catalog import CatalogReport
@@ -47,6 +49,7 @@ class DatasetRun:
     interrupted: bool
     signal: int = 0  # what interrupted it: SIGINT (Ctrl-C) or SIGTERM
     blueprint: Path | None = None  # the run's blueprint, when some output was written or is up to date
+    remote: RemoteOutputs | None = None  # outputs in S3: their staged paths' URLs
 
     @property
     def usable(self) -> tuple[SegmentResult, ...]:
@@ -57,6 +60,12 @@ class DatasetRun:
     def outputs(self) -> tuple[Path, ...]:
         """The paths of the usable recordings, in the results' order: what `run` prints on stdout and the API returns."""
         return tuple(r.output for r in self.usable)
+
+    @property
+    def locations(self) -> tuple[str, ...]:
+        """Where the usable recordings are: their paths, or their URLs when the outputs are in S3."""
+        remote = self.remote
+        return tuple(remote.url_of(path) if remote is not None else str(path) for path in self.outputs)
 
     @property
     def failed(self) -> tuple[SegmentResult, ...]:
@@ -81,22 +90,35 @@ class DatasetRun:
 
 def build_jobs(plan: Plan) -> list[SegmentJob]:
     jobs = []
+    remote = plan.dataset.remote
+
+    def url(path: Path) -> str | None:
+        return remote.url_of(path) if remote is not None else None
+
     if plan.dataset.layout == "split" and plan.dataset.model is not None:
-        jobs.append(SegmentJob(None, "model", "model", plan.dataset.model, model_hash(plan), run_plan=plan))
+        model = plan.dataset.model
+        jobs.append(SegmentJob(None, "model", "model", model, model_hash(plan), run_plan=plan, upload=url(model)))
     parts: Parts = "layer" if plan.dataset.layout == "split" else "all"
     hashes = segment_hashes(plan, with_model=parts == "all")
     for segment in plan.dataset.segments:
-        jobs.append(SegmentJob(segment, parts, segment.id, segment.output, hashes[segment.id], segment.frames, run_plan=plan))
+        output = segment.output
+        jobs.append(SegmentJob(segment, parts, segment.id, output, hashes[segment.id], segment.frames, run_plan=plan, upload=url(output)))
     return jobs
 
 
 def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | None = None) -> DatasetRun:
     """Every recording of the plan that is not up to date, written on the executor `options` name; see the module."""
     started = time.perf_counter()
+    remote = plan.dataset.remote
+    if remote is not None:
+        fetch_manifest(plan, remote)  # the last run's, from the bucket (it may have run on another machine)
     manifest = _manifest(plan)
     jobs = build_jobs(plan)
-    results, to_run = _up_to_date(jobs, manifest, options.force)
+    state = bucket_state(plan, remote, jobs) if remote is not None else None
+    results, to_run = _up_to_date(jobs, manifest, options.force, state)
     _prepare_outputs(plan, jobs, to_run, manifest)
+    if state is not None:
+        refuse_foreign(to_run, manifest, state, plan.output_where)
     if progress is not None:
         progress.start(len(jobs), sum(j.frames_expected or 0 for j in to_run), skipped=len(jobs) - len(to_run))
     to_run = _dispatched(to_run, options)
@@ -112,11 +134,15 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
         if progress is not None:
             progress.finish()
         manifest.write()
+        if remote is not None and interrupted:
+            upload_run_files(plan, remote, None)  # what was uploaded before the stop, listed
     ordered = tuple(results[job.label] for job in jobs)
     blueprint = None
     if not interrupted and any(r.status in ("written", "skipped") for r in ordered):
         blueprint = _blueprint(plan, manifest)
-    return DatasetRun(ordered, time.perf_counter() - started, manifest.path, bool(interrupted), interrupted, blueprint)
+    if remote is not None and not interrupted:
+        upload_run_files(plan, remote, blueprint)  # the manifest last
+    return DatasetRun(ordered, time.perf_counter() - started, manifest.path, bool(interrupted), interrupted, blueprint, remote)
 
 
 def _manifest(plan: Plan) -> Manifest:
@@ -126,7 +152,9 @@ def _manifest(plan: Plan) -> Manifest:
     return manifest
 
 
-def _up_to_date(jobs: list[SegmentJob], manifest: Manifest, force: bool) -> tuple[dict[str, SegmentResult], list[SegmentJob]]:
+def _up_to_date(
+    jobs: list[SegmentJob], manifest: Manifest, force: bool, state: BucketState | None = None
+) -> tuple[dict[str, SegmentResult], list[SegmentJob]]:
     """The results of the jobs whose output is up to date (skipped unless `force`), and the jobs to run."""
     # Hashes of files this run did not read (other episodes: `--episodes`) are kept while the file is there, so that
     # the next full re-run does not read them again; a changed file is hashed again anyway (size and mtime).
@@ -135,14 +163,26 @@ def _up_to_date(jobs: list[SegmentJob], manifest: Manifest, force: bool) -> tupl
     results: dict[str, SegmentResult] = {}
     to_run: list[SegmentJob] = []
     for job in jobs:
-        fresh = manifest.up_to_date(job.label, job.output, job.content_hash)
-        if not fresh and manifest.entry(job.label) is None:  # no manifest (deleted, another machine): the file says
+        if state is not None:  # outputs in S3: the bucket's listing says, then (not listed as it is) the object's metadata
+            fresh = remote_up_to_date(job, manifest, state) or (not force and _adopted_remote(job, manifest, state))
+        else:
+            fresh = manifest.up_to_date(job.label, job.output, job.content_hash)
+        if not fresh and state is None and manifest.entry(job.label) is None:  # no manifest (deleted, another machine)
             fresh = _adopt_if_written(job, manifest)
         if fresh and not force:
             results[job.label] = SegmentResult(job.label, job.output, "skipped", job.content_hash, reason="up to date")
         else:
             to_run.append(job)
     return results, to_run
+
+
+def _adopted_remote(job: SegmentJob, manifest: Manifest, state: BucketState) -> bool:
+    """An object of ours with this content hash the manifest does not list (left for `refuse_foreign` to name when
+    it is not ours)."""
+    try:
+        return adopted(job, manifest, state, None)
+    except UserError:
+        return False
 
 
 def _dispatched(to_run: list[SegmentJob], options: RunOptions) -> list[SegmentJob]:
@@ -170,7 +210,9 @@ class _Bookkeeper:
             extra: dict[str, Any] = {"episode": job.segment.episode} if job.segment is not None else {}
             if result.summary is not None:
                 extra["summary"] = result.summary.as_json()
-            self.manifest.record(job.label, job.output, job.content_hash, result.frames, extra)
+            if job.upload is not None:  # uploaded by the worker, its staged file removed
+                extra.update(url=job.upload, etag=result.etag)
+            self.manifest.record(job.label, job.output, job.content_hash, result.frames, extra, size=result.bytes)
             self.manifest.write(every_seconds=1.0)
         if self.progress is not None:
             self.progress.done(result, job.frames_expected)

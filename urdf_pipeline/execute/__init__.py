@@ -18,7 +18,7 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
     from .model_stream import cached_tree, robot_model_stream
     from .provenance import stored_content_hash
     from .segment import Parts, RunResult, execute, log_segment
-    from .segment_run import SegmentJob, SegmentResult, install_run_plan, run_segment
+    from .segment_run import CONTENT_METADATA, SegmentJob, SegmentResult, install_run_plan, run_segment
     from .summary_record import JointPreview, SegmentSummary, TimeRange
     from .viewer_delivery import send_to_viewer, viewer_binary
     from .writer import process_alive, remove_stale_partials, require_ours, require_writable, write_file_atomically

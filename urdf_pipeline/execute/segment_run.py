@@ -37,11 +37,22 @@ class SegmentJob:
     log_level: int = logging.INFO  # the run's process's level for the `urdf_pipeline` logger (--quiet, --verbose)
     driver: str = ""  # host:pid of the run's process: a worker elsewhere sets up its own logging at `log_level`
     run_plan: Plan | None = None  # None when the worker was given the run's plan once, at its start (install_run_plan)
+    upload: str | None = None  # outputs in S3: the recording's URL (written to this machine's staging folder first)
 
     def plan(self) -> RecordingPlan:
-        """This job's recording, cut from the run's plan: the segment's sources and output, or the model's."""
+        """This job's recording, cut from the run's plan: the segment's sources and output, or the model's. An output
+        bound for S3 is written to THIS machine's staging folder (a Ray worker's is not the driver's)."""
         run_plan = self.run_plan or _INSTALLED[0]
-        return run_plan.for_model() if self.segment is None else run_plan.for_segment(self.segment)
+        recording = run_plan.for_model() if self.segment is None else run_plan.for_segment(self.segment)
+        if self.upload is None:
+            return recording
+        return replace(recording, output=replace(recording.output, path=self.staged()))
+
+    def staged(self) -> Path:
+        """Where this machine writes the job's recording before its upload (the plan's path when not bound for S3)."""
+        from ..remote import parse_url, staged_path
+
+        return self.output if self.upload is None else staged_path(parse_url(self.upload))
 
 
 _INSTALLED: list[Plan] = []
@@ -66,6 +77,7 @@ class SegmentResult:
     worker: str = ""  # host:pid of the process that ran it
     peak_rss_mib: float = 0.0  # that process's peak resident memory so far
     summary: SegmentSummary | None = None  # a written segment's time ranges, notes and preview, for the manifest
+    etag: str = ""  # an output uploaded to S3: its ETag there
 
 
 def run_segment(job: SegmentJob) -> SegmentResult:
@@ -94,7 +106,28 @@ def run_segment(job: SegmentJob) -> SegmentResult:
     frames = max(result.rows.values(), default=0)
     size = result.output.stat().st_size
     written = replace(failed, status="written", frames=frames, bytes=size, notes=tuple(notes), summary=result.summary)
+    if job.upload is not None:
+        try:
+            written = replace(written, etag=_uploaded(job, result.output))
+        except UserError as exc:
+            return _finished(replace(failed, reason="\n".join(exc.lines()), notes=tuple(notes)), started)
     return _finished(written, started)
+
+
+CONTENT_METADATA = "urdf-pipeline-content-sha256"  # an uploaded recording's content hash, as S3 user metadata
+
+
+def _uploaded(job: SegmentJob, staged: Path) -> str:
+    """The staged recording uploaded to its URL (whole or not at all), then removed here: a worker's disk holds one
+    recording at a time. Its content hash goes with it, so a later run knows the object as its own."""
+    from ..remote import parse_url, upload
+
+    assert job.upload is not None
+    try:
+        uploaded = upload(staged, parse_url(job.upload), None, {CONTENT_METADATA: job.content_hash})
+    finally:
+        staged.unlink(missing_ok=True)
+    return uploaded.version
 
 
 def _finished(result: SegmentResult, started: float) -> SegmentResult:

@@ -35,9 +35,14 @@ PART_BYTES = 16 << 20  # a download of a larger object comes in ranges of this s
 PARTS = 4  # ... this many at a time
 
 
-@lru_cache(maxsize=1)
 def client() -> BaseClient:
-    """One S3 client per process (boto3 clients are thread-safe), configured from the environment by boto3 itself."""
+    """One S3 client per process and AWS environment (boto3 clients are thread-safe), configured from the environment
+    by boto3 itself: a notebook that sets AWS_PROFILE between two runs gets a client of the new profile."""
+    return _client(tuple(sorted((name, value) for name, value in os.environ.items() if name.startswith("AWS_"))))
+
+
+@lru_cache(maxsize=4)
+def _client(environment: tuple[tuple[str, str], ...]) -> BaseClient:
     try:
         import boto3
         from botocore.config import Config
@@ -210,13 +215,23 @@ def _part(url: RemoteUrl, remote: RemoteObject, part: tuple[int, int], descripto
         offset += len(block)
 
 
-def upload(source: Path, url: RemoteUrl, where: Where | None) -> RemoteObject:
-    """`source` uploaded to `url` (multipart when large: the object appears whole or not at all), and what it is now."""
+def upload(source: Path, url: RemoteUrl, where: Where | None, metadata: dict[str, str] | None = None) -> RemoteObject:
+    """`source` uploaded to `url` (multipart when large: the object appears whole or not at all, never a part of it
+    under its name), with `metadata` (`x-amz-meta-*`), and what it is now."""
     try:
-        client().upload_file(os.fspath(source), url.bucket, url.key)
+        client().upload_file(os.fspath(source), url.bucket, url.key, ExtraArgs={"Metadata": metadata or {}})
     except _errors() as exc:
         raise s3_error(exc, url.url, where, "write") from None
     return head(url, where)
+
+
+def metadata_of(url: RemoteUrl, where: Where | None) -> dict[str, str]:
+    """The object's user metadata (`x-amz-meta-*`, lowercase keys): one HEAD."""
+    try:
+        answer = client().head_object(Bucket=url.bucket, Key=url.key)
+    except _errors() as exc:
+        raise s3_error(exc, url.url, where) from None
+    return {str(k).lower(): str(v) for k, v in answer.get("Metadata", {}).items()}
 
 
 def delete(url: RemoteUrl, where: Where | None) -> None:

@@ -1,0 +1,112 @@
+"""A run whose outputs go to S3 (`DatasetPlan.remote`): the bucket's side of the manifest and the up-to-date check.
+
+- Before: the manifest is downloaded from its URL into the staging folder (the last run may have been on another
+  machine), and the outputs' prefix is listed once: an output is up to date when its manifest entry has the same
+  content hash and the object still has the ETag the manifest recorded. An object at an output's URL that the
+  manifest does not list is read for our metadata (one HEAD): written by urdf-pipeline with the same content hash, it
+  is adopted (a run killed before its manifest was uploaded); with another hash, it is ours to replace; without our
+  metadata, it is somebody else's and the run refuses, as it never overwrites a file it did not write.
+- During: each worker uploads its recording (execute's `SegmentJob.upload`): an object appears whole or not at all.
+- After (and when stopped): the blueprint and then the manifest are uploaded, the manifest last.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..errors import Problems, UserError, Where, shown
+from ..execute import CONTENT_METADATA, SegmentJob
+from ..plan import Plan, RemoteObject, RemoteOutputs
+from ..remote import download, listing, metadata_of, parse_url, upload
+from .manifest import Manifest
+
+
+@dataclass(frozen=True)
+class BucketState:
+    """What the outputs' prefix holds now, by URL (one listing)."""
+
+    objects: dict[str, RemoteObject]
+
+
+def remote_of(plan: Plan) -> RemoteOutputs | None:
+    return plan.dataset.remote
+
+
+def fetch_manifest(plan: Plan, remote: RemoteOutputs) -> None:
+    """The bucket's manifest, put where the run reads it (the staging folder), or no file when there is none."""
+    path = plan.dataset.manifest
+    url = parse_url(remote.url_of(path))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    found = {o.url: o for o in listing(url, plan.output_where) if o.url == url.url}
+    if url.url not in found:
+        path.unlink(missing_ok=True)
+        return
+    download(found[url.url], path, plan.output_where)
+
+
+def bucket_state(plan: Plan, remote: RemoteOutputs, jobs: list[SegmentJob]) -> BucketState:
+    """One listing of the deepest prefix every output shares."""
+    urls = [job.upload for job in jobs if job.upload is not None]
+    prefix = _common_prefix(urls) if urls else remote.url_root
+    return BucketState({o.url: o for o in listing(parse_url(prefix), plan.output_where)})
+
+
+def _common_prefix(urls: list[str]) -> str:
+    first, last = min(urls), max(urls)
+    shared = 0
+    while shared < min(len(first), len(last)) and first[shared] == last[shared]:
+        shared += 1
+    head = first[:shared]
+    return head[: head.rfind("/") + 1]
+
+
+def up_to_date(job: SegmentJob, manifest: Manifest, state: BucketState) -> bool:
+    """The manifest's entry has this content hash and the object still has the ETag the entry recorded."""
+    entry = manifest.entry(job.label)
+    found = state.objects.get(job.upload or "")
+    return bool(entry and found and entry.get("content_sha256") == job.content_hash and entry.get("etag") == found.version)
+
+
+def adopted(job: SegmentJob, manifest: Manifest, state: BucketState, where: Where | None) -> bool:
+    """An object the manifest does not list as it is now, checked by its metadata: ours with this content hash (a run
+    stopped before its manifest went up) is recorded and up to date; ours with another hash may be replaced; without
+    our metadata it is another writer's, and the run refuses to replace it."""
+    found = state.objects.get(job.upload or "")
+    if found is None:
+        return False
+    written_hash = metadata_of(parse_url(found.url), where).get(CONTENT_METADATA)
+    if written_hash is None:
+        raise UserError(
+            f"cannot write {shown(found.url)}: an object is there that urdf-pipeline did not write; it never overwrites one "
+            "(not even with --force): delete or move it, or choose another output prefix",
+            where,
+        )
+    if written_hash != job.content_hash:
+        return False
+    extra = {"url": found.url, "etag": found.version, **({"episode": job.segment.episode} if job.segment is not None else {})}
+    manifest.record(job.label, job.output, job.content_hash, job.frames_expected or 0, extra, size=found.size)
+    return True
+
+
+def refuse_foreign(to_run: list[SegmentJob], manifest: Manifest, state: BucketState, where: Where | None) -> None:
+    """Every object a job would replace that urdf-pipeline did not write, all at once (nothing is computed first)."""
+    problems = Problems()
+    for job in to_run:
+        entry = manifest.entry(job.label)
+        found = state.objects.get(job.upload or "")
+        if found is None or (entry is not None and entry.get("etag") == found.version):
+            continue
+        try:
+            adopted(job, manifest, state, where)
+        except UserError as error:
+            problems.extend(error)
+    problems.raise_if_any()
+
+
+def upload_run_files(plan: Plan, remote: RemoteOutputs, blueprint: Path | None) -> None:
+    """The blueprint (when the run wrote or kept one), then the manifest: uploaded last, so a reader of the bucket
+    never sees a manifest listing an object that is not there."""
+    for path in (blueprint, plan.dataset.manifest):
+        if path is not None and path.is_file():
+            upload(path, parse_url(remote.url_of(path)), plan.output_where)
