@@ -103,3 +103,12 @@ def test_outputs_go_together(remote_dataset: Path, s3: S3, run_cli) -> None:
     edit_config(remote_dataset, lambda data: data["output"].update(model="out/model.rrd"))
     result = run_cli("validate", str(remote_dataset))
     assert result.code == 1 and "output.path is a URL but output.model is a local path" in result.err, result.err
+
+
+def test_the_run_report_goes_to_the_bucket_with_the_urls(remote_dataset: Path, s3: S3, run_cli) -> None:
+    result = run_cli("run", str(remote_dataset), "--jobs", "1", "--report", s3.url("reports/run.json"))
+    assert result.code == 0, result.err
+    report = json.loads(s3.client().get_object(Bucket=s3.bucket, Key="reports/run.json")["Body"].read())
+    assert {r["output"] for r in report["results"]} >= {s3.url("so101/model.rrd"), s3.url("so101/episode_000000.rrd")}
+    refused = run_cli("run", str(remote_dataset), "--report", "https://example.com/report.json")
+    assert refused.code == 1 and "--report" in refused.err and "https:// is not one" in refused.err

@@ -65,19 +65,20 @@ def _compiled_for_run(args: argparse.Namespace) -> Plan:
 def _run_segments(args: argparse.Namespace, plan: Plan, many: bool) -> DatasetRun:
     """The run on the executor asked for (`many`: with a progress bar, and each result's worker and notes at
     --verbose); with --report, what it did as JSON."""
-    from ..dataset import RunOptions, run_dataset, write_report
+    from ..dataset import RunOptions, report_target, run_dataset, write_report
     from ..progress import LOGGER, SegmentProgress, detail, say
 
     if many:
         say(f"{len(plan.segments)} segment(s), layout {plan.dataset.layout}, {args.jobs} job(s) on the {args.executor} executor")
+    report = report_target(args.report) if args.report else None  # a URL of the wrong form: refused before the run
     options = RunOptions(args.jobs, args.executor, args.ray_address, args.force, verbose=not many)
     run = run_dataset(plan, options, SegmentProgress() if many and LOGGER.isEnabledFor(logging.INFO) else None)
     for result in run.results if many else ():
         detail(f"{result.label}: {result.status} by {result.worker or 'no worker'}, peak {result.peak_rss_mib:.0f} MiB")
         for text in result.notes:
             detail(f"{result.label}: note: {text}")
-    if args.report:
-        write_report(Path(args.report), plan, run, options)
+    if report is not None:
+        write_report(report, plan, run, options)
     return run
 
 

@@ -15,7 +15,7 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
     from .interrupts import exit_status, handle_sigterm, keep_sigterm_handler, restore_sigterm_handler, signal_name, signal_number
     from .manifest import SegmentEntry, segment_summaries
     from .run import DatasetRun, RunOptions, register_outputs, run_dataset
-    from .summary import summary_table, totals_line, write_report
+    from .summary import report_target, summary_table, totals_line, write_report
 
 if not TYPE_CHECKING:  # the names above, imported when first used
     __all__, __getattr__ = lazy_surface(__name__, __file__)

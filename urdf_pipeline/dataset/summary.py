@@ -5,12 +5,14 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import tempfile
 from collections import Counter
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..errors import UserError, neutral_line, shown
 from ..execute import SegmentResult
+from ..remote import is_remote, parse_url, upload
 
 if TYPE_CHECKING:
     from ..plan import Plan
@@ -46,14 +48,25 @@ def totals_line(results: tuple[SegmentResult, ...], seconds: float) -> str:
     return f"{len(results)} outputs: {parts}; {frames:,} frames in {seconds:.1f} s{rate}"
 
 
-def _result(result: SegmentResult) -> dict[str, Any]:
-    """A segment's result as JSON: its summary in the manifest's form (its preview's codes in base64)."""
+def _result(result: SegmentResult, run: DatasetRun) -> dict[str, Any]:
+    """A segment's result as JSON: its summary in the manifest's form (its preview's codes in base64); an output in
+    S3 by its URL."""
     summary = result.summary.as_json() if result.summary is not None else None
-    return {**dataclasses.asdict(result), "output": str(result.output), "summary": summary}
+    output = run.remote.url_of(result.output) if run.remote is not None else str(result.output)
+    return {**dataclasses.asdict(result), "output": output, "summary": summary}
 
 
-def write_report(path: Path, plan: Plan, run: DatasetRun, options: RunOptions) -> None:
-    """`run --report FILE.json`: what the run did, segment by segment, for CI dashboards and benchmarks."""
+def report_target(text: str) -> str:
+    """`--report`'s target, checked before the run: a local path, or an `s3://` URL (the runner's own argument, not a
+    config's: the allow rule for a config's URLs does not apply, its scheme and form do)."""
+    if is_remote(text):
+        parse_url(text, None, "--report")
+    return text
+
+
+def write_report(target: str, plan: Plan, run: DatasetRun, options: RunOptions) -> None:
+    """`run --report FILE.json` (or `s3://BUCKET/KEY.json`): what the run did, segment by segment, for CI dashboards
+    and benchmarks."""
     report = {
         "config": str(plan.config_path),
         "layout": plan.dataset.layout if plan.dataset else "single",
@@ -61,9 +74,16 @@ def write_report(path: Path, plan: Plan, run: DatasetRun, options: RunOptions) -
         "executor": options.executor,
         "seconds": run.seconds,
         "interrupted": run.interrupted,
-        "results": [_result(r) for r in run.results],
+        "results": [_result(r, run) for r in run.results],
     }
+    text = json.dumps(report, indent=1) + "\n"
+    if is_remote(target):
+        with tempfile.TemporaryDirectory(prefix="urdf-pipeline-report-") as folder:
+            local = Path(folder) / "report.json"
+            local.write_text(text, encoding="utf-8")
+            upload(local, parse_url(target, None, "--report"), None)
+        return
     try:
-        path.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
+        Path(target).write_text(text, encoding="utf-8")
     except OSError as exc:
-        raise UserError(f"cannot write the run report {path}: {exc}") from None
+        raise UserError(f"cannot write the run report {target}: {exc}") from None
