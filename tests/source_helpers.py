@@ -54,7 +54,9 @@ def panda_config(
     return path
 
 
-def assert_panda_fk(examples_dir: Path, recording: Path, timeline: str, times: list[int], q: np.ndarray, checked: list[int]) -> None:
+def assert_panda_fk(
+    examples_dir: Path, recording: Path | list[Path], timeline: str, times: list[int], q: np.ndarray, checked: list[int]
+) -> None:
     """Link poses in the recording at times[i] equal pinocchio's for q[i] (radians / metres in PANDA_JOINTS order)."""
     frames = read_frames(recording, timeline)
     recorded_times = sorted({t for by_time in frames.temporal.values() for t in by_time})

@@ -42,19 +42,22 @@ class LocalExecutor:
 
 @dataclass(frozen=True)
 class RayExecutor:
-    """Ray tasks (`--executor ray`): a local instance with `num_cpus`, or the cluster at `address`."""
+    """Ray tasks (`--executor ray`): a local instance with `num_cpus`, or the cluster at `address`. The plan goes
+    to the cluster once (Ray's object store), not with every job."""
 
     address: str | None
     num_cpus: int | None
+    plan: Plan
 
     def run(self, work: Work, jobs: Sequence[SegmentJob], on_done: OnDone, on_crash: OnCrash) -> None:
         from .ray_executor import run_on_ray
 
-        run_on_ray(work, jobs, self.address, on_done, on_crash, num_cpus=self.num_cpus)
+        slim = [replace(job, run_plan=None) for job in jobs]
+        run_on_ray(work, slim, self.address, on_done, on_crash, num_cpus=self.num_cpus, initializer=install_run_plan, shared=self.plan)
 
 
 def executor_for(name: ExecutorName, jobs: int, ray_address: str | None, plan: Plan) -> Executor:
     """The executor the command line asked for."""
     if name == "ray":
-        return RayExecutor(ray_address, jobs)
+        return RayExecutor(ray_address, jobs, plan)
     return LocalExecutor(jobs, plan)

@@ -36,10 +36,16 @@ STOP_GRACE = 5.0  # seconds that interrupted tasks get to run their cleanup befo
 _ANSI_COLOUR = re.compile(r"\x1b\[[0-9;]*m")
 
 
-def _call(work: Callable[[J], R], job: J, scratch: str | None = None) -> R:
-    """The task body; top-level so Ray pickles it by reference."""
+def _call(
+    work: Callable[[J], R], job: J, scratch: str | None = None, initializer: Callable[[Any], None] | None = None, shared: Any = None
+) -> R:
+    """The task body; top-level so Ray pickles it by reference. `shared` (the run's plan) came through Ray's object
+    store, put there once by the driver (a top-level ObjectRef argument: Ray hands the task its value), and
+    `initializer(shared)` installs it for `work`: a job does not carry the whole plan with every segment in it."""
     if scratch is not None and os.path.isdir(scratch):
         tempfile.tempdir = scratch  # a worker of the run's own local instance: the driver removes the folder
+    if initializer is not None:
+        initializer(shared)
     return work(job)
 
 
@@ -50,8 +56,11 @@ def run_on_ray(
     on_done: Callable[[J, R], None],
     on_crash: Callable[[J, BaseException], None],
     num_cpus: int | None = None,
+    initializer: Callable[[Any], None] | None = None,
+    shared: Any = None,
 ) -> None:
     """Call `on_done` for each job as its task finishes; `on_crash` when `work` raised (a bug) or its worker died.
+    `initializer(shared)` runs in the task before `work`; `shared` goes to the cluster once (`ray.put`).
 
     `address` None starts a local instance with `num_cpus` (default: all cores) and stops it afterwards; otherwise
     connect to `auto`, `host:port` or `ray://host:port` and only disconnect. Ctrl-C (or an exception from a callback)
@@ -65,7 +74,7 @@ def run_on_ray(
         return
     scratch = tempfile.mkdtemp(prefix="urdf-pipeline-run-") if address is None else None
     try:
-        _run_tasks(ray, work, jobs, address, on_done, on_crash, num_cpus, scratch)
+        _run_tasks(ray, work, jobs, address, on_done, on_crash, num_cpus, scratch, (initializer, shared))
     finally:
         if scratch is not None:
             shutil.rmtree(scratch, ignore_errors=True)
@@ -80,11 +89,14 @@ def _run_tasks(
     on_crash: Callable[[J, BaseException], None],
     num_cpus: int | None,
     scratch: str | None,
+    setup: tuple[Callable[[Any], None] | None, Any],
 ) -> None:
     _connect(ray, address, num_cpus)
     try:
         task: Any = ray.remote(num_cpus=1, max_retries=0)(_call)  # a crashed segment is reported, not silently run again
-        pending: dict[ObjectRef[Any], J] = {task.remote(work, job, scratch): job for job in jobs}
+        initializer, shared = setup
+        shared_ref = ray.put(shared) if initializer is not None else None
+        pending: dict[ObjectRef[Any], J] = {task.remote(work, job, scratch, initializer, shared_ref): job for job in jobs}
         try:
             while pending:
                 ready, _ = ray.wait(list(pending), num_returns=1)

@@ -110,6 +110,12 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
     """Every recording of the plan that is not up to date, written on the executor `options` name; see the module."""
     started = time.perf_counter()
     remote = plan.dataset.remote
+    if remote is not None and options.executor == "ray" and plan.dataset.layout != "split":
+        raise UserError(
+            "with outputs in S3 on a Ray cluster, use layout: split: the meshes are read once, where the config is, and "
+            "each node writes only its layers (a single-layout recording would need the mesh files on every node)",
+            plan.output_where,
+        )
     if remote is not None:
         fetch_manifest(plan, remote)  # the last run's, from the bucket (it may have run on another machine)
     manifest = _manifest(plan)
@@ -125,7 +131,10 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
     keeper = _Bookkeeper(results, manifest, progress)
     interrupted = 0
     try:
-        executor_for(options.executor, options.jobs, options.ray_address, plan).run(run_segment, to_run, keeper.done, keeper.crashed)
+        here, elsewhere = _where_jobs_run(plan, options, to_run)
+        if here:  # the split layout's model on a cluster without the config's disk: its meshes are read here
+            executor_for("local", 1, None, plan).run(run_segment, here, keeper.done, keeper.crashed)
+        executor_for(options.executor, options.jobs, options.ray_address, plan).run(run_segment, elsewhere, keeper.done, keeper.crashed)
     except KeyboardInterrupt as stop:  # Ctrl-C, or SIGTERM (interrupts.Terminated)
         interrupted = signal_number(stop)
         _remove_partial_files([job.output for job in to_run])
@@ -174,6 +183,15 @@ def _up_to_date(
         else:
             to_run.append(job)
     return results, to_run
+
+
+def _where_jobs_run(plan: Plan, options: RunOptions, to_run: list[SegmentJob]) -> tuple[list[SegmentJob], list[SegmentJob]]:
+    """(jobs this process runs first, jobs for the executor). With outputs in S3 on Ray, the cluster's nodes are taken
+    to share no disk with this one: they get the plan and URLs (each fetches its inputs into its own cache and uploads
+    its layer), while the split layout's model, which reads the meshes where the config is, is written here."""
+    if options.executor != "ray" or plan.dataset.remote is None:
+        return [], to_run
+    return [job for job in to_run if job.segment is None], [job for job in to_run if job.segment is not None]
 
 
 def _adopted_remote(job: SegmentJob, manifest: Manifest, state: BucketState) -> bool:
