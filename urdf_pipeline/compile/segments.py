@@ -11,6 +11,7 @@ import itertools
 import os
 import re
 import string
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -24,6 +25,7 @@ from .context import CompileContext
 from .output_paths import dataset_plan, output_paths
 
 GLOB_CHARACTERS = re.compile(r"[*?\[]")
+REMOTE_METADATA_THREADS = 16  # objects of an s3:// glob whose metadata is read at once
 EPISODES_RANGE = re.compile(r"^(\d*):(\d*)$")
 
 
@@ -86,7 +88,6 @@ def _compile_remote_glob(ctx: CompileContext, name: str, kind: str, spec: dict[s
     objects = remote_glob(spec[kind], where, f"{kind} glob")
     if not objects:
         raise UserError(f"'{shown(spec[kind])}' matches no object", where)
-    by_stem: dict[str, SourcePlan] = {}
     seen: dict[str, str] = {}
     for remote in objects:
         stem = remote.url.rsplit("/", 1)[-1].split(".", 1)[0]
@@ -96,10 +97,23 @@ def _compile_remote_glob(ctx: CompileContext, name: str, kind: str, spec: dict[s
             )
             continue
         seen[stem] = remote.url
+
+    def compiled(url: str) -> SourcePlan | UserError:
         try:
-            by_stem[stem] = KINDS[kind].compile_source(name, {**spec, kind: remote.url}, ctx.document, ctx.config_dir)
+            plan: SourcePlan = KINDS[kind].compile_source(name, {**spec, kind: url}, ctx.document, ctx.config_dir)
+            return plan
         except UserError as exc:
-            ctx.problems.extend(exc)
+            return exc
+
+    # Each object's metadata costs a few ranged GETs of network latency: REMOTE_METADATA_THREADS objects at a time.
+    with ThreadPoolExecutor(REMOTE_METADATA_THREADS, thread_name_prefix="remote-metadata") as pool:
+        plans = dict(zip(seen, pool.map(compiled, seen.values()), strict=True))
+    by_stem: dict[str, SourcePlan] = {}
+    for stem, plan in plans.items():
+        if isinstance(plan, UserError):
+            ctx.problems.extend(plan)
+        else:
+            by_stem[stem] = plan
     return by_stem
 
 
