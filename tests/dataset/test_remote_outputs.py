@@ -112,3 +112,16 @@ def test_the_run_report_goes_to_the_bucket_with_the_urls(remote_dataset: Path, s
     assert {r["output"] for r in report["results"]} >= {s3.url("so101/model.rrd"), s3.url("so101/episode_000000.rrd")}
     refused = run_cli("run", str(remote_dataset), "--report", "https://example.com/report.json")
     assert refused.code == 1 and "--report" in refused.err and "https:// is not one" in refused.err
+
+
+def test_catalog_registration_sends_the_urls(remote_dataset: Path, s3: S3, run_cli) -> None:
+    """`run --catalog` registers outputs in S3 by their s3:// URLs; Rerun's open-source server reads local files only
+    and says so, named in one line (a catalog that reads S3 takes them)."""
+    import rerun as rr
+
+    pytest.importorskip("datafusion", reason="needs the catalog extra (rerun-sdk[catalog])")
+    with rr.server.Server(host="127.0.0.1", port=0) as server:
+        result = run_cli("run", str(remote_dataset), "--jobs", "1", "--catalog", server.url(), "--dataset", "so101")
+    assert result.code == 1, result.err
+    assert "refused model asset s3://" in result.err and "could not load URI: s3://" in result.err, result.err
+    assert "Traceback" not in result.err

@@ -41,7 +41,9 @@ class CatalogReport:
         return line
 
 
-def register_in_catalog(url: str, dataset: str, layer: str, model: Path | None, layers: Sequence[tuple[str, Path]]) -> CatalogReport:
+def register_in_catalog(
+    url: str, dataset: str, layer: str, model: Path | str | None, layers: Sequence[tuple[str, Path | str]]
+) -> CatalogReport:
     """Create (or reuse) `dataset`, register `model` as its asset and each (segment id, .rrd) under `layer`.
 
     Re-running is safe: layers already present are replaced (the server would otherwise keep indexing the old
@@ -58,9 +60,16 @@ def register_in_catalog(url: str, dataset: str, layer: str, model: Path | None, 
     return CatalogReport(url, dataset, layer, created, added, replaced, asset, asset_replaced)
 
 
-def _check_inputs(model: Path | None, layers: Sequence[tuple[str, Path]]) -> None:
+def _uri(recording: Path | str) -> str:
+    """A local recording as a `file://` URI; an output in S3 is given as its `s3://` URL (a catalog that reads S3
+    takes it; Rerun's open-source `rerun server` reads local files only, and refuses it by name)."""
+    return recording if isinstance(recording, str) else recording.resolve().as_uri()
+
+
+def _check_inputs(model: Path | str | None, layers: Sequence[tuple[str, Path | str]]) -> None:
     """Refuse before contacting the server: a missing file or a repeated segment rejects the whole batch there."""
-    missing = [str(path) for path in ([model] if model else []) + [path for _, path in layers] if not path.is_file()]
+    local = [path for path in ([model] if model else []) + [path for _, path in layers] if isinstance(path, Path)]
+    missing = [str(path) for path in local if not path.is_file()]
     if missing:
         raise UserError(f"cannot register missing recordings in the catalog: {listing(missing)}; run the dataset first", None)
     ids = [segment for segment, _ in layers]
@@ -90,12 +99,12 @@ def _connect(url: str) -> CatalogClient:
         raise UserError(f"{url!r} is not a catalog URL ({exc}); expected e.g. rerun+http://127.0.0.1:51234", None) from None
 
 
-def _register_model(entry: DatasetEntry, url: str, model: Path) -> tuple[str, bool]:
+def _register_model(entry: DatasetEntry, url: str, model: Path | str) -> tuple[str, bool]:
     """The asset id is the file's recording id, so registering the same model again replaces it."""
     try:
         with _refusals(url, f"model asset {model}"):
             before = set(entry.assets())
-            asset = entry.register_asset(model.resolve().as_uri())
+            asset = entry.register_asset(_uri(model))
     except UserError as exc:
         if "only accept static" not in exc.message:
             raise
@@ -108,7 +117,7 @@ def _register_model(entry: DatasetEntry, url: str, model: Path) -> tuple[str, bo
 
 
 def _register_layers(
-    entry: DatasetEntry, url: str, layer: str, layers: Sequence[tuple[str, Path]]
+    entry: DatasetEntry, url: str, layer: str, layers: Sequence[tuple[str, Path | str]]
 ) -> tuple[tuple[str, ...], tuple[str, ...]]:
     """One batch call with on_duplicate=REPLACE: fast for hundreds of files, and re-runs pick up rewritten files."""
     from rerun.catalog import OnDuplicateSegmentLayer
@@ -116,9 +125,7 @@ def _register_layers(
     expected = [segment for segment, _ in layers]
     with _refusals(url, f"layer {layer!r} of {len(layers)} recordings"):
         present = _segments_with_layer(entry, layer)
-        operation = entry.register(
-            [path.resolve().as_uri() for _, path in layers], layer_name=layer, on_duplicate=OnDuplicateSegmentLayer.REPLACE
-        )
+        operation = entry.register([_uri(path) for _, path in layers], layer_name=layer, on_duplicate=OnDuplicateSegmentLayer.REPLACE)
         registered = operation.wait().segment_ids
     wrong = [f"{path} holds recording {got!r}, not {want!r}" for (want, path), got in zip(layers, registered, strict=True) if got != want]
     if wrong:

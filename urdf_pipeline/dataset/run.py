@@ -310,5 +310,8 @@ def register_outputs(run: DatasetRun, url: str, dataset: str, layer: str) -> Cat
     """Register what the run wrote or found up to date: the model as the dataset's asset, each segment under `layer`."""
     from .catalog import register_in_catalog
 
-    model = next((r.output for r in run.usable if r.label == "model"), None)
-    return register_in_catalog(url, dataset, layer, model, [(r.label, r.output) for r in run.usable if r.label != "model"])
+    def where(result: SegmentResult) -> Path | str:  # an output in S3 by its URL
+        return run.remote.url_of(result.output) if run.remote is not None else result.output
+
+    model = next((where(r) for r in run.usable if r.label == "model"), None)
+    return register_in_catalog(url, dataset, layer, model, [(r.label, where(r)) for r in run.usable if r.label != "model"])
