@@ -60,10 +60,19 @@ def config(workdir: Path, name: str, pattern: str) -> Path:
             "arm": {
                 "urdf": "robots/panda.urdf",
                 "package_paths": {"example-robot-data": "robots/share/example-robot-data"},
-                "joints": {"source": "state", "map": {j: j for j in PANDA_JOINTS[:7]} | {"panda_finger_joint1": {"joint": "panda_finger_joint1", "unit": "m"}}},
+                "joints": {
+                    "source": "state",
+                    "map": {j: j for j in PANDA_JOINTS[:7]} | {"panda_finger_joint1": {"joint": "panda_finger_joint1", "unit": "m"}},
+                },
             }
         },
-        "output": {"layout": "split", "model": f"out/{name}/model.rrd", "path": f"out/{name}/{{segment}}.rrd", "segment": "{stem}", "application_id": "bench_s3"},
+        "output": {
+            "layout": "split",
+            "model": f"out/{name}/model.rrd",
+            "path": f"out/{name}/{{segment}}.rrd",
+            "segment": "{stem}",
+            "application_id": "bench_s3",
+        },
     }
     path = workdir / f"{name}.yaml"
     path.write_text(yaml.safe_dump(spec, sort_keys=False))
@@ -126,7 +135,10 @@ def main() -> None:
     frames = args.episodes * args.frames
     print(f"{args.episodes} episodes x {args.frames} frames = {frames:,} frames; {args.repeat} alternated runs, medians")
     print(f"{'variant':<18} {'wall s':>8} {'cpu s':>8} {'server cpu s':>13} {'wall/local':>11}")
-    reference = {"local": statistics.median(w for w, _, _ in figures["local"]), "local re-run": statistics.median(w for w, _, _ in figures["local re-run"])}
+    reference = {
+        "local": statistics.median(w for w, _, _ in figures["local"]),
+        "local re-run": statistics.median(w for w, _, _ in figures["local re-run"]),
+    }
     for name, runs in figures.items():
         wall = statistics.median(w for w, _, _ in runs)
         cpu = statistics.median(c for _, c, _ in runs)

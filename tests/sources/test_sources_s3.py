@@ -28,7 +28,9 @@ def cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
 
 
 def _cached_files(cache: Path) -> list[Path]:
-    return sorted(p for p in cache.rglob("*") if p.is_file() and not p.name.startswith(".")) if cache.exists() else []
+    """The data files in the download cache (not its footers: metadata kept per ETag, so a re-run reads none again)."""
+    found = cache.rglob("*") if cache.exists() else []
+    return sorted(p for p in found if p.is_file() and not p.name.startswith(".") and not p.name.endswith(".footer"))
 
 
 def _upload_episode(s3: S3, key: str, q: np.ndarray, folder: Path) -> None:
@@ -52,6 +54,8 @@ def test_a_parquet_file_on_s3_is_planned_from_its_footer_and_run_from_the_cache(
         result = run_cli(command, str(config))
         assert result.code == 0, result.err
     assert _cached_files(cache) == [], "validate and plan read the footer only: nothing downloaded"
+    footers = [p for p in cache.rglob("*.footer")]
+    assert len(footers) == 1 and footers[0].stat().st_size < 10_000, "the footer alone, kept for the next command"
     assert s3.url("runs/episode_a.parquet") in run_cli("plan", str(config), "--format", "json").out
 
     first = run_cli("run", str(config), "--force")

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 from .. import lazy_surface
 
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
-    from .fetching import cached_path, fetched, remote_file, remote_glob
+    from .fetching import cached_metadata, cached_path, fetched, remote_file, remote_glob
     from .locations import ALLOW_URLS_ENV, RemoteUrl, check_allowed, is_remote, parse_url, remote_location
     from .s3_objects import download, listing, metadata_of, open_range, upload
     from .staging import STAGING_ENV, staged_path, staging_folder

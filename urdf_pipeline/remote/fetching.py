@@ -5,7 +5,7 @@ the cache, pinned to the version that was planned, and held while a segment read
 from __future__ import annotations
 
 import re
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -78,4 +78,13 @@ def fetched(remote: RemoteObject, where: Where | None) -> Iterator[Path]:
     """The object's planned version as a local file, downloaded into the cache unless it is there already, and kept
     from eviction while the block runs. A changed object is a UserError (its ETag is not the planned one)."""
     with DownloadCache.from_environment().fetched(cache_key(remote), lambda target: download(remote, target, where)) as path:
+        yield path
+
+
+@contextmanager
+def cached_metadata(remote: RemoteObject, what: str, write: Callable[[Path], None]) -> Iterator[Path]:
+    """A file of the object's metadata (`what`: e.g. its parquet footer), made once per version by `write(target)`
+    (a few ranged GETs) and kept in the download cache: a re-run with the ETag unchanged reads no byte of the object."""
+    name = f"{remote.url.rsplit('/', 1)[-1]}.{what}"
+    with DownloadCache.from_environment().fetched(CacheKey(remote.url, f"{remote.version}#{what}", name), write) as path:
         yield path

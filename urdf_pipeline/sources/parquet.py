@@ -56,13 +56,18 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
 def _compile_remote(name: str, spec: dict[str, Any], document: Document) -> ParquetSourcePlan:
     """`parquet: s3://BUCKET/KEY`: the object's ETag and footer only (ranged GETs), never its data pages; those are
     checked when `run` has downloaded it (`check_download`)."""
-    from ..remote import cached_path, open_range, remote_file
+    from ..remote import cached_metadata, cached_path, open_range, remote_file
 
     where = document.where("sources", name, "parquet")
     remote = remote_file(spec["parquet"], where, "parquet file")
-    try:
+
+    def footer(target: Path) -> None:  # the footer alone, as a parquet metadata file (kept per ETag)
         with open_range(remote, where) as reader:
-            metadata = pq.read_metadata(reader)
+            pq.read_metadata(reader).write_metadata_file(str(target))
+
+    try:
+        with cached_metadata(remote, "footer", footer) as path:
+            metadata = pq.read_metadata(path)
     except (pa.ArrowInvalid, OSError) as exc:
         raise UserError(f"cannot read the parquet footer of {remote.url}: {exc}", where) from None
     plan = _checked(name, spec, document, cached_path(remote), remote.url.rsplit("/", 1)[-1], metadata.schema.to_arrow_schema())
