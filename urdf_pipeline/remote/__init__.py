@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 from .. import lazy_surface
 
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
+    from .download_cache import CACHE_BYTES_ENV, CACHE_ENV, CacheKey, DownloadCache
     from .fetching import cached_metadata, cached_path, fetched, remote_file, remote_glob
     from .locations import ALLOW_URLS_ENV, RemoteUrl, check_allowed, is_remote, parse_url, remote_location
     from .s3_objects import download, listing, metadata_of, open_range, upload
