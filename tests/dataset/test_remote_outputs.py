@@ -125,3 +125,19 @@ def test_catalog_registration_sends_the_urls(remote_dataset: Path, s3: S3, run_c
     assert result.code == 1, result.err
     assert "refused model asset s3://" in result.err and "could not load URI: s3://" in result.err, result.err
     assert "Traceback" not in result.err
+
+
+def test_credentials_never_reach_output_manifest_report_or_recordings(remote_dataset: Path, s3: S3, tmp_path: Path, run_cli) -> None:
+    from ..s3_server import CREDENTIALS
+
+    secrets = [CREDENTIALS["AWS_ACCESS_KEY_ID"], CREDENTIALS["AWS_SECRET_ACCESS_KEY"]]
+    result = run_cli("run", str(remote_dataset), "--jobs", "2", "-v", "--report", str(tmp_path / "report.json"))
+    assert result.code == 0, result.err
+    failing = run_cli("run", str(remote_dataset.parent / "missing.yaml"))  # and an error, for good measure
+    texts = [result.out, result.err, failing.err, (tmp_path / "report.json").read_text()]
+    for key in _keys(s3):
+        texts.append(s3.client().get_object(Bucket=s3.bucket, Key=key)["Body"].read().decode("latin-1"))
+    for found in (tmp_path / "staging").rglob("*"):
+        if found.is_file():
+            texts.append(found.read_bytes().decode("latin-1"))
+    assert not [secret for secret in secrets for text in texts if secret in text]
