@@ -131,3 +131,20 @@ def s3(s3_endpoint: str, monkeypatch: pytest.MonkeyPatch, request: pytest.Fixtur
 
 
 _BUCKETS: list[str] = []
+
+
+@pytest.fixture
+def remote_dataset(s3: S3, examples_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """configs/so101_dataset.yaml (split layout) in a folder of the test's own, its outputs in the test's bucket
+    (s3://BUCKET/so101/...), staged under tmp_path/staging."""
+    from .dataset_helpers import edit_config, isolated_examples
+
+    monkeypatch.setenv("URDF_PIPELINE_ALLOW_PATHS", str(examples_dir))  # robots/ and data/ link to the session's examples
+    monkeypatch.setenv("URDF_PIPELINE_STAGING", str(tmp_path / "staging"))
+    config = isolated_examples(examples_dir, tmp_path / "run")
+
+    def to_s3(data: dict) -> None:
+        data["output"]["path"] = s3.url("so101/{segment}.rrd")
+        data["output"]["model"] = s3.url("so101/model.rrd")
+
+    return edit_config(config, to_s3)

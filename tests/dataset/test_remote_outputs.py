@@ -11,20 +11,7 @@ from pathlib import Path
 import pytest
 
 from ..conftest import S3
-from ..dataset_helpers import edit_config, isolated_examples, recording_content, status_lines, store_ids
-
-
-@pytest.fixture
-def remote_dataset(s3: S3, examples_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
-    monkeypatch.setenv("URDF_PIPELINE_ALLOW_PATHS", str(examples_dir))  # robots/ and data/ link to the session's examples
-    monkeypatch.setenv("URDF_PIPELINE_STAGING", str(tmp_path / "staging"))
-    config = isolated_examples(examples_dir, tmp_path / "run")
-
-    def to_s3(data: dict) -> None:
-        data["output"]["path"] = s3.url("so101/{segment}.rrd")
-        data["output"]["model"] = s3.url("so101/model.rrd")
-
-    return edit_config(config, to_s3)
+from ..dataset_helpers import edit_config, recording_content, status_lines, store_ids
 
 
 def _keys(s3: S3) -> list[str]:

@@ -162,6 +162,8 @@ class SegmentEntry:
     frames: int | None
     episode: int | None
     summary: SegmentSummary | None  # None for an entry written before summaries, or adopted from its file
+    url: str | None = None  # an output in S3: its URL and the ETag the run recorded (`path` is then its staged path)
+    etag: str | None = None
 
 
 def segment_summaries(plan: Plan) -> list[SegmentEntry]:
@@ -171,7 +173,7 @@ def segment_summaries(plan: Plan) -> list[SegmentEntry]:
     return [
         _segment_entry(label, manifest.resolve(entry["path"]), entry)
         for label, entry in sorted(manifest.segments.items())
-        if _size(manifest.resolve(entry["path"])) is not None
+        if _exists(manifest, entry)
     ]
 
 
@@ -182,7 +184,11 @@ def _segment_entry(label: str, path: Path, entry: dict[str, Any]) -> SegmentEntr
 
     sha = entry.get("content_sha256")
     summary = SegmentSummary.from_json(entry.get("summary"))
-    return SegmentEntry(label, path, sha if isinstance(sha, str) else None, number("bytes"), number("frames"), number("episode"), summary)
+    url, etag = entry.get("url"), entry.get("etag")
+    remote = (url, etag) if isinstance(url, str) and isinstance(etag, str) else (None, None)
+    return SegmentEntry(
+        label, path, sha if isinstance(sha, str) else None, number("bytes"), number("frames"), number("episode"), summary, *remote
+    )
 
 
 def _exists(manifest: Manifest, entry: dict[str, Any]) -> bool:

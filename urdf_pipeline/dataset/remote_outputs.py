@@ -12,14 +12,17 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import ExitStack, contextmanager
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from ..errors import Problems, UserError, Where, shown
 from ..execute import CONTENT_METADATA, SegmentJob
 from ..plan import Plan, RemoteObject, RemoteOutputs
-from ..remote import download, listing, metadata_of, parse_url, upload
-from .manifest import Manifest
+from ..remote import download, fetched, listing, metadata_of, parse_url, upload
+from .manifest import Manifest, SegmentEntry
 
 
 @dataclass(frozen=True)
@@ -110,3 +113,50 @@ def upload_run_files(plan: Plan, remote: RemoteOutputs, blueprint: Path | None) 
     for path in (blueprint, plan.dataset.manifest):
         if path is not None and path.is_file():
             upload(path, parse_url(remote.url_of(path)), plan.output_where)
+
+
+@contextmanager
+def local_outputs(plan: Plan, entries: list[SegmentEntry]) -> Iterator[tuple[list[SegmentEntry], Path | None, Path | None]]:
+    """For a reader of a run's outputs in S3 (`browse`): the entries with their recordings fetched into this machine's
+    download cache (each the version the manifest recorded: a replaced object is an error naming it), the model and
+    the blueprint likewise; held in the cache while the block runs. Entries of the manifest the bucket no longer
+    holds as recorded are left out, as local entries whose file is gone are."""
+    remote = plan.dataset.remote
+    assert remote is not None
+    manifest = Manifest.load(plan.dataset.manifest, plan.application_id, plan.dataset.layout, plan.config_path, plan.output_where)
+    state = {o.url: o for o in listing(parse_url(remote.url_root + _common_key(remote, plan)), plan.output_where)}
+    wanted = [e for e in entries if e.url is not None and e.url in state and state[e.url].version == e.etag]
+    model_entry = manifest.model or {}
+    model = (
+        state.get(str(model_entry.get("url"))) if model_entry.get("etag") == state.get(str(model_entry.get("url")), _NONE).version else None
+    )
+    blueprint = state.get(remote.url_of(plan.dataset.manifest.parent / f"{plan.config_path.stem}.rbl"))
+    targets = [state[e.url or ""] for e in wanted] + [found for found in (model, blueprint) if found is not None]
+
+    def download_one(found: RemoteObject) -> None:  # into the cache, FETCH_THREADS at a time (latency, not CPU)
+        with fetched(found, plan.output_where):
+            pass
+
+    with ThreadPoolExecutor(FETCH_THREADS, thread_name_prefix="fetch-outputs") as pool:
+        list(pool.map(download_one, targets))
+    with ExitStack() as held:  # then each held in the cache (found there) while the caller links it
+
+        def local(found: RemoteObject) -> Path:
+            return held.enter_context(fetched(found, plan.output_where))
+
+        yield (
+            [replace(e, path=local(state[e.url or ""])) for e in wanted],
+            local(model) if model is not None else None,
+            local(blueprint) if blueprint is not None else None,
+        )
+
+
+FETCH_THREADS = 8
+_NONE = RemoteObject("", "", 0)
+
+
+def _common_key(remote: RemoteOutputs, plan: Plan) -> str:
+    """The key prefix every output of the plan shares (the folder of the manifest, at least)."""
+    paths = [s.output for s in plan.dataset.segments] + [plan.dataset.manifest]
+    urls = [remote.url_of(p) for p in paths]
+    return _common_prefix(urls).removeprefix(remote.url_root)

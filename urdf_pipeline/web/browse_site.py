@@ -27,7 +27,7 @@ from .page_html import html_text, viewer_href
 from .site_writer import SiteWriter, write_site
 
 if TYPE_CHECKING:
-    from ..dataset import BaseRecording
+    from ..dataset import BaseRecording, SegmentEntry
     from ..plan import Plan
 
 DATA = "segments.json"
@@ -58,9 +58,11 @@ class Shared:
 def browse_config(plan: Plan, target: Path, config_text: str, base: str | None = None) -> BrowseResult:
     """The browser of `plan`'s written outputs at `target`; a UserError naming the fix when the run never happened.
     `base`: `--base DIR_OR_GLOB`, the base recordings segments open with (read before anything is written)."""
-    from ..dataset import base_files, segment_summaries
+    from ..dataset import base_files, fetch_manifest, local_outputs, segment_summaries
     from ..execute import blueprint_path
 
+    if plan.dataset.remote is not None:
+        fetch_manifest(plan, plan.dataset.remote)  # the bucket's, as the last run left it
     manifest = plan.dataset.manifest
     if not manifest.is_file():
         raise UserError(
@@ -68,7 +70,23 @@ def browse_config(plan: Plan, target: Path, config_text: str, base: str | None =
             plan.output_where,
         )
     found = base_files(base) if base is not None else None
-    written = {entry.segment: entry for entry in segment_summaries(plan)}
+    entries = segment_summaries(plan)
+    if plan.dataset.remote is not None:  # outputs in S3: each recording fetched (the version the manifest recorded)
+        with local_outputs(plan, entries) as (fetched, model, blueprint):
+            rows, bases = _rows(plan, fetched, config_text, found)
+            return build_browser(target, plan.application_id, rows, Shared(model, blueprint), bases)
+    rows, bases = _rows(plan, entries, config_text, found)
+    model = plan.dataset.model if plan.dataset.layout == "split" and plan.dataset.model is not None else None
+    written_blueprint = blueprint_path(plan)
+    shared = Shared(model if model is not None and model.is_file() else None, written_blueprint if written_blueprint.is_file() else None)
+    return build_browser(target, plan.application_id, rows, shared, bases)
+
+
+def _rows(
+    plan: Plan, entries: Sequence[SegmentEntry], config_text: str, found: Mapping[str, Sequence[BaseRecording]] | None
+) -> tuple[list[tuple[BrowseSegment, Path | None]], dict[str, tuple[Path, ...]]]:
+    """A row per written segment and per segment of the plan not written; with `--base`, each row's base files."""
+    written = {entry.segment: entry for entry in entries}
     rows: list[tuple[BrowseSegment, Path | None]] = []
     for entry in written.values():
         missing = "" if entry.summary is not None else "no summary in the manifest (written by an older run: `run --force` adds it)"
@@ -82,10 +100,7 @@ def browse_config(plan: Plan, target: Path, config_text: str, base: str | None =
     if found is not None:
         rows = [(_with_base_note(row, found, plan.application_id), path) for row, path in rows]
         bases = {row.segment: tuple(f.path for f in found.get(row.segment, ())) for row, _ in rows}
-    model = plan.dataset.model if plan.dataset.layout == "split" and plan.dataset.model is not None else None
-    blueprint = blueprint_path(plan)
-    shared = Shared(model if model is not None and model.is_file() else None, blueprint if blueprint.is_file() else None)
-    return build_browser(target, plan.application_id, rows, shared, bases)
+    return rows, bases
 
 
 def _with_base_note(row: BrowseSegment, found: Mapping[str, Sequence[BaseRecording]], application_id: str) -> BrowseSegment:
