@@ -43,8 +43,9 @@ def _free_port() -> int:
 
 
 @contextmanager
-def s3_endpoint() -> Iterator[tuple[str, subprocess.Popen[bytes]]]:
-    """A running moto_server: its URL (`http://127.0.0.1:PORT`) and its process."""
+def s3_endpoint(env: dict[str, str] | None = None) -> Iterator[tuple[str, subprocess.Popen[bytes]]]:
+    """A running moto_server: its URL (`http://127.0.0.1:PORT`) and its process. `env` adds to its environment
+    (`INITIAL_NO_AUTH_ACTION_COUNT=0`: it checks credentials, and refuses unknown ones with 403)."""
     binary = moto_server()
     assert binary is not None, "moto_server is not installed (pip install 'moto[server]': the test extra has it)"
     port = _free_port()
@@ -54,6 +55,7 @@ def s3_endpoint() -> Iterator[tuple[str, subprocess.Popen[bytes]]]:
         stderr=subprocess.DEVNULL,
         start_new_session=True,
         preexec_fn=die_with_parent(),
+        env={**os.environ, **(env or {})},
     )
     try:
         deadline = time.monotonic() + START_SECONDS

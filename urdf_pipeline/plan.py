@@ -6,7 +6,7 @@ writes), made by `Plan.for_segment` / `for_model`. Only the latter has sources a
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Literal
 
@@ -49,7 +49,7 @@ class ParquetSourcePlan:
     names: tuple[str, ...]
     where: Where
     duplicates: str = "error"  # two rows at one index value: "error" or "keep_last" (the later row wins)
-    remote: RemoteObject | None = None  # `parquet: s3://...`: the object `path` is downloaded from
+    remote: RemoteObject | None = None  # `parquet: s3://...`: the object `path` is downloaded from (see `remote_of`)
 
 
 @dataclass(frozen=True)
@@ -77,6 +77,7 @@ class McapSourcePlan:
     names: tuple[str, ...]  # the names the messages may carry, from the config or the first message
     where: Where
     duplicates: str = "error"  # two rows at one index value: "error" or "keep_last" (the later row wins)
+    remote: RemoteObject | None = None  # `mcap: s3://...`: the object `path` is downloaded from
 
 
 @dataclass(frozen=True)
@@ -91,6 +92,7 @@ class Hdf5SourcePlan:
     names: tuple[str, ...]
     where: Where
     duplicates: str = "error"  # two rows at one index value: "error" or "keep_last" (the later row wins)
+    remote: RemoteObject | None = None  # `hdf5: s3://...`: the object `path` is downloaded from
 
 
 @dataclass(frozen=True)
@@ -105,6 +107,7 @@ class RrdSourcePlan:
     names: tuple[str, ...]
     where: Where
     duplicates: str = "error"  # two rows at one index value: "error" or "keep_last" (the later row wins)
+    remote: RemoteObject | None = None  # `rrd: s3://...`: the object `path` is downloaded from
 
 
 @dataclass(frozen=True)
@@ -117,9 +120,23 @@ class CsvSourcePlan:
     names: tuple[str, ...]  # the columns holding the values: the config's `names`, else every column but the index
     where: Where
     duplicates: str = "error"  # two rows at one index value: "error" or "keep_last" (the later row wins)
+    remote: RemoteObject | None = None  # `csv: s3://...`: the object `path` is downloaded from
 
 
 SourcePlan = ParquetSourcePlan | LeRobotSourcePlan | McapSourcePlan | Hdf5SourcePlan | RrdSourcePlan | CsvSourcePlan
+FileSourcePlan = ParquetSourcePlan | McapSourcePlan | Hdf5SourcePlan | RrdSourcePlan | CsvSourcePlan  # one file at `path`
+
+
+def remote_of(source: SourcePlan) -> RemoteObject | None:
+    """The remote file a source plan reads (`KIND: s3://BUCKET/KEY`), None for a local file or a LeRobot dataset:
+    what `run` downloads before the source opens, and what the reports show in place of the cache's path."""
+    remote = getattr(source, "remote", None)
+    return remote if isinstance(remote, RemoteObject) else None
+
+
+def with_local_path(source: FileSourcePlan, path: Path) -> FileSourcePlan:
+    """The same source read from `path`: a remote file's plan once `run` has downloaded it there."""
+    return replace(source, path=path)
 
 
 @dataclass(frozen=True)

@@ -82,9 +82,8 @@ def _compile_glob(ctx: CompileContext, name: str, kind: str, spec: dict[str, Any
 
 
 def _compile_remote_glob(ctx: CompileContext, name: str, kind: str, spec: dict[str, Any], where: Where) -> dict[str, SourcePlan]:
-    """An `s3://BUCKET/PREFIX/*.parquet` source: one listing, then each object's footer (ranged GETs), keyed by stem."""
-    if kind != "parquet":
-        raise UserError(f"a {kind} source cannot be read from S3 yet (parquet can): download it and name the local path", where)
+    """An `s3://BUCKET/PREFIX/*.parquet` source (any file kind): one listing, then each object's metadata (a parquet
+    footer, a CSV's first block, an MCAP summary, an HDF5 file's structure: ranged GETs; an .rrd is downloaded), by stem."""
     objects = remote_glob(spec[kind], where, f"{kind} glob")
     if not objects:
         raise UserError(f"'{shown(spec[kind])}' matches no object", where)

@@ -17,7 +17,7 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
     from .download_cache import CACHE_BYTES_ENV, CACHE_ENV, CacheKey, DownloadCache
     from .fetching import cached_metadata, cached_path, fetched, remote_file, remote_glob
     from .locations import ALLOW_URLS_ENV, RemoteUrl, check_allowed, is_remote, parse_url, remote_location
-    from .s3_objects import download, listing, metadata_of, open_range, upload
+    from .s3_objects import OverBudget, download, listing, metadata_of, open_range, upload
     from .staging import STAGING_ENV, staged_path, staging_folder
 
 if not TYPE_CHECKING:  # the names above, imported when first used

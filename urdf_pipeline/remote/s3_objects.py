@@ -51,7 +51,7 @@ def _client(environment: tuple[tuple[str, str], ...]) -> BaseClient:
     config = Config(
         connect_timeout=CONNECT_SECONDS,
         read_timeout=READ_SECONDS,
-        retries={"max_attempts": ATTEMPTS, "mode": "standard"},
+        retries={"total_max_attempts": ATTEMPTS, "mode": "standard"},  # botocore's `max_attempts` counts retries only
         user_agent_extra="urdf-pipeline",
     )
     return boto3.session.Session().client("s3", config=config)
@@ -93,8 +93,34 @@ def s3_error(exc: BaseException, url: str, where: Where | None, doing: str = "re
             )
         return UserError(f"cannot {doing} {target}: {shown(code or status, 80)} from {endpoint()}", where)
     if isinstance(exc, BotoCoreError):
-        return UserError(f"cannot {doing} {target}: {shown(type(exc).__name__, 80)} from {endpoint()} after {ATTEMPTS} attempts", where)
+        return UserError(f"cannot {doing} {target}: {_transport_problem(exc)}", where)
     return UserError(f"cannot {doing} {target}: {shown(exc, 200)}", where)
+
+
+def _transport_problem(exc: BaseException) -> str:
+    """What went wrong between this machine and the endpoint, and what bounded it (botocore retried the request
+    ATTEMPTS times in all; a transfer that broke off midway is not retried: `run` starts the object over)."""
+    from botocore.exceptions import (
+        ConnectionClosedError,
+        ConnectionError,
+        IncompleteReadError,
+        ReadTimeoutError,
+        ResponseStreamingError,
+    )
+
+    if isinstance(exc, ReadTimeoutError):
+        return f"{endpoint()} did not answer within {READ_SECONDS:g} s ({ATTEMPTS} attempts); is it overloaded, or the network slow?"
+    if isinstance(exc, ConnectionError):
+        return (
+            f"cannot connect to {endpoint()} ({ATTEMPTS} attempts, at most {CONNECT_SECONDS:g} s each): is it running, "
+            "and does AWS_ENDPOINT_URL (or the profile's endpoint) name it?"
+        )
+    if isinstance(exc, ResponseStreamingError | IncompleteReadError | ConnectionClosedError):
+        return (
+            f"the connection to {endpoint()} broke off during the transfer ({shown(type(exc).__name__, 80)}): "
+            "the endpoint stopped or the network dropped"
+        )
+    return f"{shown(type(exc).__name__, 80)} from {endpoint()} after {ATTEMPTS} attempts"
 
 
 def _errors() -> tuple[type[BaseException], ...]:
@@ -131,18 +157,27 @@ def listing(prefix: RemoteUrl, where: Where | None) -> list[RemoteObject]:
     return sorted(found, key=lambda o: o.url)
 
 
+class OverBudget(UserError):
+    """A metadata read through a `RangeFile` that needed more ranged GETs (or bytes) than its caller allowed: the
+    caller reads the object otherwise (downloads it whole) or asks the config for what it would have read."""
+
+
 class RangeFile(io.RawIOBase):
     """The object, read-only and seekable, each read one ranged GET pinned to its ETag: pyarrow reads a parquet
-    footer, the mcap library an MCAP summary, through it, fetching only what they read. Wrap it in
-    `io.BufferedReader(..., READ_BLOCK)` (see `open_range`) so small reads share a request."""
+    footer, the mcap library an MCAP summary, h5py an HDF5 file's structure, through it, fetching only what they
+    read. Wrap it in `io.BufferedReader(..., READ_BLOCK)` (see `open_range`) so small reads share a request.
+    `max_requests` and `max_bytes` bound what it fetches: one GET more raises `OverBudget` before it is sent."""
 
-    def __init__(self, remote: RemoteObject, where: Where | None) -> None:
+    def __init__(self, remote: RemoteObject, where: Where | None, max_requests: int | None = None, max_bytes: int | None = None) -> None:
         super().__init__()
         self.remote = remote
         self.where = where
         self._url = parse_url(remote.url)
         self._position = 0
         self.requests = 0
+        self.fetched = 0  # bytes received
+        self.max_requests = max_requests
+        self.max_bytes = max_bytes
 
     def readable(self) -> bool:
         return True
@@ -169,19 +204,32 @@ class RangeFile(io.RawIOBase):
         return len(data)
 
     def _get(self, first: int, last: int) -> bytes:
+        over_requests = self.max_requests is not None and self.requests >= self.max_requests
+        if over_requests or (self.max_bytes is not None and self.fetched + last - first + 1 > self.max_bytes):
+            budget = f"{self.max_requests} ranged requests" if over_requests else f"{self.max_bytes} bytes"
+            raise OverBudget(
+                f"reading the metadata of {shown(self.remote.url, 200)} takes more than {budget} "
+                f"(read so far: {self.requests} requests, {self.fetched} bytes)",
+                self.where,
+            )
         self.requests += 1
         try:
             answer = client().get_object(
                 Bucket=self._url.bucket, Key=self._url.key, Range=f"bytes={first}-{last}", IfMatch=f'"{self.remote.version}"'
             )
-            return bytes(answer["Body"].read())
+            data = bytes(answer["Body"].read())
         except _errors() as exc:
             raise s3_error(exc, self.remote.url, self.where) from None
+        self.fetched += len(data)
+        return data
 
 
-def open_range(remote: RemoteObject, where: Where | None) -> io.BufferedReader:
-    """A buffered, seekable reader of the object (see RangeFile)."""
-    return io.BufferedReader(RangeFile(remote, where), READ_BLOCK)
+def open_range(
+    remote: RemoteObject, where: Where | None, block: int = READ_BLOCK, max_requests: int | None = None, max_bytes: int | None = None
+) -> io.BufferedReader:
+    """A buffered, seekable reader of the object (see RangeFile), reading at least `block` bytes per request; its
+    `raw` (the RangeFile) counts the requests and bytes."""
+    return io.BufferedReader(RangeFile(remote, where, max_requests, max_bytes), block)
 
 
 def download(remote: RemoteObject, target: Path, where: Where | None) -> None:

@@ -82,6 +82,12 @@ def no_remote_files(plan: Any) -> None:
     """`check_download` of a kind that reads no remote file yet (its plans never hold one)."""
 
 
+def shown_file(plan: Any) -> str:
+    """A file source as its messages name it: a remote file by its URL (not the download cache's path), else its path."""
+    remote = getattr(plan, "remote", None)
+    return str(remote.url) if remote is not None else str(plan.path)
+
+
 def resolve_input(document: Document, config_dir: Path, path: str, *where: str | int, directory: bool = False) -> Path:
     """A path from the config, relative to the config file; it must exist. A path the OS cannot follow (a symlink
     loop, a name too long, a file in place of a folder, a FIFO) is a user error at the path's key."""

@@ -80,15 +80,16 @@ def check_parquet_pages(
         raise UserError(index_problem_found, index_where)
 
 
-def check_hdf5_datasets(path: Path, datasets: Sequence[str], where: Where | None) -> None:
+def check_hdf5_datasets(path: Path, datasets: Sequence[str], where: Where | None, shown: str | None = None) -> None:
     """Every chunk of each dataset decodes, HDF5_BLOCK_ROWS rows at a time; a corrupt chunk or a truncated file names
-    both the file and the dataset."""
+    both the file (`shown`: a remote file's URL; its path by default) and the dataset."""
     import h5py
 
+    shown = shown or str(path)
     try:
         file = h5py.File(path, "r")
     except OSError as exc:
-        raise UserError(f"cannot open HDF5 file {path}: {_reason(exc)}", where) from None
+        raise UserError(f"cannot open HDF5 file {shown}: {_reason(exc)}", where) from None
     with file:
         for dataset in datasets:
             try:
@@ -99,7 +100,7 @@ def check_hdf5_datasets(path: Path, datasets: Sequence[str], where: Where | None
                     _ = values[start : start + HDF5_BLOCK_ROWS]  # decoded and dropped
             except (OSError, KeyError, ValueError, RuntimeError) as exc:
                 raise UserError(
-                    f"HDF5 file {path} is corrupt: dataset '{dataset}' cannot be read: {_reason(exc)}; re-export or replace the file",
+                    f"HDF5 file {shown} is corrupt: dataset '{dataset}' cannot be read: {_reason(exc)}; re-export or replace the file",
                     where,
                 ) from None
 

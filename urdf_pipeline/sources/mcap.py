@@ -2,11 +2,13 @@
 
 Every message carries its own names, in an order that may change from message to message: values are mapped by
 name, row by row (`urdf_pipeline.sources.named_rows`), never by position. Validation reads the file's summary only (topic,
-schema, message count); when the config gives no `names`, the first message of the topic is read for them.
+schema, message count); when the config gives no `names`, the first message of the topic is read for them. Of
+`mcap: s3://BUCKET/KEY`, the same by ranged GETs (mcap_remote.py); `run` downloads the file.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -18,8 +20,10 @@ import pyarrow.compute as pc
 from ..config import Document
 from ..errors import UserError, Where, listing
 from ..plan import McapSourcePlan
-from .base import EntryField, SourceDescription, file_input, no_remote_files, resolve_input
+from ..remote import is_remote
+from .base import EntryField, SourceDescription, file_input, resolve_input, shown_file
 from .mcap_probe import MESSAGE_COMPONENT, probe, topic_entity, topic_messages
+from .mcap_remote import late_messages, remote_mcap
 from .named_rows import NAME_FIELD, NAMED_COMPONENT, VALUE_FIELD, named_rows_column
 from .ordering import in_time_order, with_duplicates
 from .stream import SourceStream
@@ -28,7 +32,6 @@ from .time_range import INT64_MAX
 if TYPE_CHECKING:
     from rerun.chunk import Chunk, McapChannelInfo
 
-check_download = no_remote_files
 PLAN_TYPE = McapSourcePlan
 SPEC_FORM = "mcap:FILE[#TOPIC]"
 SUFFIXES = (".mcap",)
@@ -39,8 +42,13 @@ ALL_TIMELINES = tuple(TIMELINES.values())
 
 def _first_message_names(path: Path, topic: str, where: Where) -> tuple[str, ...]:
     names = probe(path, topic, first_only=True, where=where)  # in a child: a corrupt file cannot hang this process
+    return _checked_names(names, topic, str(path), where)
+
+
+def _checked_names(names: tuple[str, ...] | None, topic: str, shown: str, where: Where) -> tuple[str, ...]:
+    """The first message's names: there is one, it names joints, each once."""
     if names is None:
-        raise UserError(f"topic '{topic}' of {path} has no messages Rerun's MCAP reader can decode; a source with zero rows", where)
+        raise UserError(f"topic '{topic}' of {shown} has no messages Rerun's MCAP reader can decode; a source with zero rows", where)
     if not names:
         raise UserError(f"the first message on '{topic}' names no joints; give the names with names: [...]", where)
     if len(set(names)) != len(names):
@@ -62,20 +70,16 @@ def _info(path: Path, where: Where | None) -> Any:
         raise UserError(f"cannot read MCAP file {path}: {exc}", where) from None
 
 
-def _check_log_times(path: Path, topic: str, info: Any, where: Where) -> None:
+def _check_log_times(late: Callable[[str, int], int], file_name: str, topic: str, info: Any, where: Where) -> None:
     """MCAP log times are uint64 nanoseconds; a timeline holds at most 2^63 - 1 (Rerun clamps what is beyond, so the
     late messages would all sit at one time in 2262). Refused from the summary's last log time; the row (in log-time
-    order) is counted from the late chunks alone, read with the mcap library, when the file allows it."""
+    order) is counted from the late chunks alone (`late(topic, start)`, the mcap library), when the file allows it."""
     end = info.message_end_time_ns
     if end is None or end <= INT64_MAX:
         return
     row = ""
     try:
-        from mcap.reader import make_reader
-
-        with path.open("rb") as stream:
-            late = make_reader(stream).iter_messages(topics=[topic], starting_at=INT64_MAX + 1)
-            beyond = sum(1 for _ in late)  # the messages at or after 2^63 only: a few late chunks
+        beyond = late(topic, INT64_MAX + 1)  # the messages at or after 2^63 only: a few late chunks
         total = sum(c.message_count or 0 for c in info.channels if topic_entity(c.topic) == topic_entity(topic))
         if not beyond:
             return  # another topic's messages are the late ones
@@ -83,20 +87,28 @@ def _check_log_times(path: Path, topic: str, info: Any, where: Where) -> None:
     except Exception:  # noqa: BLE001 - the mcap library's errors on a damaged file: the summary's value is refused anyway
         pass
     raise UserError(
-        f"messages of {path.name} are logged at up to {end} ns{row}: beyond a timeline's range ({INT64_MAX} ns, in 2262); "
+        f"messages of {file_name} are logged at up to {end} ns{row}: beyond a timeline's range ({INT64_MAX} ns, in 2262); "
         "MCAP log times are uint64, a timeline's int64. Fix the recorder's clock, or use timeline: header",
         where,
     )
 
 
-def _joint_state_topics(channels: list[McapChannelInfo]) -> list[str]:
+def _local_late(path: Path) -> Callable[[str, int], int]:
+    def late(topic: str, start: int) -> int:
+        with path.open("rb") as stream:
+            return late_messages(stream, topic, start)
+
+    return late
+
+
+def _joint_state_topics(channels: Sequence[Any]) -> list[str]:
     return sorted({c.topic for c in channels if c.schema is not None and c.schema.name == JOINT_STATE})
 
 
-def compile_source(name: str, spec: dict[str, Any], document: Document, config_dir: Path) -> McapSourcePlan:
-    here = ("sources", name)
-    path = resolve_input(document, config_dir, spec["mcap"], *here, "mcap")
-    info = _info(path, document.where(*here, "mcap"))
+def _checked_topic(spec: dict[str, Any], info: Any, shown: str, document: Document, here: tuple[str, str]) -> list[Any]:
+    """The topic's channels, from the summary: they exist, carry ROS 2 JointState (cdr), and hold messages. `shown`
+    names the file: its path, or its URL."""
+    file_name = shown.rsplit("/", 1)[-1]
     all_channels = list(info.channels)
     topic = topic_entity(spec["topic"])
     channels = [c for c in all_channels if topic_entity(c.topic) == topic]
@@ -105,7 +117,7 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
         listed = (
             ", ".join(joint_topics) if joint_topics else f"none (topics: {', '.join(sorted({c.topic for c in all_channels})) or 'none'})"
         )
-        raise UserError(f"topic '{spec['topic']}' not in {path.name}; its {JOINT_STATE} topics: {listed}", document.where(*here, "topic"))
+        raise UserError(f"topic '{spec['topic']}' not in {file_name}; its {JOINT_STATE} topics: {listed}", document.where(*here, "topic"))
     for channel in channels:
         schema = channel.schema.name if channel.schema is not None else "no schema"
         if schema != JOINT_STATE or channel.message_encoding != "cdr":
@@ -115,12 +127,52 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
             )
     counts = [channel.message_count for channel in channels]
     if all(count is not None for count in counts) and sum(counts) == 0:
-        raise UserError(f"topic '{spec['topic']}' has no messages in {path}; a source with zero rows", document.where(*here, "topic"))
+        raise UserError(f"topic '{spec['topic']}' has no messages in {shown}; a source with zero rows", document.where(*here, "topic"))
+    return channels
+
+
+def compile_source(name: str, spec: dict[str, Any], document: Document, config_dir: Path) -> McapSourcePlan:
+    here = ("sources", name)
+    if is_remote(spec["mcap"]):
+        return _compile_remote(name, spec, document)
+    path = resolve_input(document, config_dir, spec["mcap"], *here, "mcap")
+    info = _info(path, document.where(*here, "mcap"))
+    _checked_topic(spec, info, str(path), document, here)
+    topic = topic_entity(spec["topic"])
     timeline = TIMELINES[spec.get("timeline", "header")]
     if timeline == TIMELINES["log_time"]:
-        _check_log_times(path, topic, info, document.where(*here, "timeline"))
+        _check_log_times(_local_late(path), path.name, topic, info, document.where(*here, "timeline"))
     names = tuple(spec["names"]) if "names" in spec else _first_message_names(path, topic, document.where(*here, "topic"))
     return with_duplicates(McapSourcePlan(name, path, topic, timeline, names, document.where(*here)), spec)
+
+
+def _compile_remote(name: str, spec: dict[str, Any], document: Document) -> McapSourcePlan:
+    """`mcap: s3://BUCKET/KEY`: the summary and (without `names`) the topic's first message, by ranged GETs
+    (mcap_remote.py); the file is downloaded by `run`, whose stream probes the whole topic first, as for a local file."""
+    from ..remote import cached_path, remote_file
+
+    here = ("sources", name)
+    remote = remote_file(spec["mcap"], document.where(*here, "mcap"), "mcap file")
+    file_name = remote.url.rsplit("/", 1)[-1]
+    topic = topic_entity(spec["topic"])
+    timeline = TIMELINES[spec.get("timeline", "header")]
+    with remote_mcap(remote, document.where(*here, "mcap")) as file:
+        info = file.info()
+        channels = _checked_topic(spec, info, remote.url, document, here)
+        if timeline == TIMELINES["log_time"]:
+            _check_log_times(file.late_messages, file_name, topic, info, document.where(*here, "timeline"))
+        if "names" in spec:
+            names = tuple(spec["names"])
+        else:
+            found = file.first_names(sorted({c.topic for c in channels}))
+            names = _checked_names(found, topic, remote.url, document.where(*here, "topic"))
+    plan = McapSourcePlan(name, cached_path(remote), topic, timeline, names, document.where(*here), remote=remote)
+    return with_duplicates(plan, spec)
+
+
+def check_download(plan: McapSourcePlan) -> None:
+    """Nothing more once `run` has downloaded a remote MCAP file: its stream probes the whole topic in a child
+    process before Rerun's reader reads it here (`open_stream`), as for a local file."""
 
 
 def describe(name: str, path: str, part: str | None, document: Document) -> SourceDescription:
@@ -180,6 +232,7 @@ def _named_rows(plan: McapSourcePlan, chunk: Chunk) -> list[Chunk]:
 
 
 def open_stream(plan: McapSourcePlan) -> SourceStream:
-    probe(plan.path, plan.topic, first_only=False, where=plan.where)  # the whole topic, in a child, before Rerun reads it here
+    # the whole topic, in a child, before Rerun reads it here
+    probe(plan.path, plan.topic, first_only=False, where=plan.where, shown=shown_file(plan))
     stream = in_time_order(topic_messages(plan.path, plan.topic).flat_map(partial(_named_rows, plan)), plan.timeline, plan, plan.path)
     return SourceStream(stream, plan.topic, NAMED_COMPONENT, len(plan.names), named=True)

@@ -56,8 +56,10 @@ def _watch(stream: object, errors: list[str], others: list[str], failed: threadi
             others.append(line)
 
 
-def probe(path: Path, topic: str, first_only: bool, where: Where | None) -> tuple[str, ...] | None:
-    """Read `topic` in a child: the first message's names (`first_only`), else None once every message decoded."""
+def probe(path: Path, topic: str, first_only: bool, where: Where | None, shown: str | None = None) -> tuple[str, ...] | None:
+    """Read `topic` in a child: the first message's names (`first_only`), else None once every message decoded.
+    `shown` names the file in messages (a remote file's URL; its path by default)."""
+    shown = shown or str(path)
     budget = BASE_SECONDS + path.stat().st_size * SECONDS_PER_BYTE
     command = [sys.executable, "-m", "urdf_pipeline.sources.mcap_probe", str(path), topic, "first" if first_only else "all"]
     env = {**os.environ, "RUST_LOG": "warn"}  # the read errors are what the parent watches for
@@ -83,14 +85,14 @@ def probe(path: Path, topic: str, first_only: bool, where: Where | None) -> tupl
     if child.stdout:
         child.stdout.close()
     if errors:
-        raise UserError(f"MCAP file {path} is corrupt: {errors[0]} (reading topic '{topic}'); repair or re-record the file", where)
+        raise UserError(f"MCAP file {shown} is corrupt: {errors[0]} (reading topic '{topic}'); repair or re-record the file", where)
     if timed_out:
         raise UserError(
-            f"reading topic '{topic}' of MCAP file {path} did not finish within {budget:.0f} s; the file is probably corrupt", where
+            f"reading topic '{topic}' of MCAP file {shown} did not finish within {budget:.0f} s; the file is probably corrupt", where
         )
     if child.returncode != 0:
         reason = others[-1] if others else f"exit status {child.returncode}"
-        raise UserError(f"cannot read MCAP file {path} (topic '{topic}'): {reason}", where)
+        raise UserError(f"cannot read MCAP file {shown} (topic '{topic}'): {reason}", where)
     result = json.loads(output.strip().splitlines()[-1]) if output.strip() else {}
     names = result.get("names")
     return tuple(names) if names is not None else None

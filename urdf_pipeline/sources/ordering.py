@@ -297,7 +297,7 @@ def _note(text: str) -> None:
     note(text)
 
 
-def _reading(stream: LazyChunkStream, path: Path, where: Where | None) -> Iterator[Chunk]:
+def _reading(stream: LazyChunkStream, path: Path | str, where: Where | None) -> Iterator[Chunk]:
     """The chunks of `stream`; a reader's decoding error (a corrupt chunk) becomes a user error naming the file."""
     chunks = iter(stream)
     while True:  # one iteration per chunk
@@ -314,7 +314,7 @@ def _reading(stream: LazyChunkStream, path: Path, where: Where | None) -> Iterat
         yield chunk
 
 
-def read_all(stream: LazyChunkStream, path: Path, where: Where | None) -> list[Chunk]:
+def read_all(stream: LazyChunkStream, path: Path | str, where: Where | None) -> list[Chunk]:
     """Every chunk of `stream`; a reader's decoding error (a corrupt chunk) becomes a user error naming the file."""
     return list(_reading(stream, path, where))
 

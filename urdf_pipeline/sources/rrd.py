@@ -3,10 +3,13 @@
 Validation reads the recording's manifest (entities, components, types) and, for names, the entity's static
 `SeriesLines:names` (as Rerun's LeRobot importer writes it). When the names are per row instead (Rerun's MCAP
 importer writes `SeriesLines:names` with every message, in the message's order), values are mapped by name, row by row.
+Rerun's reader opens local files only: an `rrd: s3://BUCKET/KEY` recording is downloaded into the download cache by
+validation already, and `run` reads it from there.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
 from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -16,9 +19,10 @@ import pyarrow as pa
 import pyarrow.compute as pc
 
 from ..config import Document
-from ..errors import UserError
+from ..errors import UserError, Where
 from ..plan import RrdSourcePlan
-from .base import EntryField, SourceDescription, file_input, no_remote_files, resolve_input
+from ..remote import is_remote
+from .base import EntryField, SourceDescription, file_input, resolve_input, shown_file
 from .lerobot import VECTOR_COMPONENT
 from .named_rows import NAMED_COMPONENT, named_rows_column
 from .ordering import in_time_order, read_all, with_duplicates
@@ -27,7 +31,6 @@ from .stream import SourceStream
 if TYPE_CHECKING:
     from rerun.chunk import Chunk, LazyStore
 
-check_download = no_remote_files
 PLAN_TYPE = RrdSourcePlan
 SPEC_FORM = "rrd:FILE#ENTITY"
 SUFFIXES = (".rrd",)
@@ -59,13 +62,13 @@ def layout_of(column_type: pa.DataType) -> str | None:
     return None
 
 
-def _open_store(path: Path, document: Document, where: tuple[str, ...]) -> LazyStore:
+def _open_store(path: Path, shown: str, where: Where) -> LazyStore:
     from rerun.chunk import RrdReader
 
     try:
         return RrdReader(path).store()
     except (ValueError, OSError, RuntimeError) as exc:
-        raise UserError(f"cannot read recording {path}: {exc}", document.where(*where)) from None
+        raise UserError(f"cannot read recording {shown}: {exc}", where) from None
 
 
 def _static_names(store: LazyStore, entity: str) -> tuple[str, ...]:
@@ -91,15 +94,48 @@ def _first_row_names(store: LazyStore, entity: str) -> tuple[str, ...]:
 
 def compile_source(name: str, spec: dict[str, Any], document: Document, config_dir: Path) -> RrdSourcePlan:
     here = ("sources", name)
+    where = document.where(*here, "rrd")
+    if is_remote(spec["rrd"]):
+        return _compile_remote(name, spec, document)
     path = resolve_input(document, config_dir, spec["rrd"], *here, "rrd")
-    store = _open_store(path, document, (*here, "rrd"))
+    store = _open_store(path, str(path), where)
+    plan = _compiled(store, path, path.name, name, spec, document)
+    _check_values(store, plan, str(path), where)
+    return plan
+
+
+def _compile_remote(name: str, spec: dict[str, Any], document: Document) -> RrdSourcePlan:
+    """`rrd: s3://BUCKET/KEY`: Rerun's reader opens local files only, so the recording is downloaded into the cache now
+    (it is the run's input: `run` finds it there) and its manifest and names read as a local one's; its values are
+    checked once `run` has the file (`check_download`), as the other kinds' are."""
+    from ..remote import fetched, remote_file
+
+    where = document.where("sources", name, "rrd")
+    remote = remote_file(spec["rrd"], where, "rrd file")
+    with fetched(remote, where) as path:
+        plan = _compiled(_open_store(path, remote.url, where), path, remote.url.rsplit("/", 1)[-1], name, spec, document)
+    return replace(plan, remote=remote)
+
+
+def check_download(plan: RrdSourcePlan) -> None:
+    """A remote recording's values, once `run` has it at `plan.path`: every chunk of the component decodes."""
+    _check_values(_open_store(plan.path, shown_file(plan), plan.where), plan, shown_file(plan), plan.where)
+
+
+def _check_values(store: LazyStore, plan: RrdSourcePlan, shown: str, where: Where) -> None:
+    read_all(store.stream().filter(content=plan.entity, is_static=False, components=plan.component), shown, where)
+
+
+def _compiled(store: LazyStore, path: Path, file_name: str, name: str, spec: dict[str, Any], document: Document) -> RrdSourcePlan:
+    """The plan from the recording's manifest and its names (static, or the first row's): no value is read."""
+    here = ("sources", name)
     schema = store.schema()
     entity = entity_path(spec["entity"])
     component = spec.get("component", DEFAULT_COMPONENT)
     if entity not in schema.entity_paths():
         numeric = sorted({c.entity_path for c in schema.component_columns() if c.component == DEFAULT_COMPONENT})
         raise UserError(
-            f"entity '{entity}' not in {path.name}; entities with {DEFAULT_COMPONENT}: {', '.join(numeric) or 'none'}",
+            f"entity '{entity}' not in {file_name}; entities with {DEFAULT_COMPONENT}: {', '.join(numeric) or 'none'}",
             document.where(*here, "entity"),
         )
     column = schema.column_for(entity, component)
@@ -136,7 +172,6 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
         raise UserError(f"'{entity}' carries no {NAMES_COMPONENT}; give the names with names: [...]", document.where(*here))
     if len(set(names)) != len(names):
         raise UserError(f"the names recorded on '{entity}' name a value twice: {', '.join(names)}", document.where(*here))
-    read_all(store.stream().filter(content=entity, is_static=False, components=component), path, document.where(*here, "rrd"))
     return with_duplicates(RrdSourcePlan(name, path, entity, component, named_rows, names, document.where(*here)), spec)
 
 

@@ -223,7 +223,7 @@ def wide_stream(plan: WidePlan, batches: Callable[[], Iterator[pa.RecordBatch]])
     return SourceStream(stream, entity, VECTOR_COMPONENT, len(plan.names))
 
 
-def reading_error(path: Path, exc: BaseException, header: Sequence[str], where: Where | None) -> UserError:
+def reading_error(path: Path | str, exc: BaseException, header: Sequence[str], where: Where | None) -> UserError:
     """pyarrow's reading or conversion error as one line naming the file, and the column by its name (pyarrow's CSV
     reader numbers it in the header, from 0) and the line (its "Row #N" counts the header's line too)."""
     reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]

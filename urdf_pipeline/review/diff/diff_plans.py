@@ -91,7 +91,8 @@ def _static_edge_changes(report: _Report, subject: str, old: EdgePlan, new: Edge
 # ---------------------------------------------------------------------------------------------------------- sources
 
 _KIND_PATHS = {"parquet": "path", "lerobot": "root", "mcap": "path", "hdf5": "path", "rrd": "path", "csv": "path"}
-_NOT_COMPARED = {"name", "where", "names", "path", "root", "rows", "per_segment", "episode"}  # rows: the data's, not the config's
+# rows: the data's, not the config's; remote: the object a path names (its URL is compared as the path)
+_NOT_COMPARED = {"name", "where", "names", "path", "root", "rows", "per_segment", "episode", "remote"}
 
 
 def _kind(source: SourcePlan) -> str:

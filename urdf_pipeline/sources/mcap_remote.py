@@ -1,0 +1,191 @@
+"""An MCAP file on S3, read as `validate` reads a local one, but through ranged GETs and the `mcap` library (Rerun's
+reader takes local paths only): the summary at the file's end (its footer, then the summary section: two or three
+requests), and, when the config gives no `names`, the first message of the topic, from the one chunk that holds it,
+its names decoded from the CDR bytes. All of it within METADATA_BYTES; the data is read by `run`, once downloaded.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import IO, Any
+
+from ..errors import UserError, Where
+from ..plan import RemoteObject
+
+METADATA_BYTES = 64 << 20  # the summary and the first message's chunk, at most (a chunk is a few MB by default)
+METADATA_BLOCK = 64 << 10  # bytes a ranged GET fetches at least: the magic, the footer, the summary's pieces
+
+
+@dataclass(frozen=True)
+class SchemaInfo:
+    name: str
+
+
+@dataclass(frozen=True)
+class ChannelInfo:
+    """What `validate` reads of a channel, as Rerun's `McapChannelInfo` gives it for a local file."""
+
+    topic: str
+    schema: SchemaInfo | None
+    message_encoding: str
+    message_count: int | None
+
+
+@dataclass(frozen=True)
+class SummaryInfo:
+    """The summary's channels and last log time, as Rerun's `McapReader(path).info()` gives them for a local file."""
+
+    channels: tuple[ChannelInfo, ...]
+    message_end_time_ns: int | None
+
+
+def late_messages(stream: IO[bytes], topic: str, start: int) -> int:
+    """How many messages of `topic` are logged at or after `start`: the mcap library reads only the chunks whose
+    time range reaches it (from the summary's chunk index)."""
+    from mcap.reader import make_reader
+
+    return sum(1 for _ in make_reader(stream).iter_messages(topics=[topic], starting_at=start))
+
+
+class RemoteMcap:
+    """One remote MCAP file, open for its metadata: the summary, read once, and the first message of a topic."""
+
+    def __init__(self, remote: RemoteObject, stream: IO[bytes], where: Where | None) -> None:
+        from mcap.reader import SeekingReader
+
+        self.remote = remote
+        self.stream = stream
+        self.where = where
+        try:
+            self.reader = SeekingReader(stream)
+            self.summary = self.reader.get_summary()
+        except UserError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - the mcap library's errors on a file that is no MCAP, or a damaged one
+            raise UserError(f"cannot read MCAP file {remote.url}: {_reason(exc)}", where) from None
+        if self.summary is None:
+            raise UserError(
+                f"MCAP file {remote.url} has no summary section (the index at its end, which a finished recording has): it cannot be "
+                "checked without reading it all; rewrite it with `mcap recover`, or download it and name the local file",
+                where,
+            )
+
+    def info(self) -> SummaryInfo:
+        summary = self.summary
+        assert summary is not None
+        counts = summary.statistics.channel_message_counts if summary.statistics is not None else None
+        channels = tuple(
+            ChannelInfo(
+                channel.topic,
+                SchemaInfo(summary.schemas[channel.schema_id].name) if channel.schema_id in summary.schemas else None,
+                channel.message_encoding,
+                counts.get(channel_id, 0) if counts is not None else None,
+            )
+            for channel_id, channel in sorted(summary.channels.items())
+        )
+        end = summary.statistics.message_end_time if summary.statistics is not None and summary.statistics.message_count else None
+        return SummaryInfo(channels, end)
+
+    def first_names(self, topics: list[str]) -> tuple[str, ...] | None:
+        """The names of the first message on `topics` in file order, None when there is none. Only the chunks that
+        may hold one are read (by the chunk index), in file order, until one does: one chunk, within METADATA_BYTES."""
+        from ..remote import OverBudget
+
+        assert self.summary is not None
+        if not self.summary.chunk_indexes:
+            raise UserError(
+                f"MCAP file {self.remote.url} has no chunk index: its first message cannot be found without reading it all; "
+                "give the names with names: [...]",
+                self.where,
+            )
+        try:
+            data = self._first_message(topics)
+            return None if data is None else joint_state_names(data)
+        except OverBudget:
+            raise UserError(
+                f"the first message on {topics[0]} of MCAP file {self.remote.url} is not within its first {METADATA_BYTES >> 20} MB "
+                "of chunks; give the names with names: [...]",
+                self.where,
+            ) from None
+        except UserError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - a chunk that does not decompress, a message that is no JointState
+            raise UserError(f"MCAP file {self.remote.url} is corrupt: {_reason(exc)} (reading topic '{topics[0]}')", self.where) from None
+
+    def _first_message(self, topics: list[str]) -> bytes | None:
+        from mcap.data_stream import ReadDataStream
+        from mcap.records import Chunk, Message
+        from mcap.stream_reader import breakup_chunk
+
+        assert self.summary is not None
+        channels = {channel_id for channel_id, channel in self.summary.channels.items() if channel.topic in topics}
+        for index in sorted(self.summary.chunk_indexes, key=lambda chunk: chunk.chunk_start_offset):  # one per chunk
+            if index.message_index_offsets and not channels & index.message_index_offsets.keys():
+                continue  # its message index says it holds none of the topic's messages
+            self.stream.seek(index.chunk_start_offset + 1 + 8)  # past the record's opcode and length
+            chunk = Chunk.read(ReadDataStream(self.stream))
+            for record in breakup_chunk(chunk, validate_crc=True):
+                if isinstance(record, Message) and record.channel_id in channels:
+                    return bytes(record.data)
+        return None
+
+    def late_messages(self, topic: str, start: int) -> int:
+        return late_messages(self.stream, topic, start)
+
+
+@contextmanager
+def remote_mcap(remote: RemoteObject, where: Where | None) -> Iterator[RemoteMcap]:
+    """The file's metadata through ranged GETs (at most METADATA_BYTES in all)."""
+    try:
+        import mcap.reader  # noqa: F401 - the library this needs, said before any request
+    except ImportError:
+        raise UserError("s3:// MCAP files are read with the mcap library: pip install 'urdf-pipeline[s3]'", where) from None
+    from ..remote import open_range
+
+    with open_range(remote, where, block=METADATA_BLOCK, max_bytes=METADATA_BYTES) as stream:
+        yield RemoteMcap(remote, stream, where)
+
+
+def _reason(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return text[0] if text else type(exc).__name__
+
+
+def joint_state_names(data: bytes | memoryview) -> tuple[str, ...]:
+    """The `name` field of a CDR-encoded sensor_msgs/msg/JointState: after the header (stamp, frame_id), a sequence
+    of strings. CDR aligns each 4-byte length to 4 bytes from the end of the 4-byte encapsulation header."""
+    view = memoryview(data)
+    if len(view) < 4 or view[0] != 0 or view[1] not in (0, 1):
+        raise ValueError("the message is not plain CDR (encapsulation CDR_BE or CDR_LE)")
+    reader = _Cdr(view[4:], "<" if view[1] == 1 else ">")
+    reader.uint32()  # header.stamp.sec
+    reader.uint32()  # header.stamp.nanosec
+    reader.string()  # header.frame_id
+    count = reader.uint32()
+    if count > len(view):  # each name takes at least 4 bytes: a count beyond the message's size is not one
+        raise ValueError(f"the message names {count} joints in {len(view)} bytes")
+    return tuple(reader.string() for _ in range(count))
+
+
+class _Cdr:
+    def __init__(self, body: memoryview, order: str) -> None:
+        self.body = body
+        self.order = order
+        self.position = 0
+
+    def uint32(self) -> int:
+        self.position = (self.position + 3) & ~3
+        value: Any = struct.unpack_from(self.order + "I", self.body, self.position)[0]
+        self.position += 4
+        return int(value)
+
+    def string(self) -> str:
+        length = self.uint32()  # with the terminating NUL
+        if self.position + length > len(self.body):
+            raise ValueError("a string runs past the end of the message")
+        text = bytes(self.body[self.position : self.position + max(length - 1, 0)]).decode("utf-8")
+        self.position += length
+        return text
