@@ -253,6 +253,9 @@ def test_source_spec_syntax(tmp_path: Path) -> None:
     assert caught.value.message.endswith(
         "lerobot:DIR[#FEATURE], parquet:FILE[#COLUMN], mcap:FILE[#TOPIC], hdf5:FILE#/DATASET, rrd:FILE#ENTITY or csv:FILE"
     )
+    for remote in ("parquet:s3://robot-data/ep.parquet", "hf://datasets/lerobot/pusht@v2.1"):
+        with pytest.raises(UserError, match="init reads a local file or dataset"):
+            parse_source_spec(remote)
 
 
 def test_name_matching_rules() -> None:

@@ -8,7 +8,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..config import Document
-from ..errors import UserError
+from ..confine import is_remote
+from ..errors import UserError, shown
 from ..sources import GLOB, KINDS, EntryField, SourceDescription, kind_for_path
 
 STUB_SOURCE_DIR = "TODO"  # the stub parquet path starts here: it does not exist, so validate fails on it alone
@@ -29,6 +30,11 @@ def parse_source_spec(text: str) -> tuple[str, str, str | None]:
     if not sep or kind not in KINDS:
         kind, rest = "", text
     path, hash_, part = rest.partition("#")
+    if is_remote(path):  # init reads a sample of the data: a local copy of it
+        raise UserError(
+            f"--source {shown(text)}: init reads a local file or dataset (a sample of its values); download one, run init "
+            "on it, then put the s3:// or hf:// location in the config it writes"
+        )
     if not path:
         raise UserError(f"--source '{text}': no path; the form is KIND:PATH[#PART], KIND one of {', '.join(KINDS)}")
     if not kind:
