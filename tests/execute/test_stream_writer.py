@@ -3,7 +3,10 @@ collected store's (never confetti)."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import signal
+import threading
+import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pyarrow as pa
@@ -83,27 +86,72 @@ def test_an_error_raised_while_reading_is_raised_as_itself(tmp_path: Path) -> No
         drain_streams([errors.wrap_stream(LazyChunkStream.from_iter(failing()))], _to_file(tmp_path / "x.rrd"), errors)
 
 
+def _endless() -> Iterator[Chunk]:
+    frame = 0
+    while True:
+        yield Chunk.from_columns("/x", indexes=[rr.TimeColumn("frame", sequence=[frame])], columns=rr.Scalars.columns(scalars=[0.0]))
+        frame += 1
+        time.sleep(0.001)
+
+
+def _writers() -> list[threading.Thread]:
+    """The writer threads that have not returned. Not `is_alive()`: after an interrupted `join`, Python 3.11 says False
+    of a thread that still runs (CPython gh-90882); a thread leaves `enumerate()` only once its function returned."""
+    return [t for t in threading.enumerate() if t.name == "urdf-pipeline-writer"]
+
+
 def test_ctrl_c_stops_a_write_that_runs_on_rerun_threads(tmp_path: Path) -> None:
-    """An endless source: only the cancellation that Ctrl-C triggers can end the write, and it does, leaving no
-    writer thread behind."""
-    import signal
-    import threading
-    import time
-
-    def endless():
-        frame = 0
-        while True:
-            yield Chunk.from_columns("/x", indexes=[rr.TimeColumn("frame", sequence=[frame])], columns=rr.Scalars.columns(scalars=[0.0]))
-            frame += 1
-            time.sleep(0.001)
-
+    """An endless source: only the cancellation that Ctrl-C triggers can end the write, and it does; the writer has
+    returned before the KeyboardInterrupt reaches the caller (Rerun's threads would otherwise run Python while the
+    interpreter finalizes, and abort it)."""
     main = threading.main_thread().ident
     assert main is not None
-    threading.Timer(0.5, signal.pthread_kill, (main, signal.SIGINT)).start()
+    threading.Timer(0.5, signal.pthread_kill, (main, signal.SIGINT)).start()  # while drain_streams waits for the writer
     errors = CallbackErrors()
     with pytest.raises(KeyboardInterrupt):
-        drain_streams([errors.wrap_stream(LazyChunkStream.from_iter(endless()))], _to_file(tmp_path / "x.rrd"), errors)
-    assert not [t for t in threading.enumerate() if t.name == "urdf-pipeline-writer" and t.is_alive()]
+        drain_streams([errors.wrap_stream(LazyChunkStream.from_iter(_endless()))], _to_file(tmp_path / "x.rrd"), errors)
+    assert not _writers()
+
+
+def test_ctrl_c_as_the_writer_starts_still_cancels_it(tmp_path: Path) -> None:
+    """The signal comes while the main thread starts the writer (the sink signals as soon as it runs): the write is
+    cancelled and waited for all the same."""
+    main = threading.main_thread().ident
+    assert main is not None
+
+    def signalling_sink(merged: LazyChunkStream) -> None:
+        signal.pthread_kill(main, signal.SIGINT)
+        _to_file(tmp_path / "x.rrd")(merged)
+
+    errors = CallbackErrors()
+    with pytest.raises(KeyboardInterrupt):
+        drain_streams([errors.wrap_stream(LazyChunkStream.from_iter(_endless()))], signalling_sink, errors)
+    assert not _writers()
+
+
+def test_a_signal_whose_handler_does_not_raise_leaves_the_write_alone(tmp_path: Path) -> None:
+    """Only a handler that raises (Ctrl-C's, SIGTERM's in a run) stops the write; one that does not is called, and the
+    write goes on to its end."""
+    main = threading.main_thread().ident
+    assert main is not None
+    called: list[int] = []
+
+    def finite() -> Iterator[Chunk]:
+        for frame in range(200):
+            yield Chunk.from_columns("/x", indexes=[rr.TimeColumn("frame", sequence=[frame])], columns=rr.Scalars.columns(scalars=[0.0]))
+            if frame == 20:
+                signal.pthread_kill(main, signal.SIGINT)
+            time.sleep(0.001)
+
+    previous = signal.signal(signal.SIGINT, lambda number, frame: called.append(number))
+    try:
+        errors = CallbackErrors()
+        drain_streams([errors.wrap_stream(LazyChunkStream.from_iter(finite()))], _to_file(tmp_path / "x.rrd"), errors)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert called == [signal.SIGINT]
+    assert sum(chunk.num_rows for chunk in RrdReader(tmp_path / "x.rrd").stream() if not chunk.is_static) == 200
+    assert not _writers()
 
 
 def test_a_write_error_names_the_file_and_keeps_the_previous_one(examples_dir: Path) -> None:

@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import signal
 import threading
-from collections.abc import Iterator
-from contextlib import contextmanager
 from types import FrameType
 
 
@@ -57,31 +55,3 @@ def signal_name(signum: int) -> str:
 
 def exit_status(signum: int) -> int:
     return 128 + signum
-
-
-@contextmanager
-def deferred_signals() -> Iterator[list[int]]:
-    """SIGINT and SIGTERM that arrive inside the block are recorded (in the list it yields) and delivered to their own
-    handlers when it ends, so the KeyboardInterrupt is raised in our code, never inside a library holding a lock.
-
-    concurrent.futures' `wait`, `submit` and `Future.result` take locks; a KeyboardInterrupt raised between a lock's
-    acquire and its `with` block leaves it held, and the interpreter then hangs at exit joining the pool's manager thread
-    (seen under load after Ctrl-C). Outside the main thread (where no handler runs) this does nothing."""
-    if threading.current_thread() is not threading.main_thread():
-        yield []
-        return
-    received: list[int] = []
-    previous = {int(signum): signal.getsignal(signum) for signum in (signal.SIGINT, signal.SIGTERM)}
-    for signum in previous:
-        signal.signal(signum, lambda number, frame: received.append(number))
-    try:
-        yield received
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
-    if received:
-        handler = previous[received[0]]
-        if callable(handler):
-            handler(received[0], None)  # default_int_handler raises KeyboardInterrupt; handle_sigterm's raises Terminated
-        elif handler == signal.SIG_DFL:
-            signal.raise_signal(received[0])

@@ -23,11 +23,11 @@ import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
+from multiprocessing.process import BaseProcess
 from typing import TypeVar
 
 from .. import PandasLeftOut
-from ..execute import process_alive
-from .interrupts import deferred_signals
+from ..execute import deferred_signals, process_alive
 
 PRELOAD = ["urdf_pipeline.execute.segment_run", "urdf_pipeline.execute.segment", "rerun.chunk", "rerun.urdf", "rerun.experimental"]
 POLL_SECONDS = 0.2  # how soon a Ctrl-C or SIGTERM is acted on while waiting for the workers
@@ -123,7 +123,7 @@ def _run_in_pool(
     queue = list(reversed(jobs))
     try:
         while queue or pending:
-            with deferred_signals() as stop:  # no signal raised inside the pool's locks: see interrupts.deferred_signals
+            with deferred_signals() as stop:  # no signal raised inside the pool's locks: see execute/held_signals.py
                 while ready.is_set() and queue and len(pending) < 2 * helpers:
                     job = queue.pop()
                     pending[pool.submit(work, job)] = job
@@ -215,14 +215,25 @@ def _run_here(work: Callable[[J], R], job: J, on_done: Callable[[J, R], None], o
 
 def _terminate(pool: ProcessPoolExecutor) -> None:
     """Stop the workers now (SIGKILL: they ignore SIGTERM): a job in flight is abandoned and its partial file removed by
-    the caller."""
-    processes = list((getattr(pool, "_processes", None) or {}).values())  # no public API lists a pool's processes
+    the caller.
+
+    A worker still being started (by a `submit` of `start_workers`, which waits for the fork server) is not listed
+    yet: `shutdown` waits for that `submit`, no worker is started after it, and the ones listed then are killed too.
+    One left alive would hang this process at exit: the pool's manager thread joins every worker (after a SIGTERM,
+    which they ignore), and the interpreter joins that thread (seen after SIGTERM came while the workers started)."""
+    processes = getattr(pool, "_processes", None)  # the pool's own dict, kept: shutdown forgets it; no public API lists them
     call_queue = getattr(pool, "_call_queue", None)
     if call_queue is not None:
         call_queue.cancel_join_thread()  # its feeder may be blocked writing to a dead worker: exiting must not wait for it
-    for process in processes:
+    _kill(processes)  # at once: no worker goes on writing
+    pool.shutdown(wait=False, cancel_futures=True)
+    _kill(processes)  # and any started meanwhile
+
+
+def _kill(processes: dict[int, BaseProcess] | None) -> None:
+    listed = list((processes or {}).values())
+    for process in listed:
         if process.is_alive():
             process.kill()
-    for process in processes:
+    for process in listed:
         process.join(timeout=10)
-    pool.shutdown(wait=False, cancel_futures=True)

@@ -13,6 +13,7 @@ from .. import lazy_surface
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
     from .blueprint import blueprint_key, blueprint_path, write_blueprint
     from .edges_stream import CALIBRATION_ENTITY, calibration_stream
+    from .held_signals import deferred_signals
     from .joint_fk import rotation_matrices
     from .kinematics import RobotKinematics, segment_kinematics
     from .model_stream import cached_tree, robot_model_stream
