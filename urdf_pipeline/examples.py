@@ -72,15 +72,19 @@ def write_joint_parquet(path: Path, values: np.ndarray, column: str = "observati
     pq.write_table(table, path)
 
 
+LEROBOT_CHUNK_SIZE = 1000  # episodes per data/chunk-NNN folder, as LeRobot v2.1 writes them
+
+
 def write_lerobot_dataset(root: Path, episodes: np.ndarray | list[np.ndarray], names: list[str], fps: int = 30) -> None:
-    """A minimal LeRobot v2.1 dataset without videos: one parquet file per episode (one array of values each)."""
+    """A minimal LeRobot v2.1 dataset without videos: one parquet file per episode (one array of values each), in the
+    chunk folder info.json's `chunks_size` puts it (Rerun's reader refuses a dataset with episode 1000 in chunk-000)."""
     episodes = [episodes] if isinstance(episodes, np.ndarray) else episodes
     (root / "meta").mkdir(parents=True, exist_ok=True)
     width = episodes[0].shape[1]
     first_index = 0
     for episode, values in enumerate(episodes):
         frames = len(values)
-        data = root / "data" / "chunk-000" / f"episode_{episode:06d}.parquet"
+        data = root / "data" / f"chunk-{episode // LEROBOT_CHUNK_SIZE:03d}" / f"episode_{episode:06d}.parquet"
         data.parent.mkdir(parents=True, exist_ok=True)
         pq.write_table(
             pa.table(
@@ -104,8 +108,8 @@ def write_lerobot_dataset(root: Path, episodes: np.ndarray | list[np.ndarray], n
         "total_frames": first_index,
         "total_tasks": 1,
         "total_videos": 0,
-        "total_chunks": 1,
-        "chunks_size": 1000,
+        "total_chunks": -(-len(episodes) // LEROBOT_CHUNK_SIZE),
+        "chunks_size": LEROBOT_CHUNK_SIZE,
         "fps": fps,
         "splits": {"train": f"0:{len(episodes)}"},
         "data_path": "data/chunk-{episode_chunk:03d}/episode_{episode_index:06d}.parquet",

@@ -198,3 +198,16 @@ def test_make_demo_ends_with_a_command_that_opens_the_recording_it_wrote(example
     assert (Path(sys.executable).parent / "rerun").is_file(), "rerun-sdk installs the viewer's script beside the interpreter"
     written = compile_config(examples_dir / "demo.yaml").segments[0].output
     assert written.relative_to(examples_dir).as_posix() == "out/episode_000.rrd"
+
+
+def test_a_lerobot_dataset_of_more_than_1000_episodes_is_written_in_chunk_folders_rerun_reads(tmp_path: Path) -> None:
+    """LeRobot v2.1 puts episode N in data/chunk-{N // chunks_size}: Rerun's reader refuses episode 1000 in chunk-000
+    ("Invalid chunk index: 1"), and the benchmark of many episodes (benchmarks/bench_many_episodes.py) writes 10,000."""
+    import numpy as np
+    from rerun.experimental import LeRobotReader
+
+    examples.write_lerobot_dataset(tmp_path, [np.zeros((1, 2))] * 1001, ["a", "b"])
+    assert (tmp_path / "data" / "chunk-001" / "episode_001000.parquet").is_file()
+    assert not (tmp_path / "data" / "chunk-000" / "episode_001000.parquet").exists()
+    assert json.loads((tmp_path / "meta" / "info.json").read_text())["total_chunks"] == 2
+    assert LeRobotReader(tmp_path).episodes()[-1] == 1000

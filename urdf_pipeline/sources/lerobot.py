@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import functools
 import json
+import os
 import string
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
+from types import MappingProxyType
 from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
@@ -22,6 +25,7 @@ from .stream import SourceStream
 
 if TYPE_CHECKING:
     from rerun.chunk import Chunk
+    from rerun.experimental import LeRobotReader
 
 T = TypeVar("T")
 check_download = no_remote_files
@@ -171,35 +175,63 @@ def _unnamed_width(root: Path, feature: str) -> int | None:
     return int(shape[0]) if len(shape) == 1 and isinstance(shape[0], int) else None
 
 
-def _episode_table(root: Path) -> pa.Table | None:
-    """The dataset's per-episode metadata: v2's meta/episodes.jsonl or v3's meta/episodes/**/*.parquet."""
-    import pyarrow.parquet as pq
+# A metadata file as last seen: (path, size, mtime_ns), the rule of the run's file hashes (dataset/fingerprint.py).
+# What is read from the dataset's metadata is kept per process while its files are unchanged: every segment of a run
+# asks for it, and reading it again each time made a run quadratic in the episodes (10,000 episodes: 57 ms a segment
+# parsing episodes.jsonl, 9 ms opening Rerun's reader).
+FileStamp = tuple[Path, int, int]
 
+
+def _stamped(path: Path) -> FileStamp:
+    status = os.stat(path)
+    return (path, status.st_size, status.st_mtime_ns)
+
+
+def _episode_files(root: Path) -> tuple[FileStamp, ...]:
+    """The dataset's per-episode metadata files: v2's meta/episodes.jsonl or v3's meta/episodes/**/*.parquet."""
     jsonl = root / "meta" / "episodes.jsonl"
     if file_state(jsonl, "LeRobot metadata file", None) == "file":
-        rows = [json.loads(line) for line in jsonl.read_text(encoding="utf-8").splitlines() if line.strip()]
-        return pa.table({"episode_index": [int(r["episode_index"]) for r in rows], "length": [r.get("length") for r in rows]})
+        return (_stamped(jsonl),)
     files = sorted((root / "meta" / "episodes").glob("**/*.parquet"))
-    files = [f for f in files if file_state(f, "LeRobot metadata file", None) == "file"]
-    if not files:
-        return None
+    return tuple(_stamped(f) for f in files if file_state(f, "LeRobot metadata file", None) == "file")
+
+
+def _episode_table(root: Path) -> pa.Table | None:
+    """The dataset's per-episode metadata (None without any)."""
+    files = _episode_files(root)
+    return _read_episode_table(files) if files else None
+
+
+@functools.lru_cache(maxsize=4)
+def _read_episode_table(files: tuple[FileStamp, ...]) -> pa.Table:
+    import pyarrow.parquet as pq
+
+    if files[0][0].name == "episodes.jsonl":
+        rows = [json.loads(line) for line in files[0][0].read_text(encoding="utf-8").splitlines() if line.strip()]
+        return pa.table({"episode_index": [int(r["episode_index"]) for r in rows], "length": [r.get("length") for r in rows]})
     wanted = ["episode_index", "length", "data/chunk_index", "data/file_index"]
-    tables = [pq.read_table(f, columns=[c for c in wanted if c in pq.read_schema(f).names]) for f in files]
+    tables = [pq.read_table(f, columns=[c for c in wanted if c in pq.read_schema(f).names]) for f, _, _ in files]
     return pa.concat_tables(tables, promote_options="default")
 
 
 def episodes(plan: LeRobotSourcePlan) -> dict[int, int | None]:
     """Episode index -> its length in frames (None when the metadata does not say), from the dataset's metadata only."""
-    return _metadata(plan, lambda: _episodes(plan))
+    return dict(_metadata(plan, lambda: _episodes(plan)))  # a copy: the one kept is shared
 
 
-def _episodes(plan: LeRobotSourcePlan) -> dict[int, int | None]:
-    table = _episode_table(plan.root)
-    if table is None:
+def _episodes(plan: LeRobotSourcePlan) -> Mapping[int, int | None]:
+    files = _episode_files(plan.root)
+    if not files:
         total = int(_info(plan.root, plan.where).get("total_episodes", 0))
         return dict.fromkeys(range(total))
+    return _episode_lengths(files)
+
+
+@functools.lru_cache(maxsize=4)
+def _episode_lengths(files: tuple[FileStamp, ...]) -> Mapping[int, int | None]:
+    table = _read_episode_table(files)
     lengths = table.column("length").to_pylist() if "length" in table.column_names else [None] * table.num_rows
-    return dict(zip(table.column("episode_index").to_pylist(), lengths, strict=True))
+    return MappingProxyType(dict(zip(table.column("episode_index").to_pylist(), lengths, strict=True)))
 
 
 def episode_inputs(plan: LeRobotSourcePlan) -> tuple[Path, ...]:
@@ -237,7 +269,7 @@ def check_episode_data(plan: LeRobotSourcePlan, where: Where | None) -> None:
     """The episode has rows (by the dataset's metadata) and its data files decode (pyarrow, before Rerun's reader)."""
     import pyarrow.parquet as pq
 
-    length = episodes(plan).get(plan.episode)
+    length = _metadata(plan, lambda: _episodes(plan)).get(plan.episode)
     files = episode_inputs(plan)[1:]
     if length == 0:
         raise UserError(
@@ -256,6 +288,16 @@ def check_episode_data(plan: LeRobotSourcePlan, where: Where | None) -> None:
             raise UserError(f"episode {plan.episode}: {exc.message}", where) from None
 
 
+@functools.lru_cache(maxsize=4)
+def _reader(root: Path, metadata: tuple[FileStamp, ...]) -> tuple[LeRobotReader, frozenset[int]]:
+    """Rerun's reader of the dataset and its episodes, kept while `metadata` (info.json, the episode files) is
+    unchanged: opening one reads the whole dataset's metadata."""
+    from rerun.experimental import LeRobotReader
+
+    reader = LeRobotReader(root)
+    return reader, frozenset(reader.episodes())
+
+
 def _one_vector_per_row(chunk: Chunk) -> list[Chunk]:
     """Scalars:scalars holds a row's values as instances; repack them as one list instance per row.
 
@@ -272,10 +314,8 @@ def _one_vector_per_row(chunk: Chunk) -> list[Chunk]:
 
 
 def open_stream(plan: LeRobotSourcePlan) -> SourceStream:
-    from rerun.experimental import LeRobotReader
-
-    reader = LeRobotReader(plan.root)
-    if plan.episode not in reader.episodes():
+    reader, known = _reader(plan.root, (_stamped(plan.root / "meta" / "info.json"), *_episode_files(plan.root)))
+    if plan.episode not in known:
         raise UserError(f"episode {plan.episode} is not in {plan.root}", plan.where)
     if plan.per_segment:  # a pinned episode was checked when the config compiled
         check_episode_data(plan, plan.where)
