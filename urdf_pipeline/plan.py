@@ -28,14 +28,15 @@ class IndexPlan:
 
 @dataclass(frozen=True)
 class RemoteObject:
-    """A remote file a source reads (`s3://BUCKET/KEY`), as it was when the config was compiled: `version` is what
-    its bytes are (the object's ETag), so a run downloads exactly those bytes or refuses (never a mix of versions).
+    """A remote file a source reads (`s3://BUCKET/KEY`, a file of a Hub dataset), as it was when the config was
+    compiled: `version` is what its bytes are (the object's ETag; the Hub's commit sha, which fixes every file of the
+    dataset), so a run downloads exactly those bytes or refuses (never a mix of versions).
     A source plan that holds one has, as its `path`, where the download cache keeps the file on the machine that
     compiled the plan; a machine that runs it (a Ray worker) fetches into its own cache."""
 
     url: str
     version: str
-    size: int
+    size: int  # bytes; 0 for a Hub data file (its commit pins it; its size is known once downloaded)
 
 
 @dataclass(frozen=True)
@@ -53,17 +54,35 @@ class ParquetSourcePlan:
 
 
 @dataclass(frozen=True)
+class RemoteDataset:
+    """A LeRobot dataset read where a team keeps it (`s3://BUCKET/PREFIX/DATASET`, `hf://datasets/ORG/NAME@REV`), as
+    it was when the config was compiled: every file is pinned (its ETag, or the Hub commit the revision resolved to),
+    so a run reads exactly what was planned or refuses. `meta` are the metadata files a reader needs (info.json, the
+    episodes' and tasks' tables: downloaded at compile, they are metadata); `data` the data file(s) of the segment's
+    episode (empty in the plan of the whole dataset), downloaded only by `run`."""
+
+    url: str  # the dataset's folder: s3://BUCKET/PREFIX/DATASET, or hf://datasets/ORG/NAME@COMMIT (the resolved sha)
+    meta: tuple[RemoteObject, ...]
+    data: tuple[RemoteObject, ...] = ()
+
+    def relative(self, remote: RemoteObject) -> str:
+        """Where `remote` lies inside the dataset's folder (`meta/info.json`)."""
+        return remote.url[len(self.url) + 1 :]
+
+
+@dataclass(frozen=True)
 class LeRobotSourcePlan:
     """One feature (a joint vector) of a LeRobot dataset: one episode, or (per_segment) each segment's own."""
 
     name: str
-    root: Path
+    root: Path  # a remote dataset: the folder this machine keeps its files in (the Hub's snapshot, the download cache)
     feature: str
     episode: int
     names: tuple[str, ...]
     where: Where
     per_segment: bool = False  # no `episode` in the config: each segment reads its own episode
     duplicates: str = "error"  # two rows at one index value: "error" or "keep_last" (the later row wins)
+    remote: RemoteDataset | None = None  # `lerobot: s3://...` or `hf://...`: `run` reads a local view of its files
 
 
 @dataclass(frozen=True)

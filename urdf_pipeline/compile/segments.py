@@ -11,7 +11,7 @@ import itertools
 import os
 import re
 import string
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -343,9 +343,11 @@ def _output_paths(ctx: CompileContext, template: str, ids: list[str]) -> list[Pa
 
 
 def _source_for(plan: SourcePlan, sources: CompiledSources, episode: int | None, stem: str | None) -> SourcePlan:
+    from ..sources import lerobot
+
     if isinstance(plan, LeRobotSourcePlan) and plan.per_segment:
         assert episode is not None  # segments of per-episode sources are keyed by episode
-        return replace(plan, episode=episode)
+        return lerobot.for_episode(plan, episode)  # a remote dataset's plan holds the episode's data files
     if plan.name in sources.files and stem is not None:
         return sources.files[plan.name][stem]
     return plan

@@ -1,6 +1,7 @@
 """A segment's remote inputs made local before its sources open: each `s3://` file the plan names is fetched into
 this machine's download cache (pinned to the version that was planned; a Ray worker fetches into its own), its data
-checks run (compile read only its metadata), and the plan's paths point at the cached files while the segment runs."""
+checks run (compile read only its metadata), and the plan's paths point at the cached files while the segment runs.
+A remote LeRobot dataset is read from a local view of the files its episode needs (`sources.local_dataset`)."""
 
 from __future__ import annotations
 
@@ -8,20 +9,25 @@ from collections.abc import Iterator
 from contextlib import ExitStack, contextmanager
 from dataclasses import replace
 
-from ..plan import ParquetSourcePlan, RecordingPlan, SourcePlan
+from ..plan import LeRobotSourcePlan, ParquetSourcePlan, RecordingPlan, SourcePlan
 from ..remote import fetched
-from ..sources import module_for
+from ..sources import local_dataset, module_for
 
 
 @contextmanager
 def local_inputs(plan: RecordingPlan) -> Iterator[RecordingPlan]:
     """`plan` with every remote source's `path` its cached file, held in the cache until the block ends."""
-    if not any(isinstance(source, ParquetSourcePlan) and source.remote is not None for source in plan.sources):
+    if not any(getattr(source, "remote", None) is not None for source in plan.sources):
         yield plan
         return
     with ExitStack() as held:
         sources: list[SourcePlan] = []
         for source in plan.sources:
+            if isinstance(source, LeRobotSourcePlan) and source.remote is not None:
+                dataset = held.enter_context(local_dataset(source))
+                module_for(dataset).check_download(dataset)
+                sources.append(dataset)
+                continue
             if not isinstance(source, ParquetSourcePlan) or source.remote is None:
                 sources.append(source)
                 continue

@@ -14,9 +14,11 @@ from typing import TYPE_CHECKING
 from .. import lazy_surface
 
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
-    from .fetching import cached_path, fetched, remote_file, remote_glob
+    from .fetching import cached_path, download_folder, fetched, remote_file, remote_glob
+    from .folder_view import check_relative, fetched_folder
+    from .hub import hub_commit, hub_files, hub_snapshot
     from .locations import ALLOW_URLS_ENV, RemoteUrl, check_allowed, is_remote, parse_url, remote_location
-    from .s3_objects import open_range
+    from .s3_objects import listing, open_range
 
 if not TYPE_CHECKING:  # the names above, imported when first used
     __all__, __getattr__ = lazy_surface(__name__, __file__)

@@ -168,7 +168,9 @@ def _source(source: SourcePlan, paths: _Paths) -> SourceEntry:
         source.name,
         type(source).__name__.removesuffix("SourcePlan").lower(),
         file_key,
-        ShownPath(source.path, remote.url) if (remote := getattr(source, "remote", None)) is not None else paths(getattr(source, file_key)),
+        ShownPath(getattr(source, file_key), remote.url)
+        if (remote := getattr(source, "remote", None)) is not None
+        else paths(getattr(source, file_key)),
         tuple(source.names),
         tuple(sorted(settings, key=lambda s: s[0])),
     )
