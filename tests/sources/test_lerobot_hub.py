@@ -74,6 +74,7 @@ def test_a_branch_is_planned_at_its_commit_and_the_episodes_run_from_the_hub_cac
     hub_commit(hub, REPO, tmp_path / "dataset", FIRST)  # now the data too, as a download would leave it
     first = run_cli("run", str(config), "--jobs", "1")
     assert first.code == 0, first.err
+    assert "urdf-pipeline-view-" not in first.err, "the reader is shown only the episodes whose files the view holds"
     _check(examples_dir, stem, episodes)
     assert cached_names(tmp_path / "download-cache") == [], "Hub files stay in the Hub client's cache"
     again = run_cli("run", str(config), "--jobs", "1")

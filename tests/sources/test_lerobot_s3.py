@@ -62,6 +62,7 @@ def test_an_s3_dataset_is_planned_from_its_metadata_and_run_from_the_cache(
 
     first = run_cli("run", str(config), "--jobs", "1")
     assert first.code == 0, first.err
+    assert "urdf-pipeline-view-" not in first.err, "the reader is shown only the episodes whose files the view holds"
     for episode, q in enumerate(episodes):
         recording = examples_dir / "out" / stem / f"episode_{episode:06d}.rrd"
         assert_panda_fk(examples_dir, recording, "frame_index", list(range(len(q))), q, [0, len(q) // 2, len(q) - 1])

@@ -34,7 +34,17 @@ from ..remote import (
     listing,
     parse_url,
 )
-from .lerobot_meta import checked_plan, data_path_template, episode_lengths, episode_table, metadata, read_info, v2_data_file, v3_data_files
+from .lerobot_meta import (
+    V3_COLUMNS,
+    checked_plan,
+    data_path_template,
+    episode_lengths,
+    episode_table,
+    metadata,
+    read_info,
+    v2_data_file,
+    v3_data_files,
+)
 
 META_FILES = ("meta/info.json", "meta/episodes.jsonl", "meta/tasks.jsonl", "meta/tasks.parquet")  # what a reader opens
 META_PATTERNS = (*META_FILES, "meta/episodes/*.parquet")  # for the Hub client (fnmatch: `*` crosses folders)
@@ -175,4 +185,35 @@ def episode_view(plan: LeRobotSourcePlan) -> Iterator[Path]:
     name = parse_url(plan.remote.url, plan.where).name
     files = {f"{name}/{plan.remote.relative(o)}": o for o in (*plan.remote.meta, *plan.remote.data)}
     with fetched_folder(files, plan.where) as folder:
+        _present_episodes_only(folder / name, plan)
         yield folder / name
+
+
+def _present_episodes_only(root: Path, plan: LeRobotSourcePlan) -> None:
+    """v3: the view's episode tables cut to the episodes whose data files it holds (those sharing the plan's episode's
+    files), written in place of their links (the cache's copies stay as they were): Rerun's reader would otherwise
+    try every data file the tables name, and say so for each one missing. v2 opens only the episode's own file."""
+    assert plan.remote is not None
+    tables = [root / plan.remote.relative(o) for o in plan.remote.meta if plan.remote.relative(o).startswith("meta/episodes/")]
+    tables = [path for path in tables if path.suffix == ".parquet"]
+
+    def cut() -> None:
+        import pyarrow.compute as pc
+        import pyarrow.parquet as pq
+
+        read = {path: pq.read_table(path) for path in tables}
+        if not all(set(V3_COLUMNS) <= set(table.column_names) for table in read.values()):
+            return
+        own: set[tuple[int, int]] = set()  # the (chunk, file) of the episode's data files
+        for table in read.values():  # one iteration per episode table
+            mine = table.filter(pc.equal(table["episode_index"], plan.episode))
+            own |= set(zip(mine[V3_COLUMNS[0]].to_pylist(), mine[V3_COLUMNS[1]].to_pylist(), strict=True))
+        for path, table in read.items():  # one iteration per episode table (a v3 dataset has one per 1000 episodes or so)
+            keep = pc.equal(table["episode_index"], -1)
+            for chunk, file in own:  # the episode's data files: one, or two when it straddles a file boundary
+                keep = pc.or_(keep, pc.and_(pc.equal(table[V3_COLUMNS[0]], chunk), pc.equal(table[V3_COLUMNS[1]], file)))
+            path.unlink()  # the link into the cache, never written through
+            pq.write_table(table.filter(keep), path)
+
+    if tables:
+        metadata(plan.remote.url, plan.where, cut)
