@@ -132,3 +132,11 @@ def test_a_prefix_without_a_dataset_is_named(s3: S3, cache: Path, examples_dir: 
     config = lerobot_panda_config(examples_dir, "lerobot_s3_empty", {"lerobot": s3.url("nothing/here")})
     result = run_cli("validate", str(config))
     assert result.code == 1 and f"{s3.url('nothing/here')}/meta/info.json is missing" in result.err, result.err
+
+
+def test_a_local_dataset_hashes_as_before_remote_datasets(examples_dir: Path, allow_examples: Path) -> None:
+    from urdf_pipeline.dataset.fingerprint import _canonical
+
+    plan = load(examples_dir / "so101_dataset.yaml")
+    source = plan.segments[0].sources[0]
+    assert source.remote is None and "remote" not in _canonical(source), "a local plan's `remote` (None) is left out"

@@ -67,6 +67,7 @@ class _Dataset:
 
 
 _KNOWN: dict[tuple[str, tuple[str, ...]], _Dataset] = {}  # by (dataset URL, its metadata's versions)
+KNOWN_LIMIT = 16  # datasets kept (a long-lived process compiling again and again keeps the latest ones)
 
 
 def _key(dataset: RemoteDataset) -> tuple[str, tuple[str, ...]]:
@@ -113,7 +114,7 @@ def compile_remote(name: str, spec: dict[str, Any], document: Document) -> LeRob
         raise UserError(f"{url.url} is not a LeRobot dataset: {url.url}/meta/info.json is missing", where)
     with fetched_folder({dataset.relative(o): o for o in dataset.meta}, where) as view:
         plan = checked_plan(name, spec, document, view, url.url)
-        _KNOWN[_key(dataset)] = _learn(view, plan.where, url.url, objects)
+        _remember(dataset, _learn(view, plan.where, url.url, objects))
     plan = replace(plan, root=root, remote=dataset)
     return plan if plan.per_segment else for_episode(plan, plan.episode)
 
@@ -131,6 +132,13 @@ def _learn(view: Path, where: Where | None, shown_url: str, objects: dict[str, R
     return metadata(shown_url, where, read)
 
 
+def _remember(dataset: RemoteDataset, known: _Dataset) -> _Dataset:
+    while len(_KNOWN) >= KNOWN_LIMIT:
+        del _KNOWN[next(iter(_KNOWN))]
+    _KNOWN[_key(dataset)] = known
+    return known
+
+
 def _dataset(plan: LeRobotSourcePlan) -> _Dataset:
     """What compile learned of the plan's dataset; learned again when this process did not compile it."""
     assert plan.remote is not None
@@ -142,7 +150,7 @@ def _dataset(plan: LeRobotSourcePlan) -> _Dataset:
             prefix = url.child_prefix(f"{url.key}/data" if url.key else "data")
             objects = {o.url[len(url.url) + 1 :]: o for o in listing(prefix, plan.where)}
         with fetched_folder({plan.remote.relative(o): o for o in plan.remote.meta}, plan.where) as view:
-            known = _KNOWN[_key(plan.remote)] = _learn(view, plan.where, plan.remote.url, objects)
+            known = _remember(plan.remote, _learn(view, plan.where, plan.remote.url, objects))
     return known
 
 
