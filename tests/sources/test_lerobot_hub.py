@@ -83,7 +83,7 @@ def test_a_branch_is_planned_at_its_commit_and_the_episodes_run_from_the_hub_cac
 
 def test_an_unpinned_dataset_is_warned_about_and_a_revision_key_pins_it(hub: Path, examples_dir: Path, tmp_path: Path, run_cli) -> None:
     write_dataset(tmp_path / "dataset", _episodes(examples_dir, seed=90), "v2.1")
-    hub_commit(hub, REPO, tmp_path / "dataset", FIRST, refs=("main", "v1.0"))
+    hub_commit(hub, REPO, tmp_path / "dataset", FIRST, refs=("main", "v1.0", "release/2025"))
     config = lerobot_panda_config(examples_dir, "lerobot_hub_unpinned", {"lerobot": URL})
     result = run_cli("validate", str(config))
     assert result.code == 0, result.err
@@ -96,6 +96,9 @@ def test_an_unpinned_dataset_is_warned_about_and_a_revision_key_pins_it(hub: Pat
     assert f"{URL}@{FIRST}" in result.out
     config = lerobot_panda_config(examples_dir, "lerobot_hub_sha", {"lerobot": f"{URL}@{FIRST}"})
     assert run_cli("validate", str(config)).code == 0
+    config = lerobot_panda_config(examples_dir, "lerobot_hub_branch", {"lerobot": URL, "revision": "release/2025"})
+    result = run_cli("plan", str(config), "--format", "json")
+    assert result.code == 0 and f"{URL}@{FIRST}" in result.out, "a branch name with a slash, from refs/release/2025"
 
 
 @pytest.mark.parametrize(

@@ -85,8 +85,10 @@ def _location(name: str, spec: dict[str, Any], document: Document) -> RemoteUrl:
             raise UserError("revision pins the commit of a dataset on the Hugging Face Hub; an S3 dataset has none: remove it", at)
         if url.revision:
             raise UserError(f"the revision is given twice (@{shown(url.revision)} in the URL and revision:): keep one", at)
-        pinned = f"hf://datasets/{url.repo}@{spec['revision']}" + (f"/{url.key}" if url.key else "")
-        url = parse_url(pinned, at, "revision")
+        revision = str(spec["revision"])  # the schema's pattern: letters, digits, `._/-`
+        if any(part in ("", ".", "..") for part in revision.split("/")):
+            raise UserError(f"revision {shown(revision)} has an empty, '.' or '..' segment: name a branch, tag or commit", at)
+        url = url.with_revision(revision)
     return check_allowed(url, where, "lerobot dataset")
 
 
