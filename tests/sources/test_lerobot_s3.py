@@ -140,3 +140,13 @@ def test_a_local_dataset_hashes_as_before_remote_datasets(examples_dir: Path, al
     plan = load(examples_dir / "so101_dataset.yaml")
     source = plan.segments[0].sources[0]
     assert source.remote is None and "remote" not in _canonical(source), "a local plan's `remote` (None) is left out"
+
+
+def test_check_reads_the_first_episode_from_its_view(s3: S3, cache: Path, examples_dir: Path, tmp_path: Path, run_cli) -> None:
+    write_dataset(tmp_path / "dataset", _episodes(examples_dir, seed=80), "v2.1")
+    _upload(s3, "checked", tmp_path / "dataset")
+    config = lerobot_panda_config(examples_dir, "lerobot_s3_check", {"lerobot": s3.url("checked")})
+    result = run_cli("check", str(config))
+    assert result.code == 0, result.err
+    assert "panda_joint1 -> panda_joint1" in result.out
+    assert cached_names(cache) == ["episode_000000.parquet", "episodes.jsonl", "info.json", "tasks.jsonl"], "episode 0's data only"
