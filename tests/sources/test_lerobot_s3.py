@@ -150,3 +150,33 @@ def test_check_reads_the_first_episode_from_its_view(s3: S3, cache: Path, exampl
     assert result.code == 0, result.err
     assert "panda_joint1 -> panda_joint1" in result.out
     assert cached_names(cache) == ["episode_000000.parquet", "episodes.jsonl", "info.json", "tasks.jsonl"], "episode 0's data only"
+
+
+def test_the_python_api_reads_an_s3_episode_as_the_local_dataset_gives_it(
+    s3: S3, cache: Path, examples_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import rerun as rr
+
+    from urdf_pipeline import forward_kinematics, log
+
+    episodes = _episodes(examples_dir, seed=90)
+    write_dataset(tmp_path / "dataset", episodes, "v3")
+    _upload(s3, "api", tmp_path / "dataset")
+    monkeypatch.setenv("URDF_PIPELINE_ALLOW_PATHS", f"{tmp_path}:{examples_dir}")
+    config = lerobot_panda_config(examples_dir, "lerobot_s3_api", {"lerobot": s3.url("api")})
+    remote = forward_kinematics(config, "episode_000001")
+    local = forward_kinematics(
+        lerobot_panda_config(examples_dir, "lerobot_local_api", {"lerobot": str(tmp_path / "dataset")}), "episode_000001"
+    )
+    assert remote["arm"].links == local["arm"].links and len(remote["arm"].times["frame_index"]) == LENGTHS[1]
+    assert np.array_equal(remote["arm"].translations, local["arm"].translations)
+    assert np.array_equal(remote["arm"].quaternions, local["arm"].quaternions)
+
+    recording = rr.RecordingStream("my_app", recording_id="episode_000002")
+    saved = tmp_path / "mine.rrd"
+    recording.save(saved)
+    assert log(config, recording, segment="episode_000002") == {"arm": LENGTHS[2]}
+    recording.flush()
+    recording.disconnect()
+    q = episodes[2]
+    assert_panda_fk(examples_dir, saved, "frame_index", list(range(len(q))), q, [0, len(q) - 1])
