@@ -28,14 +28,13 @@ class IndexPlan:
 
 @dataclass(frozen=True)
 class RemoteObject:
-    """A remote file a source reads (`s3://BUCKET/KEY`), as it was when the config was compiled: `version` is what
-    its bytes are (the object's ETag), so a run downloads exactly those bytes or refuses (never a mix of versions).
-    A source plan that holds one has, as its `path`, where the download cache keeps the file on the machine that
-    compiled the plan; a machine that runs it (a Ray worker) fetches into its own cache."""
+    """A remote file a source reads (`s3://BUCKET/KEY`, a Hub dataset's file) as compiled: `version` (the ETag; the Hub
+    commit) is what its bytes are, so a run downloads exactly those or refuses. A plan holding one has as `path` where
+    this machine's download cache keeps it; a Ray worker fetches into its own."""
 
     url: str
     version: str
-    size: int
+    size: int  # bytes; 0 for a Hub data file (its commit pins it; its size is known once downloaded)
 
 
 @dataclass(frozen=True)
@@ -53,17 +52,31 @@ class ParquetSourcePlan:
 
 
 @dataclass(frozen=True)
+class RemoteDataset:
+    """A LeRobot dataset on S3 or the Hub as compiled, each file pinned: `meta` (read at compile), `data` (run only)."""
+
+    url: str  # the dataset's folder: s3://BUCKET/PREFIX/DATASET, or hf://datasets/ORG/NAME@COMMIT (the resolved sha)
+    meta: tuple[RemoteObject, ...]
+    data: tuple[RemoteObject, ...] = ()
+
+    def relative(self, remote: RemoteObject) -> str:
+        """Where `remote` lies inside the dataset's folder (`meta/info.json`)."""
+        return remote.url[len(self.url) + 1 :]
+
+
+@dataclass(frozen=True)
 class LeRobotSourcePlan:
     """One feature (a joint vector) of a LeRobot dataset: one episode, or (per_segment) each segment's own."""
 
     name: str
-    root: Path
+    root: Path  # a remote dataset: the folder this machine keeps its files in (the Hub's snapshot, the download cache)
     feature: str
     episode: int
     names: tuple[str, ...]
     where: Where
     per_segment: bool = False  # no `episode` in the config: each segment reads its own episode
     duplicates: str = "error"  # two rows at one index value: "error" or "keep_last" (the later row wins)
+    remote: RemoteDataset | None = None  # `lerobot: s3://...` or `hf://...`: `run` reads a local view of its files
 
 
 @dataclass(frozen=True)
@@ -128,8 +141,7 @@ FileSourcePlan = ParquetSourcePlan | McapSourcePlan | Hdf5SourcePlan | RrdSource
 
 
 def remote_of(source: SourcePlan) -> RemoteObject | None:
-    """The remote file a source plan reads (`KIND: s3://BUCKET/KEY`), None for a local file or a LeRobot dataset:
-    what `run` downloads before the source opens, and what the reports show in place of the cache's path."""
+    """The remote file a file source reads (`KIND: s3://BUCKET/KEY`); None for a local file or a LeRobot dataset."""
     remote = getattr(source, "remote", None)
     return remote if isinstance(remote, RemoteObject) else None
 
@@ -141,12 +153,9 @@ def with_local_path(source: FileSourcePlan, path: Path) -> FileSourcePlan:
 
 @dataclass(frozen=True)
 class JointChannel:
-    """One source value driving one URDF joint.
-
-    Corrections, in this order: wrap (source units) -> linear map -> limits. The linear map is
-    either (value * unit factor * scale) * sign + offset, or, with source_range, the source range
-    mapped linearly onto the joint's range; both reduce to urdf = value * gain + bias.
-    """
+    """One source value driving one URDF joint. Corrections, in this order: wrap (source units) -> linear map ->
+    limits. The linear map is (value * unit factor * scale) * sign + offset, or, with source_range, the source range
+    mapped linearly onto the joint's range; both reduce to urdf = value * gain + bias."""
 
     joint: str
     source_name: str
@@ -345,8 +354,7 @@ class Segment:
 
 @dataclass(frozen=True)
 class RemoteOutputs:
-    """Outputs in one S3 bucket: every output path of the plan is under `staging` (this machine's folder mirroring the
-    bucket), where a recording is written as locally before it is uploaded to its URL and removed."""
+    """Outputs in one S3 bucket: each output path is under `staging` (this machine's mirror of it) until uploaded."""
 
     staging: Path
     url_root: str  # s3://BUCKET/

@@ -11,7 +11,7 @@ import numpy as np
 from urdf_pipeline.errors import Where
 from urdf_pipeline.examples import write_lerobot_dataset
 from urdf_pipeline.plan import LeRobotSourcePlan
-from urdf_pipeline.sources import lerobot
+from urdf_pipeline.sources import lerobot, lerobot_meta
 
 
 def _plan(root: Path, episode: int) -> LeRobotSourcePlan:
@@ -22,8 +22,8 @@ def test_the_episode_lengths_are_kept_while_the_metadata_is_unchanged_and_read_a
     write_lerobot_dataset(tmp_path, [np.zeros((5, 2)), np.zeros((7, 2))], ["a", "b"])
     plan = _plan(tmp_path, 0)
     assert lerobot.episodes(plan) == {0: 5, 1: 7}
-    first = lerobot._episodes(plan)
-    assert lerobot._episodes(plan) is first
+    first = lerobot_meta.episode_table(tmp_path)
+    assert lerobot_meta.episode_table(tmp_path) is first  # parsed once while the file is unchanged
     lerobot.episodes(plan)[0] = 99  # the caller's copy, not the one kept
     assert lerobot.episodes(plan) == {0: 5, 1: 7}
 
@@ -42,7 +42,7 @@ def _first_values(plan: LeRobotSourcePlan) -> tuple[int, float]:
 def test_rerun_s_reader_is_opened_once_per_dataset_and_streams_each_episode(tmp_path: Path) -> None:
     write_lerobot_dataset(tmp_path, [np.full((5, 2), float(e)) for e in range(3)], ["a", "b"])
     assert [_first_values(_plan(tmp_path, e)) for e in (2, 0, 2)] == [(5, 2.0), (5, 0.0), (5, 2.0)]
-    metadata = tuple(lerobot._stamped(tmp_path / "meta" / name) for name in ("info.json", "episodes.jsonl"))
+    metadata = tuple(lerobot.stamped(tmp_path / "meta" / name) for name in ("info.json", "episodes.jsonl"))
     reader, known = lerobot._reader(tmp_path, metadata)
     assert known == {0, 1, 2}
     hits = lerobot._reader.cache_info().hits

@@ -23,7 +23,7 @@ def test_a_v3_episode_is_read_from_the_data_file_the_episode_table_names(tmp_pat
     for index in (0, 1):
         (tmp_path / "data" / "chunk-000").mkdir(parents=True, exist_ok=True)
         pq.write_table(pa.table({"episode_index": [index]}), tmp_path / "data" / "chunk-000" / f"file-{index:03d}.parquet")
-    plan = SimpleNamespace(root=tmp_path, episode=2, where=Where(tmp_path / "c.yaml", 0))  # a config beside the dataset
+    plan = SimpleNamespace(root=tmp_path, episode=2, remote=None, where=Where(tmp_path / "c.yaml", 0))  # a config beside the dataset
     assert episode_inputs(plan) == (tmp_path / "meta" / "info.json", tmp_path / "data" / "chunk-000" / "file-001.parquet")  # type: ignore[arg-type]
-    plan = SimpleNamespace(root=tmp_path, episode=0, where=Where(tmp_path / "c.yaml", 0))  # a config beside the dataset
+    plan = SimpleNamespace(root=tmp_path, episode=0, remote=None, where=Where(tmp_path / "c.yaml", 0))  # a config beside the dataset
     assert episode_inputs(plan)[1:] == (tmp_path / "data" / "chunk-000" / "file-000.parquet",)  # type: ignore[arg-type]

@@ -12,7 +12,7 @@ import os
 import re
 import string
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -341,9 +341,11 @@ def _segment_ids(ctx: CompileContext, template: str, keys: list[tuple[int | None
 
 
 def _source_for(plan: SourcePlan, sources: CompiledSources, episode: int | None, stem: str | None) -> SourcePlan:
+    from ..sources import lerobot
+
     if isinstance(plan, LeRobotSourcePlan) and plan.per_segment:
         assert episode is not None  # segments of per-episode sources are keyed by episode
-        return replace(plan, episode=episode)
+        return lerobot.for_episode(plan, episode)  # a remote dataset's plan holds the episode's data files
     if plan.name in sources.files and stem is not None:
         return sources.files[plan.name][stem]
     return plan

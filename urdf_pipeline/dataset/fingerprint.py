@@ -63,9 +63,9 @@ def _file_sha256(path: Path, size: int, mtime_ns: int) -> str:  # size and mtime
 def _canonical(value: Any) -> Any:
     """JSON-able form of a plan part; `where` (config line numbers) is left out: moving a line changes no output."""
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        # a remote file is its URL and version; its `path` is where this machine's download cache keeps it. A local
-        # file's plan leaves `remote` (None) out: a source kind that learned to read URLs changes no local file's hash
-        left_out = {"where", "path"} if getattr(value, "remote", None) is not None else {"where", "remote"}
+        # a remote file (dataset) is its URL and version; its `path` (`root`) is where this machine's cache keeps it. A
+        # local one's plan leaves `remote` (None) out: a source kind that learned to read URLs changes no local file's hash
+        left_out = {"where", "path", "root"} if getattr(value, "remote", None) is not None else {"where", "remote"}
         return {
             "type": type(value).__name__,
             **{f.name: _canonical(getattr(value, f.name)) for f in dataclasses.fields(value) if f.name not in left_out},

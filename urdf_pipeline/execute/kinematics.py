@@ -21,6 +21,7 @@ from ..sources import JointValueMapper, module_for, raw_matrix, with_sorting_ret
 from .joint_fk import ClosedFormJointTransforms, multiply_quaternions, quaternion_from_rpy, rotate, rotation_matrices
 from .limits_report import check_joint_statistics
 from .model_stream import cached_tree
+from .remote_inputs import local_inputs
 
 if TYPE_CHECKING:
     from rerun.urdf import UrdfJoint, UrdfTree
@@ -58,11 +59,12 @@ def segment_kinematics(plan: RecordingPlan) -> dict[str, RobotKinematics]:
     from ..errors import UserError
 
     result: dict[str, RobotKinematics] = {}
-    for robot in plan.robots:
-        sources = [s for s in plan.sources if robot.key in {r.key for r in plan.robots_for(s.name)}]
-        if not sources:
-            raise UserError(f"robot '{robot.key}' is driven by no source of this segment")
-        result[robot.key] = with_sorting_retry(lambda robot=robot, source=sources[0]: _robot(robot, source))  # type: ignore[misc]
+    with local_inputs(plan) as local:  # remote sources fetched into this machine's cache, held while read
+        for robot in local.robots:
+            sources = [s for s in local.sources if robot.key in {r.key for r in local.robots_for(s.name)}]
+            if not sources:
+                raise UserError(f"robot '{robot.key}' is driven by no source of this segment")
+            result[robot.key] = with_sorting_retry(lambda robot=robot, source=sources[0]: _robot(robot, source))  # type: ignore[misc]
     return result
 
 

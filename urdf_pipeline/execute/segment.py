@@ -168,10 +168,11 @@ def log_segment(plan: RecordingPlan, recording: RecordingStream, on_note: Callab
     The checks of the pass (limits, NaN, zero rows) run after it and raise then: what was read is already sent. A
     source found out of time order part-way is sent again, whole and sorted (its earlier rows twice, same poses)."""
 
-    def attempt() -> dict[str, int]:
-        opened = _open(plan, "all", None, True, None)
+    def attempt(local: RecordingPlan) -> dict[str, int]:
+        opened = _open(local, "all", None, True, None)
         opened.drain(recording.send_chunks)
         opened.check(on_note)
         return opened.rows()
 
-    return with_sorting_retry(attempt)
+    with local_inputs(plan) as local:  # remote sources fetched into this machine's cache, held while read
+        return with_sorting_retry(lambda: attempt(local))

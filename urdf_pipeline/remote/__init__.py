@@ -15,7 +15,9 @@ from .. import lazy_surface
 
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
     from .download_cache import CACHE_BYTES_ENV, CACHE_ENV, CacheKey, DownloadCache
-    from .fetching import cached_metadata, cached_path, fetched, remote_file, remote_glob
+    from .fetching import cached_metadata, cached_path, download_folder, fetched, remote_file, remote_glob
+    from .folder_view import check_relative, fetched_folder
+    from .hub import hub_commit, hub_files, hub_snapshot
     from .locations import ALLOW_URLS_ENV, RemoteUrl, check_allowed, is_remote, parse_url, remote_location
     from .s3_objects import OverBudget, download, listing, metadata_of, open_range, upload
     from .staging import STAGING_ENV, staged_path, staging_folder

@@ -12,6 +12,7 @@ from pathlib import Path
 from ..errors import UserError, Where, shown
 from ..plan import RemoteObject
 from .download_cache import CacheKey, DownloadCache
+from .hub import hub_file
 from .locations import remote_location
 from .s3_objects import download, head, listing
 
@@ -68,6 +69,11 @@ def cache_key(remote: RemoteObject) -> CacheKey:
     return CacheKey(remote.url, remote.version, remote.url.rsplit("/", 1)[-1])
 
 
+def download_folder() -> Path:
+    """This machine's download cache (its folder), where the files of remote sources are kept."""
+    return DownloadCache.from_environment().root
+
+
 def cached_path(remote: RemoteObject) -> Path:
     """Where this machine's download cache keeps the object's planned version (it may not be there yet)."""
     return DownloadCache.from_environment().path(cache_key(remote))
@@ -76,7 +82,11 @@ def cached_path(remote: RemoteObject) -> Path:
 @contextmanager
 def fetched(remote: RemoteObject, where: Where | None) -> Iterator[Path]:
     """The object's planned version as a local file, downloaded into the cache unless it is there already, and kept
-    from eviction while the block runs. A changed object is a UserError (its ETag is not the planned one)."""
+    from eviction while the block runs. A changed object is a UserError (its ETag is not the planned one). A Hub file
+    is the Hub client's cached file at the planned commit (hub.py says why it stays in that cache)."""
+    if remote.url.startswith("hf://"):
+        yield hub_file(remote, where)
+        return
     with DownloadCache.from_environment().fetched(cache_key(remote), lambda target: download(remote, target, where)) as path:
         yield path
 

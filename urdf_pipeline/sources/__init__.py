@@ -19,6 +19,7 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
     from .base import GLOB, EntryField, SourceDescription, SourceKind, refuse_control_characters, resolve_input
     from .callbacks import CallbackErrors
     from .joint_values import JointValueMapper, raw_matrix, wrapped
+    from .lerobot import local_dataset
     from .ordering import NeedsSorting, sorted_in_memory, with_sorting_retry
     from .stream import SourceStream
 

@@ -12,6 +12,7 @@ none: the column is probably another joint or the order is off.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from contextlib import ExitStack
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
@@ -19,7 +20,7 @@ import numpy as np
 
 from ...compile import UNIT_NAMES, compile_config
 from ...errors import ExitCode, shown
-from ...plan import JointChannel, Plan, RobotPlan, SourcePlan
+from ...plan import JointChannel, LeRobotSourcePlan, Plan, RobotPlan, SourcePlan
 from ...sources import wrapped
 from .check_candidates import ANGLES, angular, fits, fitting, looks_like_a_bigger_unit, unit_only
 
@@ -186,21 +187,25 @@ def check_plan(plan: Plan, sample: dict[str, np.ndarray]) -> list[JointReport]:
 
 
 def read_sample(source: SourcePlan, rows: int = SAMPLE_ROWS) -> np.ndarray:
-    """The first `rows` rows of a source, as a (rows x names) matrix, read with the same Rerun reader as a run."""
-    from ...sources import module_for, raw_matrix, sorted_in_memory
+    """The first `rows` rows of a source, as a (rows x names) matrix, read with the same Rerun reader as a run (a
+    remote LeRobot dataset's episode from a local view of its files, as a run reads it)."""
+    from ...sources import local_dataset, module_for, raw_matrix, sorted_in_memory
 
-    with sorted_in_memory():  # the first rows in time order, every repeat seen: as a run reads the source
-        opened = module_for(source).open_stream(source)
     matrices, total = [], 0
-    for chunk in opened.stream.to_chunks():
-        batch = chunk.to_record_batch()
-        if opened.component not in batch.schema.names:
-            continue
-        column = batch.column(opened.component).flatten()
-        matrices.append(raw_matrix(source, column))
-        total += len(column)
-        if total >= rows:
-            break
+    with ExitStack() as held:
+        if isinstance(source, LeRobotSourcePlan):
+            source = held.enter_context(local_dataset(source))
+        with sorted_in_memory():  # the first rows in time order, every repeat seen: as a run reads the source
+            opened = module_for(source).open_stream(source)
+        for chunk in opened.stream.to_chunks():
+            batch = chunk.to_record_batch()
+            if opened.component not in batch.schema.names:
+                continue
+            column = batch.column(opened.component).flatten()
+            matrices.append(raw_matrix(source, column))
+            total += len(column)
+            if total >= rows:
+                break
     width = len(source.names)
     return np.concatenate(matrices)[:rows] if matrices else np.empty((0, width))
 

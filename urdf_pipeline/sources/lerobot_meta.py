@@ -1,0 +1,196 @@
+"""A LeRobot dataset's metadata (v2.x or v3), read from a folder holding its `meta/`: the dataset on disk, or a local
+view of a remote dataset's metadata files (lerobot_remote.py). Everything `compile` learns of a dataset comes from
+here, checked the same way wherever the dataset lives; `shown` is how messages name the dataset (its folder, or its
+URL)."""
+
+from __future__ import annotations
+
+import functools
+import json
+import os
+import string
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, TypeVar
+
+import pyarrow as pa
+
+from ..config import Document
+from ..confine import file_state
+from ..errors import UserError, Where
+from ..plan import LeRobotSourcePlan
+from .ordering import with_duplicates
+
+T = TypeVar("T")
+# What a hostile or broken dataset's metadata raises while it is read: each becomes one user error at the source.
+METADATA_ERRORS = (OSError, ValueError, KeyError, TypeError, AttributeError, IndexError, pa.ArrowException)
+TEMPLATE_FIELDS = frozenset({"episode_chunk", "episode_index", "chunk_index", "file_index"})
+V3_COLUMNS = ("data/chunk_index", "data/file_index")  # v3: which data file holds an episode's rows
+
+
+def feature_names(feature: dict[str, Any]) -> list[str] | None:
+    """LeRobot writes names as a list, a list holding one list, or {"motors": [...]}; accept all three."""
+    names = feature.get("names")
+    if isinstance(names, dict) and len(names) == 1:
+        names = next(iter(names.values()))
+    if isinstance(names, list) and len(names) == 1 and isinstance(names[0], list):
+        names = names[0]
+    if isinstance(names, list) and all(isinstance(n, str) for n in names):
+        return names
+    return None
+
+
+def read_info(root: Path, where: Where | None = None, shown: str | None = None) -> dict[str, Any]:
+    """meta/info.json as a mapping; a user error when it is missing, no regular file (a FIFO would block), or not a
+    JSON object."""
+    path = root / "meta" / "info.json"
+    named = f"{shown}/meta/info.json" if shown else str(path)
+    if file_state(path, "LeRobot metadata file", where) != "file":
+        raise UserError(f"{shown or root} is not a LeRobot dataset: {named} is missing", where)
+    try:
+        info = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise UserError(f"cannot read {named}: {exc}", where) from None
+    if not isinstance(info, dict):
+        raise UserError(f"{named} holds {type(info).__name__}, not a JSON object", where)
+    return info
+
+
+def data_path_template(info: dict[str, Any], info_path: Path | str, where: Where | None) -> str:
+    """info.json's data_path: relative, inside the dataset (no `..`), with only LeRobot's own fields and no attribute
+    or item access (`{episode_index.__class__}` would reach into Python objects)."""
+    template = str(info.get("data_path", ""))
+    try:
+        fields = {name for _, name, _, _ in string.Formatter().parse(template) if name is not None}
+    except ValueError as exc:
+        raise UserError(f"data_path '{template}' in {info_path} is not a path template: {exc}", where) from None
+    if not fields <= TEMPLATE_FIELDS or Path(template).is_absolute() or ".." in Path(template).parts:
+        raise UserError(
+            f"data_path '{template}' in {info_path} must stay inside the dataset and use only "
+            f"{', '.join('{' + f + '}' for f in sorted(TEMPLATE_FIELDS))}",
+            where,
+        )
+    return template
+
+
+def metadata(shown: str, where: Where | None, read: Callable[[], T]) -> T:
+    """`read()` of the dataset's metadata; whatever a broken file raises is a user error at the source."""
+    try:
+        return read()
+    except METADATA_ERRORS as exc:
+        raise UserError(f"cannot read the episode metadata of LeRobot dataset {shown}: {exc}", where) from None
+
+
+def checked_plan(name: str, spec: dict[str, Any], document: Document, root: Path, shown: str) -> LeRobotSourcePlan:
+    """The source's plan from meta/info.json alone (the codebase version, the feature and its names, data_path), the
+    episode pinned by `episode:` checked against total_episodes; its data is checked by the caller."""
+    here = ("sources", name)
+    where = document.where(*here, "lerobot")
+    info_path = f"{shown}/meta/info.json"
+    info = read_info(root, where, shown)
+    version = str(info.get("codebase_version", ""))
+    if not (version.startswith("v2") or version.startswith("v3")):
+        raise UserError(f"LeRobot codebase_version '{version}' is not supported (v2.x or v3 only)", where)
+    feature_key = spec.get("feature", "observation.state")
+    features = info.get("features", {})
+    if not isinstance(features, dict) or not all(isinstance(f, dict) for f in features.values()):
+        raise UserError(f"'features' in {info_path} is not a mapping of feature names to mappings", where)
+    data_path_template(info, info_path, where)
+    if feature_key not in features:
+        numeric = [k for k, f in features.items() if f.get("dtype") in ("float32", "float64")]
+        raise UserError(
+            f"feature '{feature_key}' not in {info_path}; numeric features: {', '.join(numeric)}", document.where(*here, "feature")
+        )
+    feature = features[feature_key]
+    shape = feature.get("shape") or [None]
+    width = shape[0] if len(shape) == 1 else None
+    names = tuple(spec["names"]) if "names" in spec else tuple(feature_names(feature) or ())
+    if not names:
+        raise UserError(f"feature '{feature_key}' has no names in {info_path}; give them with names: [...]", document.where(*here))
+    if width is not None and width != len(names):
+        raise UserError(
+            f"feature '{feature_key}' holds {width} values per row but {len(names)} names are given",
+            document.where(*here, "names" if "names" in spec else "feature"),
+        )
+    if "episode" not in spec:  # one segment per episode; segments.py picks them and fills in `episode`
+        return with_duplicates(LeRobotSourcePlan(name, root, feature_key, -1, names, document.where(*here), per_segment=True), spec)
+    episode = int(spec["episode"])
+    total = info.get("total_episodes")
+    if isinstance(total, int) and episode >= total:
+        raise UserError(
+            f"episode {episode} does not exist: the dataset has {total} episodes (0..{total - 1})", document.where(*here, "episode")
+        )
+    return with_duplicates(LeRobotSourcePlan(name, root, feature_key, episode, names, document.where(*here)), spec)
+
+
+# A metadata file as last seen: (path, size, mtime_ns), the rule of the run's file hashes (dataset/fingerprint.py).
+# What is read from the dataset's metadata is kept per process while its files are unchanged: every segment of a run
+# asks for it, and reading it again each time made a run quadratic in the episodes (10,000 episodes: 57 ms a segment
+# parsing episodes.jsonl, 9 ms opening Rerun's reader).
+FileStamp = tuple[Path, int, int]
+
+
+def stamped(path: Path) -> FileStamp:
+    status = os.stat(path)
+    return (path, status.st_size, status.st_mtime_ns)
+
+
+def episode_files(root: Path) -> tuple[FileStamp, ...]:
+    """The dataset's per-episode metadata files: v2's meta/episodes.jsonl or v3's meta/episodes/**/*.parquet."""
+    jsonl = root / "meta" / "episodes.jsonl"
+    if file_state(jsonl, "LeRobot metadata file", None) == "file":
+        return (stamped(jsonl),)
+    files = sorted((root / "meta" / "episodes").glob("**/*.parquet"))
+    return tuple(stamped(f) for f in files if file_state(f, "LeRobot metadata file", None) == "file")
+
+
+def episode_table(root: Path) -> pa.Table | None:
+    """The dataset's per-episode metadata: v2's meta/episodes.jsonl or v3's meta/episodes/**/*.parquet (None without
+    any); kept while the files are unchanged."""
+    files = episode_files(root)
+    return _read_episode_table(files) if files else None
+
+
+@functools.lru_cache(maxsize=4)
+def _read_episode_table(files: tuple[FileStamp, ...]) -> pa.Table:
+    import pyarrow.parquet as pq
+
+    if files[0][0].name == "episodes.jsonl":
+        rows = [json.loads(line) for line in files[0][0].read_text(encoding="utf-8").splitlines() if line.strip()]
+        return pa.table({"episode_index": [int(r["episode_index"]) for r in rows], "length": [r.get("length") for r in rows]})
+    wanted = ["episode_index", "length", *V3_COLUMNS]
+    tables = [pq.read_table(f, columns=[c for c in wanted if c in pq.read_schema(f).names]) for f, _, _ in files]
+    return pa.concat_tables(tables, promote_options="default")
+
+
+def episode_lengths(root: Path, table: pa.Table | None, where: Where | None, shown: str) -> dict[int, int | None]:
+    """Episode index -> its length in frames (None when the metadata does not say)."""
+    if table is None:
+        total = int(read_info(root, where, shown).get("total_episodes", 0))
+        return dict.fromkeys(range(total))
+    lengths = table.column("length").to_pylist() if "length" in table.column_names else [None] * table.num_rows
+    return dict(zip(table.column("episode_index").to_pylist(), lengths, strict=True))
+
+
+def v2_data_file(info: dict[str, Any], template: str, episode: int) -> str | None:
+    """v2: the one data file of `episode` (data_path holds {episode_index}), relative to the dataset; None for v3."""
+    if "{episode_index" not in template:
+        return None
+    return template.format(episode_chunk=episode // int(info.get("chunks_size", 1000)), episode_index=episode)
+
+
+def v3_data_files(table: pa.Table | None, template: str, episode: int | None = None) -> dict[int, tuple[str, ...]] | None:
+    """v3: episode -> the data file(s) its rows are in (episodes share files), relative to the dataset, from the
+    episode table's data/chunk_index and data/file_index (only `episode`'s, when given); None when the table does
+    not say."""
+    if table is None or not set(V3_COLUMNS) <= set(table.column_names):
+        return None
+    if episode is not None:
+        import pyarrow.compute as pc  # here: 50 ms of every command otherwise, and only v3 datasets need it
+
+        table = table.filter(pc.equal(table.column("episode_index"), episode))
+    found: dict[int, set[str]] = {}
+    columns = zip(*(table.column(c).to_pylist() for c in ("episode_index", *V3_COLUMNS)), strict=True)
+    for index, chunk, file in columns:  # one iteration per episode row of the metadata
+        found.setdefault(int(index), set()).add(template.format(chunk_index=chunk, file_index=file))
+    return {index: tuple(sorted(files)) for index, files in found.items()}
