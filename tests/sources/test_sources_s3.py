@@ -5,6 +5,7 @@ after the plan was made is a clear error, never a mixed dataset."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -64,6 +65,10 @@ def test_a_parquet_file_on_s3_is_planned_from_its_footer_and_run_from_the_cache(
     assert_panda_fk(examples_dir, recording, "frame_index", list(range(FRAMES)), q, [0, 57, FRAMES - 1])
     cached = _cached_files(cache)
     assert [p.name for p in cached] == ["episode_a.parquet"]
+    manifest = json.loads((examples_dir / "out" / "sources" / "s3_single.manifest.json").read_text())
+    entry = next(e for e in manifest["segments"] if e["segment"] == "s3_single")
+    etag = s3.client().head_object(Bucket=s3.bucket, Key="runs/episode_a.parquet")["ETag"].strip('"')
+    assert entry["inputs"] == {s3.url("runs/episode_a.parquet"): etag}, "the manifest records what the run read"
 
     again = run_cli("run", str(config))
     assert again.code == 0 and "up to date" in again.err, again.err

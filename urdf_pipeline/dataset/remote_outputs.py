@@ -20,7 +20,7 @@ from pathlib import Path
 
 from ..errors import Problems, UserError, Where, shown
 from ..execute import CONTENT_METADATA, SegmentJob
-from ..plan import Plan, RemoteObject, RemoteOutputs
+from ..plan import Plan, RemoteDataset, RemoteObject, RemoteOutputs, Segment
 from ..remote import download, fetched, listing, metadata_of, parse_url, upload
 from .manifest import Manifest, SegmentEntry
 
@@ -160,3 +160,16 @@ def _common_key(remote: RemoteOutputs, plan: Plan) -> str:
     paths = [s.output for s in plan.dataset.segments] + [plan.dataset.manifest]
     urls = [remote.url_of(p) for p in paths]
     return _common_prefix(urls).removeprefix(remote.url_root)
+
+
+def input_versions(segment: Segment | None) -> dict[str, str]:
+    """What a segment's remote inputs were (URL -> ETag or Hub commit), for its manifest entry: the run read exactly
+    these, and a re-run with the same ones reads nothing again."""
+    found: dict[str, str] = {}
+    for source in segment.sources if segment is not None else ():
+        remote = getattr(source, "remote", None)
+        if isinstance(remote, RemoteObject):
+            found[remote.url] = remote.version
+        elif isinstance(remote, RemoteDataset):
+            found.update((o.url, o.version) for o in (*remote.meta, *remote.data))
+    return found

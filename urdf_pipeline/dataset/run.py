@@ -22,7 +22,7 @@ from .executors import ExecutorName, executor_for
 from .fingerprint import file_hashes_used, model_hash, remember_file_hashes, segment_hashes
 from .interrupts import exit_status, signal_name, signal_number
 from .manifest import Manifest
-from .remote_outputs import BucketState, adopted, bucket_state, fetch_manifest, refuse_foreign, upload_run_files
+from .remote_outputs import BucketState, adopted, bucket_state, fetch_manifest, input_versions, refuse_foreign, upload_run_files
 from .remote_outputs import up_to_date as remote_up_to_date
 
 if TYPE_CHECKING:
@@ -230,6 +230,9 @@ class _Bookkeeper:
                 extra["summary"] = result.summary.as_json()
             if job.upload is not None:  # uploaded by the worker, its staged file removed
                 extra.update(url=job.upload, etag=result.etag)
+            inputs = input_versions(job.segment)
+            if inputs:  # remote inputs: the versions it was made from
+                extra["inputs"] = inputs
             self.manifest.record(job.label, job.output, job.content_hash, result.frames, extra, size=result.bytes)
             self.manifest.write(every_seconds=1.0)
         if self.progress is not None:
