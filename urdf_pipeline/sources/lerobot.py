@@ -163,13 +163,24 @@ def _episode_inputs(plan: LeRobotSourcePlan) -> tuple[Path, ...]:
     meta = plan.root / "meta" / "info.json"
     template = data_path_template(info, meta, plan.where)
     single = v2_data_file(info, template, plan.episode)
-    if single is not None and file_state(plan.root / single, "LeRobot data file", plan.where) == "file":  # v2: a file per episode
-        return (meta, plan.root / single)
+    if single is not None:  # v2: a file per episode, where data_path says (Rerun's reader looks there too)
+        return (meta, _data_file(plan, plan.root / single))
     shared = v3_data_files(episode_table(plan.root), template, plan.episode)  # v3: episodes share files
     paths = [plan.root / file for file in (shared or {}).get(plan.episode, ())]
-    if paths and all(file_state(p, "LeRobot data file", plan.where) == "file" for p in paths):
-        return (meta, *paths)
+    if paths:
+        return (meta, *(_data_file(plan, path) for path in paths))
     return (meta, *sorted((plan.root / "data").glob("**/*.parquet")))  # unknown layout: every data file, to be safe
+
+
+def _data_file(plan: LeRobotSourcePlan, path: Path) -> Path:
+    """A data file the dataset's metadata names for the episode: it must be there (else the run could only fail)."""
+    if file_state(path, f"episode {plan.episode}: LeRobot data file", plan.where) == "missing":
+        raise UserError(
+            f"episode {plan.episode}: its data file {_shown_file(plan, path)} is missing (the dataset's meta/ names it): "
+            "restore it, or leave the episode out (output.episodes or `run --episodes`)",
+            plan.where,
+        )
+    return path
 
 
 def check_episode_data(plan: LeRobotSourcePlan, where: Where | None) -> None:
