@@ -111,3 +111,19 @@ def test_a_bucket_the_environment_does_not_allow_is_refused_before_any_request(
     assert result.code == 1
     assert "s3_refused.yaml:" in result.err and "sources.state.parquet" in result.err, result.err
     assert "is not under a location this run allows" in result.err and "URDF_PIPELINE_ALLOW_URLS=" in result.err
+
+
+def test_a_repeated_index_in_a_remote_file_is_named_by_its_url(s3: S3, cache: Path, examples_dir: Path, tmp_path: Path, run_cli) -> None:
+    """The data checks run on the downloaded file, and their messages name the URL, not the download cache's path."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    q = random_panda_q(examples_dir, 10, seed=5)
+    local = tmp_path / "repeats.parquet"
+    column = pa.FixedSizeListArray.from_arrays(pa.array(q.astype(np.float32).reshape(-1)), 8)
+    pq.write_table(pa.table({"frame_index": pa.array([0, 1, 2, 2, 4, 5, 6, 7, 8, 9], pa.int64()), "observation.state": column}), local)
+    s3.client().upload_file(str(local), s3.bucket, "repeats/episode.parquet")
+    config = panda_config(examples_dir, "s3_repeats", _source(s3.url("repeats/episode.parquet")))
+    result = run_cli("run", str(config), "--force")
+    assert result.code == 1
+    assert s3.url("repeats/episode.parquet") in result.err and str(cache) not in result.err, result.err

@@ -232,7 +232,7 @@ def open_stream(plan: Hdf5SourcePlan) -> SourceStream:
         use_structs=False,
     ).filter(content=entity, is_static=False, components=component)
     if plan.index is not None:  # without an index, Rerun numbers the rows: nothing to check, only blocks to make
-        stream = in_time_order(stream, plan.index.column, plan, plan.path)
+        stream = in_time_order(stream, plan.index.column, plan, shown_file(plan))
     else:
         stream = in_blocks(stream)
     return SourceStream(stream, entity, component, len(plan.names))

@@ -234,5 +234,7 @@ def _named_rows(plan: McapSourcePlan, chunk: Chunk) -> list[Chunk]:
 def open_stream(plan: McapSourcePlan) -> SourceStream:
     # the whole topic, in a child, before Rerun reads it here
     probe(plan.path, plan.topic, first_only=False, where=plan.where, shown=shown_file(plan))
-    stream = in_time_order(topic_messages(plan.path, plan.topic).flat_map(partial(_named_rows, plan)), plan.timeline, plan, plan.path)
+    stream = in_time_order(
+        topic_messages(plan.path, plan.topic).flat_map(partial(_named_rows, plan)), plan.timeline, plan, shown_file(plan)
+    )
     return SourceStream(stream, plan.topic, NAMED_COMPONENT, len(plan.names), named=True)

@@ -48,7 +48,7 @@ class NeedsSorting(Exception):
     after repeats were handled): what was passed on cannot be taken back, so the caller runs again with the source
     read whole (`with_sorting_retry`). Not a user error: it never reaches the user."""
 
-    def __init__(self, source: str, path: Path) -> None:
+    def __init__(self, source: str, path: Path | str) -> None:
         super().__init__(f"source '{source}': rows of {path} are out of time order; read it whole to sort it")
         self.source = source
         self.path = path
@@ -143,7 +143,7 @@ def _first_timeline(batch: pa.RecordBatch) -> str:
 
 
 def _repeat_error(
-    label: str, path: Path, timeline: str, count: int, value: int, rows: Iterable[int], total: int, where: Where | None
+    label: str, path: Path | str, timeline: str, count: int, value: int, rows: Iterable[int], total: int, where: Where | None
 ) -> UserError:
     """`count` rows repeat an earlier row's value; the first repeated `value` is on `total` rows, `rows` the first of them."""
     shown = ", ".join(str(int(r)) for r in list(rows)[:4]) + (f" and {total - 4} more" if total > 4 else "")
@@ -155,11 +155,11 @@ def _repeat_error(
     )
 
 
-def _kept_note(label: str, count: int, path: Path, timeline: str) -> None:
-    _note(f"{label}: {count} rows of {path.name} repeat a {timeline} value; kept the last of each (duplicates: keep_last)")
+def _kept_note(label: str, count: int, path: Path | str, timeline: str) -> None:
+    _note(f"{label}: {count} rows of {_name(path)} repeat a {timeline} value; kept the last of each (duplicates: keep_last)")
 
 
-def _check(chunks: list[Chunk], timeline: str | None, policy: str, label: str, path: Path, where: Where | None) -> Iterator[Chunk]:
+def _check(chunks: list[Chunk], timeline: str | None, policy: str, label: str, path: Path | str, where: Where | None) -> Iterator[Chunk]:
     """The whole source at once (rows out of order): sorted, stably, with the repeats' policy applied."""
     batches = [chunk.to_record_batch() for chunk in chunks]
     if timeline is None:
@@ -185,7 +185,7 @@ def _check(chunks: list[Chunk], timeline: str | None, policy: str, label: str, p
         _kept_note(label, int(repeated.sum()), path, timeline)
     if bool(np.any(np.diff(values) < 0)):
         moved = int(np.count_nonzero(order != np.arange(len(order)))) if len(order) == len(values) else len(order)
-        _note(f"{label}: rows of {path.name} are out of {timeline} order ({moved} rows moved); sorted by {timeline}, stably")
+        _note(f"{label}: rows of {_name(path)} are out of {timeline} order ({moved} rows moved); sorted by {timeline}, stably")
     yield from _rebuilt(batches, order)
 
 
@@ -198,7 +198,7 @@ class _FirstRepeat:
     rows: int
 
 
-def _streamed(chunks: Iterator[Chunk], timeline: str | None, policy: str, label: str, path: Path, plan: Any) -> Iterator[Chunk]:
+def _streamed(chunks: Iterator[Chunk], timeline: str | None, policy: str, label: str, path: Path | str, plan: Any) -> Iterator[Chunk]:
     """The rows as they come, checked chunk by chunk against the previous row (only index values are kept)."""
     check = _StreamCheck(policy == "keep_last", plan.name, path)
     for chunk in chunks:  # one iteration per chunk
@@ -222,7 +222,7 @@ class _StreamCheck:
 
     keep_last: bool
     source: str
-    path: Path
+    path: Path | str
     last: int | None = None  # the index value of the previous row
     seen: int = 0  # rows before this chunk
     repeats: int = 0
@@ -314,12 +314,17 @@ def _reading(stream: LazyChunkStream, path: Path | str, where: Where | None) -> 
         yield chunk
 
 
+def _name(path: Path | str) -> str:
+    """A file's own name, for a note: a local path's, or a remote file's URL's last segment."""
+    return path.name if isinstance(path, Path) else path.rsplit("/", 1)[-1]
+
+
 def read_all(stream: LazyChunkStream, path: Path | str, where: Where | None) -> list[Chunk]:
     """Every chunk of `stream`; a reader's decoding error (a corrupt chunk) becomes a user error naming the file."""
     return list(_reading(stream, path, where))
 
 
-def in_time_order(stream: LazyChunkStream, timeline: str | None, plan: Any, path: Path, in_memory: bool = False) -> LazyChunkStream:
+def in_time_order(stream: LazyChunkStream, timeline: str | None, plan: Any, path: Path | str, in_memory: bool = False) -> LazyChunkStream:
     """`stream` (temporal chunks of the values' entity) checked for repeated index values and sorted on `timeline`
     (None: the recording's first timeline). Streamed, unless `in_memory` or the source is read whole
     (`sorted_in_memory`, decided here, when the stream is opened): then read whole first and sorted."""

@@ -15,7 +15,7 @@ from ..config import Document
 from ..errors import UserError, Where, listing
 from ..plan import ParquetSourcePlan
 from ..remote import is_remote
-from .base import EntryField, SourceDescription, file_input, resolve_input
+from .base import EntryField, SourceDescription, file_input, resolve_input, shown_file
 from .integrity import check_parquet_pages, refuse_empty_parquet
 from .ordering import in_time_order, with_duplicates
 from .stream import SourceStream, compile_index
@@ -144,7 +144,7 @@ def open_stream(plan: ParquetSourcePlan) -> SourceStream:
         index_column = IndexColumn.duration(index.column, input_unit=index.unit)  # type: ignore[arg-type]
     entity = f"/{plan.column}"
     stream = ParquetReader(plan.path).stream(index_columns=[index_column], column_grouping="individual").filter(content=entity)
-    stream = in_time_order(stream, index.column, plan, plan.path)
+    stream = in_time_order(stream, index.column, plan, shown_file(plan))
     return SourceStream(stream, entity, plan.column, len(plan.names))
 
 

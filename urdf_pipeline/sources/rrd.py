@@ -239,6 +239,6 @@ def open_stream(plan: RrdSourcePlan) -> SourceStream:
         .filter(content=plan.entity, is_static=False, components=components)
         .flat_map(partial(_one_instance_per_row, plan))
     )
-    stream = in_time_order(stream, None, plan, plan.path)
+    stream = in_time_order(stream, None, plan, shown_file(plan))
     component = NAMED_COMPONENT if plan.named_rows else VECTOR_COMPONENT
     return SourceStream(stream, plan.entity, component, len(plan.names), named=plan.named_rows)

@@ -21,7 +21,7 @@ import pyarrow as pa
 from ..config import Document
 from ..errors import UserError, Where, did_you_mean, listing
 from ..plan import IndexPlan
-from .base import EntryField, SourceDescription
+from .base import EntryField, SourceDescription, shown_file
 from .lerobot import VECTOR_COMPONENT
 from .ordering import BLOCK_ROWS, in_time_order
 from .stream import SourceStream, compile_index
@@ -219,7 +219,7 @@ def wide_stream(plan: WidePlan, batches: Callable[[], Iterator[pa.RecordBatch]])
     def chunks() -> Iterator[Chunk]:
         yield from vector_chunks(batches(), plan, entity)
 
-    stream = in_time_order(LazyChunkStream.from_iter(chunks()), plan.index.column, plan, plan.path)
+    stream = in_time_order(LazyChunkStream.from_iter(chunks()), plan.index.column, plan, shown_file(plan))
     return SourceStream(stream, entity, VECTOR_COMPONENT, len(plan.names))
 
 
