@@ -169,3 +169,34 @@ def test_a_cluster_node_fetches_its_inputs_and_uploads_its_layers(
 
     again = run_cli("run", str(config), "--executor", "ray", "--ray-address", cluster.address)
     assert again.code == 0 and again.err.count("skipped") >= len(STEMS) + 1, again.err
+
+
+def test_a_lerobot_dataset_on_s3_runs_on_the_node_from_its_own_view(
+    cluster: Cluster, s3: S3, examples_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, run_cli
+) -> None:
+    """A LeRobot dataset (v3: episodes share data files) in S3: the node fetches each episode's files into its cache
+    and reads them from a view of its own; the driver fetched the metadata only."""
+    from ..lerobot_layouts import dataset_files, lerobot_panda_config, write_dataset
+
+    monkeypatch.setenv("URDF_PIPELINE_CACHE", str(tmp_path / "driver-cache"))
+    monkeypatch.setenv("URDF_PIPELINE_STAGING", str(tmp_path / "driver-staging"))
+    episodes = [random_panda_q(examples_dir, frames, seed=60 + n) for n, frames in enumerate((40, 55, 30))]
+    write_dataset(tmp_path / "dataset", episodes, "v3")
+    for relative in dataset_files(tmp_path / "dataset"):
+        s3.client().upload_file(str(tmp_path / "dataset" / relative), s3.bucket, f"lerobot/pick/{relative}")
+    config = lerobot_panda_config(examples_dir, "ray_lerobot_s3", {"lerobot": s3.url("lerobot/pick")})
+    data = yaml.safe_load(config.read_text())
+    data["output"].update(path=s3.url("lerobot-out/{segment}.rrd"), layout="split", model=s3.url("lerobot-out/model.rrd"))
+    config.write_text(yaml.safe_dump(data, sort_keys=False))
+
+    result = run_cli("run", str(config), "--executor", "ray", "--ray-address", cluster.address, "--jobs", "2")
+    assert result.code == 0, result.err
+    # v3, two episodes a data file: data/chunk-000/file-001.parquet holds the third (meta/ has a file-000.parquet only)
+    assert "file-001.parquet" in _files(cluster.node_folder / "cache", ".parquet"), "the node fetched the episodes' data files"
+    assert "file-001.parquet" not in _files(tmp_path / "driver-cache", ".parquet"), "the driver fetched metadata only"
+    model = tmp_path / "model.rrd"
+    s3.client().download_file(s3.bucket, "lerobot-out/model.rrd", str(model))
+    for episode, q in enumerate(episodes):
+        layer = tmp_path / f"episode_{episode}.rrd"
+        s3.client().download_file(s3.bucket, f"lerobot-out/episode_{episode:06d}.rrd", str(layer))
+        assert_panda_fk(examples_dir, [model, layer], "frame_index", list(range(len(q))), q, [0, len(q) - 1])
