@@ -22,6 +22,7 @@ Usage: python benchmarks/bench_many_episodes.py [--episodes 100,1000] [--frames 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import resource
@@ -64,7 +65,29 @@ class LocalStorage:
         return str(dataset.relative_to(config_dir))
 
 
-STORAGES: dict[str, Storage] = {"local": LocalStorage()}
+class S3Storage:
+    """The dataset uploaded to the benchmark's own S3 endpoint (a moto_server on 127.0.0.1, started by `main`, as the
+    tests start one), read as `lerobot: s3://bench/...`; the download cache is emptied before each first run."""
+
+    name = "s3"
+    bucket = "bench"
+
+    def place(self, dataset: Path, config_dir: Path) -> str:
+        from concurrent.futures import ThreadPoolExecutor
+
+        import boto3
+
+        client = boto3.session.Session().client("s3")  # AWS_ENDPOINT_URL and the credentials: main's environment
+        if self.bucket not in [b["Name"] for b in client.list_buckets().get("Buckets", [])]:
+            client.create_bucket(Bucket=self.bucket)
+        prefix = f"{config_dir.name}/{dataset.name}"
+        files = [f for f in sorted(dataset.rglob("*")) if f.is_file()]
+        with ThreadPoolExecutor(16) as pool:
+            list(pool.map(lambda f: client.upload_file(str(f), self.bucket, f"{prefix}/{f.relative_to(dataset).as_posix()}"), files))
+        return f"s3://{self.bucket}/{prefix}"
+
+
+STORAGES: dict[str, Storage] = {"local": LocalStorage(), "s3": S3Storage()}
 
 
 def prepare(directory: Path, episodes: int, frames: int, storage: Storage) -> Path:
@@ -156,11 +179,11 @@ def measure(command: list[str], cwd: Path, log: Path, timeout: float) -> Sample:
     process.returncode = os.waitstatus_to_exitcode(status)
     driver_cpu = usage.ru_utime + usage.ru_stime
     cpu, largest_kb = driver_cpu, usage.ru_maxrss
-    while True:  # the orphans, reparented to us (become_subreaper)
-        try:
-            _, _, orphan = os.wait4(-1, 0)
-        except ChildProcessError:
-            break
+    while _children() - KEPT_CHILDREN:  # the orphans, reparented to us (become_subreaper); not the S3 server we keep
+        pid, _, orphan = os.wait4(-1, os.WNOHANG)
+        if not pid:
+            time.sleep(POLL_SECONDS)
+            continue
         cpu += orphan.ru_utime + orphan.ru_stime
         largest_kb = max(largest_kb, orphan.ru_maxrss)
     if process.returncode != 0:
@@ -169,6 +192,17 @@ def measure(command: list[str], cwd: Path, log: Path, timeout: float) -> Sample:
     # a command shorter than one poll: its own peak is its ru_maxrss (it waited for no child of its own)
     driver_mb = (hwm_kb or usage.ru_maxrss) * 1024 / 1e6
     return Sample(seconds, cpu, driver_cpu, driver_mb, largest_kb * 1024 / 1e6)
+
+
+KEPT_CHILDREN: set[int] = set()  # children of this process that outlive every command (the S3 endpoint)
+
+
+def _children() -> set[int]:
+    """This process's living children (reparented orphans included), from /proc."""
+    found: set[int] = set()
+    for task in Path("/proc/self/task").iterdir():
+        found.update(int(pid) for pid in (task / "children").read_text().split())
+    return found
 
 
 def cli() -> list[str]:
@@ -187,6 +221,8 @@ def one_round(directory: Path, config: Path, jobs: int, logs: Path, label: str, 
     """The five commands once, on outputs and a site removed first: the first run writes every segment."""
     shutil.rmtree(directory / "out", ignore_errors=True)
     shutil.rmtree(directory / "site", ignore_errors=True)
+    if os.environ.get("URDF_PIPELINE_CACHE"):  # S3: the first run downloads every episode
+        shutil.rmtree(os.environ["URDF_PIPELINE_CACHE"], ignore_errors=True)
     commands = {
         "validate": ["validate", str(config)],
         "plan": ["plan", str(config)],
@@ -285,6 +321,17 @@ def main() -> None:
     logs.mkdir(parents=True, exist_ok=True)
     become_subreaper()
     load = os.getloadavg()
+    endpoint = contextlib.ExitStack()
+    if args.storage == "s3":  # a real S3 endpoint for the whole benchmark, the commands configured for it
+        sys.path.insert(0, str(REPO))
+        from tests.s3_server import CREDENTIALS, s3_endpoint
+
+        url, server = endpoint.enter_context(s3_endpoint())
+        KEPT_CHILDREN.add(server.pid)
+        os.environ.update(CREDENTIALS)
+        os.environ.update(
+            AWS_ENDPOINT_URL=url, URDF_PIPELINE_ALLOW_URLS=f"s3://{S3Storage.bucket}/", URDF_PIPELINE_CACHE=str(workdir / "cache")
+        )
     try:
         results: dict[int, dict[str, Sample]] = {}
         site: dict[int, dict[str, int]] = {}
@@ -319,6 +366,7 @@ def main() -> None:
             }
             args.json.write_text(json.dumps(figures, indent=2) + "\n")
     finally:
+        endpoint.close()
         if temporary is not None:
             temporary.cleanup()
 
