@@ -13,6 +13,9 @@ layout (`remote.fetched_folder`), removed after the segment.
 
 from __future__ import annotations
 
+import functools
+import json
+import os
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
@@ -202,8 +205,17 @@ def episode_view(plan: LeRobotSourcePlan) -> Iterator[Path]:
 def _present_episodes_only(root: Path, plan: LeRobotSourcePlan) -> None:
     """v3: the view's episode tables cut to the episodes whose data files it holds (those sharing the plan's episode's
     files), written in place of their links (the cache's copies stay as they were): Rerun's reader would otherwise
-    try every data file the tables name, and say so for each one missing. v2 opens only the episode's own file."""
+    try every data file the tables name, and say so for each one missing. v2: its episodes.jsonl cut to the episode's
+    own line (the lines parsed once per cached file): else every view's reader, and our metadata read, parsed the
+    whole dataset's table again, 10,000 episodes making a run quadratic."""
     assert plan.remote is not None
+    jsonl = root / "meta" / "episodes.jsonl"
+    if jsonl.is_symlink():
+        real = os.path.realpath(jsonl)
+        status = os.stat(real)
+        lines = metadata(plan.remote.url, plan.where, lambda: _jsonl_lines(real, status.st_size, status.st_mtime_ns))
+        jsonl.unlink()  # the link into the cache, never written through
+        jsonl.write_text(lines.get(plan.episode, "") + "\n", encoding="utf-8")
     tables = [root / plan.remote.relative(o) for o in plan.remote.meta if plan.remote.relative(o).startswith("meta/episodes/")]
     tables = [path for path in tables if path.suffix == ".parquet"]
 
@@ -227,3 +239,13 @@ def _present_episodes_only(root: Path, plan: LeRobotSourcePlan) -> None:
 
     if tables:
         metadata(plan.remote.url, plan.where, cut)
+
+
+@functools.lru_cache(maxsize=4)
+def _jsonl_lines(real: str, size: int, mtime_ns: int) -> dict[int, str]:
+    """A v2 episodes.jsonl of the download cache, as episode index -> its line (kept while the file is unchanged)."""
+    found: dict[int, str] = {}
+    for line in Path(real).read_text(encoding="utf-8").splitlines():  # one iteration per episode of the dataset, once
+        if line.strip():
+            found[int(json.loads(line)["episode_index"])] = line
+    return found
