@@ -1,4 +1,4 @@
-"""The joint table's cells and the output section that Markdown and HTML share: what a cell says is decided once, here; each renderer gives
+"""The joint and edge tables' cells and the output section that Markdown and HTML share: what a cell says is decided once, here; each renderer gives
 its own markup (`Markup`) for names, free text, verdicts and counts."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from .report_model import SERIES_TEXT, JointRow, Observed, OutputEntry, SegmentEntry, number, rounded
+from .report_model import SERIES_TEXT, EdgeEntry, JointRow, Observed, OutputEntry, SegmentEntry, number, rounded
 
 DASH = "—"
 
@@ -26,6 +26,18 @@ class Markup:
 
 def _numbers(values: Sequence[float]) -> str:
     return ", ".join(number(v) for v in values)
+
+
+def edge_cells(edge: EdgeEntry, markup: Markup, origin: Callable[[object], str]) -> list[str]:
+    """An edge's row: parent, child, translation, rotation (a temporal edge: the columns it reads), and `origin` (its
+    description, free text from the config) as the renderer writes such text."""
+    temporal = edge.temporal
+    if temporal is not None:
+        translation = "per row: " + ", ".join(markup.code(n) for n in temporal.translation_names)
+        rotation = "per row: quaternion_xyzw " + ", ".join(markup.code(n) for n in temporal.quaternion_names)
+    else:
+        translation, rotation = _numbers(edge.translation or ()), _numbers(edge.rotation_rpy_deg or ())
+    return [markup.code(edge.parent), markup.code(edge.child), translation, rotation, origin(edge.origin.description)]
 
 
 def map_cell(row: JointRow) -> str:

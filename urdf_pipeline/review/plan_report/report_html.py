@@ -9,7 +9,7 @@ from collections.abc import Sequence
 from ...plan import IndexPlan
 from ...web import html_text, relative_href
 from ..markdown_text import PATH_LIMIT
-from .report_cells import Markup, driver_cell, limits_cell, map_cell, observed_cell, output_items, segment_cells
+from .report_cells import Markup, driver_cell, edge_cells, limits_cell, map_cell, observed_cell, output_items, segment_cells
 from .report_model import (
     JOINT_TYPES,
     EdgeEntry,
@@ -98,10 +98,6 @@ def pictures_html(pictures: Sequence[PictureEntry], at: str, note: str) -> str:
     return f'<p class="muted">{note} Click one for its full size.</p>\n<table class="pictures">\n' + "\n".join(rows) + "\n</table>"
 
 
-def _ns(values: Sequence[float]) -> str:
-    return ", ".join(number(v) for v in values)
-
-
 def _setting(key: str, value: object) -> str:
     if isinstance(value, IndexPlan):
         return f"{code(value.column)} ({text(value.kind)}{', ' + text(value.unit) if value.unit else ''})"
@@ -174,16 +170,6 @@ def _robot(robot: RobotEntry, sample: SampleEntry | None) -> list[str]:
     return [*lines, "<ul>", *(f"<li>{item}</li>" for item in items), "</ul>", table(header, rows)]
 
 
-def _edge_cells(edge: EdgeEntry) -> list[str]:
-    temporal = edge.temporal
-    if temporal is not None:
-        translation = "per row: " + ", ".join(code(n) for n in temporal.translation_names)
-        rotation = "per row: quaternion_xyzw " + ", ".join(code(n) for n in temporal.quaternion_names)
-    else:
-        translation, rotation = _ns(edge.translation or ()), _ns(edge.rotation_rpy_deg or ())
-    return [code(edge.parent), code(edge.child), translation, rotation, text(edge.origin.description)]
-
-
 def frame_tree(root: str, edges: Sequence[EdgeEntry]) -> str:
     """The frame tree top down (the edges come depth first from the root), one frame a line, indented by depth."""
     depth = {root: 0}
@@ -245,7 +231,7 @@ def render_html(report: PlanReport, at: str = "index.html", viewer_html: str = "
         '<h2 id="edges">Edges</h2>',
         "<p>Every edge of the frame graph, top down from the root. URDF moving joints are shown at their origin (joint "
         "value 0); the run logs their pose per row.</p>",
-        table(["parent", "child", "translation (m)", "rotation (rpy deg)", "origin"], [_edge_cells(e) for e in edges]),
+        table(["parent", "child", "translation (m)", "rotation (rpy deg)", "origin"], [edge_cells(e, MARKUP, text) for e in edges]),
         '<h2 id="tree">Frame tree</h2>',
         frame_tree(report.root_frame, edges),
         *_output(report.output),

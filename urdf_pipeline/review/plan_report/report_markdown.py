@@ -7,10 +7,9 @@ from collections.abc import Sequence
 from ...errors import LINE_LIMIT, neutral_text
 from ...plan import IndexPlan
 from ..markdown_text import cell, code, code_path, fence_for, link_target, plain
-from .report_cells import Markup, driver_cell, limits_cell, map_cell, observed_cell, output_items, segment_cells
+from .report_cells import Markup, driver_cell, edge_cells, limits_cell, map_cell, observed_cell, output_items, segment_cells
 from .report_model import (
     JOINT_TYPES,
-    EdgeEntry,
     OutputEntry,
     PictureEntry,
     PlanReport,
@@ -30,10 +29,6 @@ ORDER_NOTE = (
     "`urdf-pipeline check` and a run's limit error show them)."
 )
 _n = number
-
-
-def _ns(values: Sequence[float]) -> str:
-    return ", ".join(_n(v) for v in values)
 
 
 _code = code  # every name from the config, URDF or data is a code span (markdown_text.py: inert whatever it holds)
@@ -120,16 +115,6 @@ def _robot_markdown(robot: RobotEntry, sample: SampleEntry | None) -> list[str]:
     return [*lines, "", *_table(header, rows), ""]
 
 
-def _edge_cells(edge: EdgeEntry) -> list[str]:
-    temporal = edge.temporal
-    if temporal is not None:
-        translation = "per row: " + ", ".join(_code(n) for n in temporal.translation_names)
-        rotation = "per row: quaternion_xyzw " + ", ".join(_code(n) for n in temporal.quaternion_names)
-    else:
-        translation, rotation = _ns(edge.translation or ()), _ns(edge.rotation_rpy_deg or ())
-    return [_code(edge.parent), _code(edge.child), translation, rotation, plain(edge.origin.description)]
-
-
 def _output_markdown(output: OutputEntry) -> list[str]:
     lines = ["#### Output", "", *(f"- {item}" for item in output_items(output, MARKUP))]
     rows = [segment_cells(segment, MARKUP) for segment in output.segments[:MARKDOWN_SEGMENTS]]
@@ -182,7 +167,7 @@ def render_markdown(report: PlanReport) -> str:
         "Every edge of the frame graph, top down from the root. URDF moving joints are shown at their origin (joint value 0); "
         "the run logs their pose per row.",
         "",
-        *_table(["parent", "child", "translation (m)", "rotation (rpy deg)", "origin"], [_edge_cells(e) for e in edges]),
+        *_table(["parent", "child", "translation (m)", "rotation (rpy deg)", "origin"], [edge_cells(e, MARKUP, plain) for e in edges]),
         "",
         "#### Frame tree",
         "",
