@@ -17,21 +17,9 @@ from urdf_pipeline.examples import write_joint_parquet
 
 from ..conftest import S3
 from ..source_helpers import PANDA_JOINTS, assert_panda_fk, panda_config, random_panda_q
+from .conftest import cached_files
 
 FRAMES = 120
-
-
-@pytest.fixture
-def cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
-    folder = tmp_path / "download-cache"
-    monkeypatch.setenv("URDF_PIPELINE_CACHE", str(folder))
-    return folder
-
-
-def _cached_files(cache: Path) -> list[Path]:
-    """The data files in the download cache (not its footers: metadata kept per ETag, so a re-run reads none again)."""
-    found = cache.rglob("*") if cache.exists() else []
-    return sorted(p for p in found if p.is_file() and not p.name.startswith(".") and not p.name.endswith(".footer"))
 
 
 def _upload_episode(s3: S3, key: str, q: np.ndarray, folder: Path) -> None:
@@ -54,7 +42,7 @@ def test_a_parquet_file_on_s3_is_planned_from_its_footer_and_run_from_the_cache(
     for command in ("validate", "plan"):
         result = run_cli(command, str(config))
         assert result.code == 0, result.err
-    assert _cached_files(cache) == [], "validate and plan read the footer only: nothing downloaded"
+    assert cached_files(cache) == [], "validate and plan read the footer only: nothing downloaded"
     footers = [p for p in cache.rglob("*.footer")]
     assert len(footers) == 1 and footers[0].stat().st_size < 10_000, "the footer alone, kept for the next command"
     assert s3.url("runs/episode_a.parquet") in run_cli("plan", str(config), "--format", "json").out
@@ -63,7 +51,7 @@ def test_a_parquet_file_on_s3_is_planned_from_its_footer_and_run_from_the_cache(
     assert first.code == 0, first.err
     recording = examples_dir / "out" / "sources" / "s3_single.rrd"
     assert_panda_fk(examples_dir, recording, "frame_index", list(range(FRAMES)), q, [0, 57, FRAMES - 1])
-    cached = _cached_files(cache)
+    cached = cached_files(cache)
     assert [p.name for p in cached] == ["episode_a.parquet"]
     manifest = json.loads((examples_dir / "out" / "sources" / "s3_single.manifest.json").read_text())
     entry = next(e for e in manifest["segments"] if e["segment"] == "s3_single")
@@ -72,7 +60,7 @@ def test_a_parquet_file_on_s3_is_planned_from_its_footer_and_run_from_the_cache(
 
     again = run_cli("run", str(config))
     assert again.code == 0 and "up to date" in again.err, again.err
-    assert _cached_files(cache) == cached
+    assert cached_files(cache) == cached
 
 
 def test_a_glob_over_a_prefix_is_a_segment_per_object(s3: S3, cache: Path, examples_dir: Path, tmp_path: Path, run_cli) -> None:
@@ -99,7 +87,7 @@ def test_an_object_changed_after_planning_fails_its_segment_by_name(
     assert [r.status for r in finished.results] == ["failed"]
     reason = finished.results[0].reason
     assert "changed after it was planned" in reason and s3.url("changed/episode.parquet") in reason, reason
-    assert _cached_files(cache) == []  # the refused download left nothing that counts
+    assert cached_files(cache) == []  # the refused download left nothing that counts
 
 
 def test_a_bucket_the_environment_does_not_allow_is_refused_before_any_request(

@@ -25,6 +25,7 @@ from urdf_pipeline.sources import mcap_remote
 
 from ..conftest import S3
 from ..source_helpers import PANDA_JOINTS, assert_panda_fk, panda_config, random_panda_q
+from .conftest import cached_files
 from .test_sources_hdf5 import write_aloha_episode
 from .test_sources_mcap import shuffled_messages, write_joint_states
 from .test_sources_rrd import write_state_rrd
@@ -32,17 +33,6 @@ from .test_sources_wide import write_wide_csv
 
 FRAMES = 120
 KINDS = ("csv", "mcap", "hdf5", "rrd")
-
-
-@pytest.fixture
-def cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
-    folder = tmp_path / "download-cache"
-    monkeypatch.setenv("URDF_PIPELINE_CACHE", str(folder))
-    return folder
-
-
-def _cached_files(cache: Path) -> list[Path]:
-    return sorted(p for p in cache.rglob("*") if p.is_file() and not p.name.startswith(".")) if cache.exists() else []
 
 
 def _upload(s3: S3, local: Path, key: str) -> str:
@@ -89,7 +79,7 @@ def test_a_file_on_s3_is_planned_from_its_metadata_and_run_from_the_cache(
     for command in ("validate", "plan"):
         result = run_cli(command, str(config))
         assert result.code == 0, result.err
-    planned = _cached_files(cache)
+    planned = cached_files(cache)
     if kind == "rrd":  # Rerun's reader opens local files only: validate downloaded it, into the cache run reads
         assert [p.name for p in planned] == [local.name] and planned[0].read_bytes() == local.read_bytes()
         downloaded = planned[0].stat().st_ino, planned[0].stat().st_mtime_ns
@@ -101,14 +91,14 @@ def test_a_file_on_s3_is_planned_from_its_metadata_and_run_from_the_cache(
     assert first.code == 0, first.err
     recording = examples_dir / "out" / "sources" / f"s3_{kind}.rrd"
     assert_panda_fk(examples_dir, recording, timeline, times, q, [0, 57, FRAMES - 1])
-    cached = _cached_files(cache)
+    cached = cached_files(cache)
     assert [p.name for p in cached] == [local.name]
     if kind == "rrd":
         assert (cached[0].stat().st_ino, cached[0].stat().st_mtime_ns) == downloaded, "run read validate's download"
 
     again = run_cli("run", str(config))
     assert again.code == 0 and "up to date" in again.err, again.err
-    assert _cached_files(cache) == cached
+    assert cached_files(cache) == cached
 
 
 def test_a_glob_over_a_prefix_is_a_segment_per_object(s3: S3, cache: Path, examples_dir: Path, tmp_path: Path, run_cli) -> None:
@@ -120,12 +110,12 @@ def test_a_glob_over_a_prefix_is_a_segment_per_object(s3: S3, cache: Path, examp
     s3.client().put_object(Bucket=s3.bucket, Key="takes/README.md", Body=b"not matched")
     source = {"hdf5": s3.url("takes/*.hdf5"), "dataset": "/observations/qpos", "names": PANDA_JOINTS}
     config = panda_config(examples_dir, "{stem}", source)
-    assert run_cli("validate", str(config)).code == 0 and _cached_files(cache) == []
+    assert run_cli("validate", str(config)).code == 0 and cached_files(cache) == []
     result = run_cli("run", str(config), "--force", "--jobs", "1")
     assert result.code == 0, result.err
     for stem, q in values.items():
         assert_panda_fk(examples_dir, examples_dir / "out" / "sources" / f"{stem}.rrd", "row_index", list(range(FRAMES)), q, [3])
-    assert sorted(p.name for p in _cached_files(cache)) == [f"{stem}.hdf5" for stem in values]
+    assert sorted(p.name for p in cached_files(cache)) == [f"{stem}.hdf5" for stem in values]
 
 
 def test_plan_and_diff_show_the_url(s3: S3, cache: Path, examples_dir: Path, tmp_path: Path, run_cli) -> None:
@@ -140,7 +130,7 @@ def test_plan_and_diff_show_the_url(s3: S3, cache: Path, examples_dir: Path, tmp
     assert changed.code == 0, changed.err
     lines = [line for line in changed.out.splitlines() if "source state" in line]
     assert len(lines) == 1 and "data/to_s3/episode.hdf5" in lines[0] and url in lines[0], changed.out
-    assert "RemoteObject" not in changed.out and _cached_files(cache) == []
+    assert "RemoteObject" not in changed.out and cached_files(cache) == []
 
 
 def test_an_object_changed_after_planning_fails_its_segment_by_name(
@@ -156,7 +146,7 @@ def test_an_object_changed_after_planning_fails_its_segment_by_name(
     assert [r.status for r in finished.results] == ["failed"]
     reason = finished.results[0].reason
     assert "changed after it was planned" in reason and url in reason, reason
-    assert _cached_files(cache) == []  # the refused download left nothing that counts
+    assert cached_files(cache) == []  # the refused download left nothing that counts
 
 
 def test_hdf5_values_are_checked_once_run_has_downloaded_the_file(s3: S3, cache: Path, examples_dir: Path, tmp_path: Path, run_cli) -> None:
@@ -174,7 +164,7 @@ def test_hdf5_values_are_checked_once_run_has_downloaded_the_file(s3: S3, cache:
         "index": {"timestamp": "/observations/time", "unit": "s"},
     }
     config = panda_config(examples_dir, "s3_hdf5_late", source)
-    assert run_cli("validate", str(config)).code == 0 and _cached_files(cache) == []
+    assert run_cli("validate", str(config)).code == 0 and cached_files(cache) == []
     result = run_cli("run", str(config), "--force")
     assert result.code == 1
     assert "s3_hdf5_late.yaml:" in result.err and "index dataset '/observations/time'" in result.err, result.err
@@ -225,7 +215,7 @@ def test_an_hdf5_file_whose_structure_is_spread_wide_is_downloaded_by_validate(
     url = _upload(s3, local, "spread/wide.hdf5")
     config = panda_config(examples_dir, "s3_hdf5_spread", {"hdf5": url, "dataset": "/observations/qpos", "names": PANDA_JOINTS})
     assert run_cli("validate", str(config)).code == 0
-    assert [p.name for p in _cached_files(cache)] == ["wide.hdf5"]
+    assert [p.name for p in cached_files(cache)] == ["wide.hdf5"]
     result = run_cli("run", str(config), "--force")
     assert result.code == 0, result.err
     assert_panda_fk(examples_dir, examples_dir / "out" / "sources" / "s3_hdf5_spread.rrd", "row_index", list(range(FRAMES)), q, [0, 99])
@@ -261,7 +251,7 @@ def test_mcap_refusals_name_the_url(
     assert result.code == 1 and url in result.err and "give the names with names: [...]" in result.err, result.err
     named = run_cli("validate", str(panda_config(examples_dir, "s3_mcap_named", {"mcap": url, **entry, "names": PANDA_JOINTS})))
     assert named.code == 0, named.err  # with names, the summary alone is read
-    assert _cached_files(cache) == []
+    assert cached_files(cache) == []
 
 
 def test_csv_refusals_name_the_url(s3: S3, cache: Path, examples_dir: Path, run_cli, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -273,7 +263,7 @@ def test_csv_refusals_name_the_url(s3: S3, cache: Path, examples_dir: Path, run_
     missing = run_cli("validate", str(panda_config(examples_dir, "s3_csv_missing", {"csv": s3.url("bad/none.csv"), "index": "frame"})))
     assert missing.code == 1 and "sources.state.csv" in missing.err
     assert f"cannot read {s3.url('bad/none.csv')}: no such object (404)" in missing.err, missing.err
-    assert _cached_files(cache) == []
+    assert cached_files(cache) == []
 
 
 @pytest.mark.parametrize("kind", KINDS)
