@@ -19,6 +19,8 @@ from pathlib import Path
 
 from urdf_pipeline.child_process import die_with_parent, stop_session
 
+from .local_processes import free_port
+
 START_SECONDS = 60.0
 # what boto3 reads; moto accepts any key. The region is fixed so no test reads ~/.aws or an instance's metadata.
 CREDENTIALS = {
@@ -36,19 +38,13 @@ def moto_server() -> str | None:
     return str(found) if found.is_file() else shutil.which("moto_server")
 
 
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
-
-
 @contextmanager
 def s3_endpoint(env: dict[str, str] | None = None) -> Iterator[tuple[str, subprocess.Popen[bytes]]]:
     """A running moto_server: its URL (`http://127.0.0.1:PORT`) and its process. `env` adds to its environment
     (`INITIAL_NO_AUTH_ACTION_COUNT=0`: it checks credentials, and refuses unknown ones with 403)."""
     binary = moto_server()
     assert binary is not None, "moto_server is not installed (pip install 'moto[server]': the test extra has it)"
-    port = _free_port()
+    port = free_port()
     process = subprocess.Popen(
         [binary, "-H", "127.0.0.1", "-p", str(port)],
         stdout=subprocess.DEVNULL,

@@ -24,15 +24,10 @@ from urdf_pipeline.dataset import ray_executor
 from urdf_pipeline.dataset.ray_executor import run_on_ray
 from urdf_pipeline.errors import UserError
 
+from ..local_processes import free_port, stop
+from .ray_auth import reset_auth_token_state
+
 pytestmark = pytest.mark.slow  # a real Ray cluster or catalog server
-
-try:
-    from ray._private.authentication_test_utils import reset_auth_token_state  # what Ray's own tests use
-except ImportError:  # an older Ray, without token authentication
-
-    def reset_auth_token_state() -> None:
-        pass
-
 
 # Workers find this module by the driver's working directory only; pickled by value, the tests run from anywhere.
 cloudpickle.register_pickle_by_value(sys.modules[__name__])
@@ -75,12 +70,6 @@ class Calls:
 
 def calls() -> Calls:
     return Calls({}, {})
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -130,12 +119,7 @@ def head(ray_env: None) -> Iterator[Head]:
                 time.sleep(0.1)
         yield Head(f"127.0.0.1:{port}", process)
     finally:
-        process.terminate()
-        try:
-            process.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
+        stop(process)
         shutil.rmtree(temp_dir, ignore_errors=True)
 
 

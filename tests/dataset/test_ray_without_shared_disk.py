@@ -24,27 +24,15 @@ import yaml
 from urdf_pipeline.examples import write_joint_parquet
 
 from ..conftest import S3
+from ..local_processes import free_port, stop
 from ..source_helpers import PANDA_JOINTS, assert_panda_fk, panda_config, random_panda_q
+from .ray_auth import reset_auth_token_state
 
 pytestmark = pytest.mark.slow
 ray = pytest.importorskip("ray", reason="needs Ray (a test dependency: pip install -e '.[test]')")
 
-try:
-    from ray._private.authentication_test_utils import reset_auth_token_state  # what Ray's own tests use
-except ImportError:  # an older Ray, without token authentication
-
-    def reset_auth_token_state() -> None:
-        pass
-
-
 FRAMES = 90
 STEMS = ["ep_0", "ep_1", "ep_2"]
-
-
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
 
 
 @dataclass(frozen=True)
@@ -75,7 +63,7 @@ def cluster(s3_endpoint: str, tmp_path_factory: pytest.TempPathFactory) -> Itera
     node_folder = tmp_path_factory.mktemp("worker-node")
     temp_dir = tempfile.mkdtemp(prefix="ray", dir="/tmp")  # short: Ray's socket paths live under it
     ray_cli = str(Path(sys.executable).with_name("ray"))
-    port = _free_port()
+    port = free_port()
     base = os.environ | {
         "RAY_USAGE_STATS_ENABLED": "0",
         "RAY_AUTH_MODE": "token",
@@ -100,7 +88,7 @@ def cluster(s3_endpoint: str, tmp_path_factory: pytest.TempPathFactory) -> Itera
         patch.delenv("RAY_ADDRESS", raising=False)
         reset_auth_token_state()
         head = [ray_cli, "start", "--head", "--block", "--num-cpus", "0", "--port", str(port), "--temp-dir", temp_dir]
-        head += ["--include-dashboard", "false", "--disable-usage-stats", "--ray-client-server-port", str(_free_port())]
+        head += ["--include-dashboard", "false", "--disable-usage-stats", "--ray-client-server-port", str(free_port())]
         processes.append(subprocess.Popen(head, env=base, stdout=out, stderr=subprocess.STDOUT))
         try:
             address = f"127.0.0.1:{port}"
@@ -118,12 +106,7 @@ def cluster(s3_endpoint: str, tmp_path_factory: pytest.TempPathFactory) -> Itera
             yield Cluster(address, node_folder)
         finally:
             for process in reversed(processes):
-                process.terminate()
-                try:
-                    process.wait(timeout=30)
-                except subprocess.TimeoutExpired:
-                    process.kill()
-                    process.wait()
+                stop(process)
             shutil.rmtree(temp_dir, ignore_errors=True)
             reset_auth_token_state()
 

@@ -17,6 +17,7 @@ from urdf_pipeline.cli import commands, viewer_target
 from urdf_pipeline.errors import UserError
 
 from ..dataset_helpers import isolated_examples
+from ..local_processes import free_port
 
 pytestmark = pytest.mark.usefixtures("allow_examples")  # configs elsewhere read the session's examples
 
@@ -41,12 +42,6 @@ def listener() -> Iterator[str]:
     """Something that accepts TCP connections on a free port (the check before the run connects, nothing more): its URL."""
     with socket.create_server(("127.0.0.1", 0)) as server:
         yield f"rerun+http://127.0.0.1:{server.getsockname()[1]}/proxy"
-
-
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
 
 
 @pytest.fixture
@@ -97,7 +92,7 @@ def test_connect_to_no_viewer_is_one_line_and_nothing_is_written(examples_dir: P
     """Nothing listens at the URL: refused before any work, in one line, without Rerun's own ERROR lines (the real
     command, so that Rerun's writes to file descriptor 2 would show)."""
     config = isolated_examples(examples_dir, tmp_path / "nobody")
-    url = f"rerun+http://127.0.0.1:{_free_port()}/proxy"
+    url = f"rerun+http://127.0.0.1:{free_port()}/proxy"
     env = {key: value for key, value in os.environ.items() if key != "RUST_LOG"}
     done = subprocess.run(
         [sys.executable, "-m", "urdf_pipeline", "run", str(config), "--connect", url], capture_output=True, text=True, env=env
@@ -145,7 +140,7 @@ def test_spawn_without_a_screen_is_one_line_and_nothing_is_written(
 ) -> None:
     for name in ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET"):
         monkeypatch.delenv(name, raising=False)
-    monkeypatch.setattr(viewer_target, "DEFAULT_PORT", _free_port())  # no viewer of anyone's there to reuse
+    monkeypatch.setattr(viewer_target, "DEFAULT_PORT", free_port())  # no viewer of anyone's there to reuse
     monkeypatch.setattr(viewer_target.sys, "platform", "linux")
     config = isolated_examples(examples_dir, tmp_path / "screenless")
     result = run_cli("run", "-q", str(config), "--spawn")
@@ -163,7 +158,7 @@ def test_a_viewer_that_cannot_start_is_one_error_with_its_reason(monkeypatch: py
     monkeypatch.setenv("DISPLAY", ":75")  # no X server answers there
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     with pytest.raises(UserError) as refused:
-        viewer_target.spawn_viewer(_free_port())
+        viewer_target.spawn_viewer(free_port())
     assert refused.value.message.startswith("the Rerun viewer stopped at its start (exit status ")
     assert "X server" in refused.value.message or "display" in refused.value.message.lower(), refused.value.message
     assert "\n" not in refused.value.message and "\x1b" not in refused.value.message

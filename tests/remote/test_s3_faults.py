@@ -21,6 +21,7 @@ from urdf_pipeline.remote import s3_objects
 from urdf_pipeline.sources.csv import CSV_BLOCK_BYTES
 
 from ..conftest import S3
+from ..local_processes import free_port
 from ..s3_server import CREDENTIALS, moto_server, s3_endpoint
 from ..source_helpers import PANDA_JOINTS, panda_config
 
@@ -131,16 +132,10 @@ def test_a_key_deleted_after_planning_fails_its_segment_as_missing(
     assert _cache_files(tmp_path / "download-cache") == []
 
 
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
-
-
 def test_an_endpoint_where_nothing_listens_fails_after_bounded_attempts(
     own_environment: Path, examples_dir: Path, monkeypatch: pytest.MonkeyPatch, run_cli
 ) -> None:
-    endpoint = f"http://127.0.0.1:{_free_port()}"
+    endpoint = f"http://127.0.0.1:{free_port()}"
     _use(endpoint, monkeypatch)
     started = time.monotonic()
     result = run_cli("validate", str(_csv_config(examples_dir, "s3_fault_unreachable", "s3://faults/episode.csv")))
