@@ -23,6 +23,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+from urllib.parse import urlsplit
 
 import websocket
 
@@ -314,3 +315,15 @@ class Page:
 
     def close(self) -> None:
         self.browser.call("Target.closeTarget", {"targetId": self.target})
+
+
+def site_paths(requests: list[Request], prefix: str) -> set[str]:
+    """The site paths the page asked for, once it is checked that every request went to 127.0.0.1, stayed under the
+    site's folder `prefix` and was answered (none blocked): a page of ours asks nothing of anyone else."""
+    elsewhere = [r.url for r in requests if urlsplit(r.url).hostname != "127.0.0.1"]
+    assert elsewhere == [], f"requests to other hosts: {elsewhere}"
+    outside = [r.url for r in requests if not urlsplit(r.url).path.startswith(f"/{prefix}/")]
+    assert outside == [], f"requests outside the site's folder: {outside}"
+    failed = [r for r in requests if r.status not in (200, 304)]
+    assert failed == [], f"requests not answered: {failed}"
+    return {urlsplit(r.url).path.removeprefix(f"/{prefix}/") for r in requests}

@@ -15,7 +15,6 @@ import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from urllib.parse import urlsplit
 
 import pytest
 
@@ -24,7 +23,7 @@ from urdf_pipeline.web import ViewerAssets
 
 from .canvas import ROBOT_SECONDS, ROBOT_SHARE, drawn_share
 from .conftest import Served
-from .devtools import Browser, Page
+from .devtools import Browser, Page, site_paths
 
 FRAME = "document.querySelector('iframe')"
 HEIGHT = 1100  # the tab's height: the page's summary and its embedded viewer fit
@@ -126,13 +125,6 @@ def test_the_diff_page_holds_old_and_new(diff_page: SitePage) -> None:
 def test_no_error_and_no_request_off_this_machine(which: str, request: pytest.FixtureRequest) -> None:
     opened: SitePage = request.getfixturevalue(which)
     assert opened.page.console_errors() == []  # the page's and its viewer's: no error, exception or policy violation
-    requests = opened.page.requests()
-    elsewhere = [r.url for r in requests if urlsplit(r.url).hostname != "127.0.0.1"]
-    assert elsewhere == [], f"requests to other hosts: {elsewhere}"
-    outside = [r.url for r in requests if not urlsplit(r.url).path.startswith(f"/{opened.prefix}/")]
-    assert outside == [], f"requests outside the site's folder: {outside}"
-    failed = [r for r in requests if r.status not in (200, 304)]
-    assert failed == [], f"requests not answered: {failed}"
-    paths = {urlsplit(r.url).path.removeprefix(f"/{opened.prefix}/") for r in requests}
+    paths = site_paths(opened.page.requests(), opened.prefix)
     recordings = {"rest_pose.rrd", "rest_pose.rbl"} if which == "plan_page" else {"old.rrd", "old.rbl", "new.rrd", "new.rbl"}
     assert {"index.html", "style.css", "viewer/index.html", "viewer/re_viewer_bg.wasm", *(f"recordings/{r}" for r in recordings)} <= paths
