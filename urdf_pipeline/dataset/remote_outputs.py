@@ -32,27 +32,23 @@ class BucketState:
     objects: dict[str, RemoteObject]
 
 
-def remote_of(plan: Plan) -> RemoteOutputs | None:
-    return plan.dataset.remote
+def bucket_state(plan: Plan, remote: RemoteOutputs) -> BucketState:
+    """One listing of the deepest prefix every output of the plan shares: its recordings, model and manifest (and so
+    the blueprint beside the manifest)."""
+    paths = [s.output for s in plan.dataset.segments] + [p for p in (plan.dataset.model, plan.dataset.manifest) if p is not None]
+    prefix = _common_prefix([remote.url_of(path) for path in paths])
+    return BucketState({o.url: o for o in listing(parse_url(prefix), plan.output_where)})
 
 
-def fetch_manifest(plan: Plan, remote: RemoteOutputs) -> None:
+def fetch_manifest(plan: Plan, remote: RemoteOutputs, state: BucketState) -> None:
     """The bucket's manifest, put where the run reads it (the staging folder), or no file when there is none."""
     path = plan.dataset.manifest
-    url = parse_url(remote.url_of(path))
     path.parent.mkdir(parents=True, exist_ok=True)
-    found = {o.url: o for o in listing(url, plan.output_where) if o.url == url.url}
-    if url.url not in found:
+    found = state.objects.get(remote.url_of(path))
+    if found is None:
         path.unlink(missing_ok=True)
         return
-    download(found[url.url], path, plan.output_where)
-
-
-def bucket_state(plan: Plan, remote: RemoteOutputs, jobs: list[SegmentJob]) -> BucketState:
-    """One listing of the deepest prefix every output shares."""
-    urls = [job.upload for job in jobs if job.upload is not None]
-    prefix = _common_prefix(urls) if urls else remote.url_root
-    return BucketState({o.url: o for o in listing(parse_url(prefix), plan.output_where)})
+    download(found, path, plan.output_where)
 
 
 def _common_prefix(urls: list[str]) -> str:
@@ -64,20 +60,35 @@ def _common_prefix(urls: list[str]) -> str:
     return head[: head.rfind("/") + 1]
 
 
-def up_to_date(job: SegmentJob, manifest: Manifest, state: BucketState) -> bool:
-    """The manifest's entry has this content hash and the object still has the ETag the entry recorded."""
-    entry = manifest.entry(job.label)
-    found = state.objects.get(job.upload or "")
-    return bool(entry and found and entry.get("content_sha256") == job.content_hash and entry.get("etag") == found.version)
+def fresh_in_bucket(jobs: list[SegmentJob], manifest: Manifest, state: BucketState, where: Where | None) -> set[str]:
+    """The labels of the jobs whose object is up to date: the manifest's entry has the job's content hash and the
+    object still has the ETag the entry recorded, or (an object the manifest does not list as it is) our metadata
+    says this content hash: a run stopped before its manifest went up, recorded now. An object without our metadata
+    is another writer's: every such one is refused at once, before anything is computed."""
+    fresh: set[str] = set()
+    problems = Problems()
+    for job in jobs:
+        entry = manifest.entry(job.label)
+        found = state.objects.get(job.upload or "")
+        if found is None:
+            continue
+        if entry is not None and entry.get("etag") == found.version:  # ours, as the manifest recorded it
+            if entry.get("content_sha256") == job.content_hash:
+                fresh.add(job.label)
+            continue
+        try:
+            if _adopted(job, manifest, found, where):
+                fresh.add(job.label)
+        except UserError as error:
+            problems.extend(error)
+    problems.raise_if_any()
+    return fresh
 
 
-def adopted(job: SegmentJob, manifest: Manifest, state: BucketState, where: Where | None) -> bool:
-    """An object the manifest does not list as it is now, checked by its metadata: ours with this content hash (a run
-    stopped before its manifest went up) is recorded and up to date; ours with another hash may be replaced; without
-    our metadata it is another writer's, and the run refuses to replace it."""
-    found = state.objects.get(job.upload or "")
-    if found is None:
-        return False
+def _adopted(job: SegmentJob, manifest: Manifest, found: RemoteObject, where: Where | None) -> bool:
+    """`found`, at the job's URL and not listed by the manifest as it is, by its metadata (one HEAD): ours with this
+    content hash is recorded and up to date; ours with another hash may be replaced; without our metadata it is
+    another writer's (a UserError: the run never replaces it)."""
     written_hash = metadata_of(parse_url(found.url), where).get(CONTENT_METADATA)
     if written_hash is None:
         raise UserError(
@@ -92,21 +103,6 @@ def adopted(job: SegmentJob, manifest: Manifest, state: BucketState, where: Wher
     return True
 
 
-def refuse_foreign(to_run: list[SegmentJob], manifest: Manifest, state: BucketState, where: Where | None) -> None:
-    """Every object a job would replace that urdf-pipeline did not write, all at once (nothing is computed first)."""
-    problems = Problems()
-    for job in to_run:
-        entry = manifest.entry(job.label)
-        found = state.objects.get(job.upload or "")
-        if found is None or (entry is not None and entry.get("etag") == found.version):
-            continue
-        try:
-            adopted(job, manifest, state, where)
-        except UserError as error:
-            problems.extend(error)
-    problems.raise_if_any()
-
-
 def upload_run_files(plan: Plan, remote: RemoteOutputs, blueprint: Path | None) -> None:
     """The blueprint (when the run wrote or kept one), then the manifest: uploaded last, so a reader of the bucket
     never sees a manifest listing an object that is not there."""
@@ -116,22 +112,28 @@ def upload_run_files(plan: Plan, remote: RemoteOutputs, blueprint: Path | None) 
 
 
 @contextmanager
-def local_outputs(plan: Plan, entries: list[SegmentEntry]) -> Iterator[tuple[list[SegmentEntry], Path | None, Path | None]]:
+def local_outputs(
+    plan: Plan, entries: list[SegmentEntry], state: BucketState
+) -> Iterator[tuple[list[SegmentEntry], Path | None, Path | None]]:
     """For a reader of a run's outputs in S3 (`browse`): the entries with their recordings fetched into this machine's
     download cache (each the version the manifest recorded: a replaced object is an error naming it), the model and
     the blueprint likewise; held in the cache while the block runs. Entries of the manifest the bucket no longer
     holds as recorded are left out, as local entries whose file is gone are."""
     remote = plan.dataset.remote
     assert remote is not None
-    manifest = Manifest.load(plan.dataset.manifest, plan.application_id, plan.dataset.layout, plan.config_path, plan.output_where)
-    state = {o.url: o for o in listing(parse_url(remote.url_root + _common_key(remote, plan)), plan.output_where)}
-    wanted = [e for e in entries if e.url is not None and e.url in state and state[e.url].version == e.etag]
-    model_entry = manifest.model or {}
-    model = (
-        state.get(str(model_entry.get("url"))) if model_entry.get("etag") == state.get(str(model_entry.get("url")), _NONE).version else None
+    objects = state.objects
+
+    def as_recorded(url: object, etag: object) -> RemoteObject | None:
+        found = objects.get(str(url))
+        return found if found is not None and found.version == etag else None
+
+    wanted = [(e, found) for e in entries if (found := as_recorded(e.url, e.etag)) is not None]
+    model_entry = (
+        Manifest.load(plan.dataset.manifest, plan.application_id, plan.dataset.layout, plan.config_path, plan.output_where).model or {}
     )
-    blueprint = state.get(remote.url_of(plan.dataset.manifest.parent / f"{plan.config_path.stem}.rbl"))
-    targets = [state[e.url or ""] for e in wanted] + [found for found in (model, blueprint) if found is not None]
+    model = as_recorded(model_entry.get("url"), model_entry.get("etag"))
+    blueprint = objects.get(remote.url_of(plan.dataset.manifest.parent / f"{plan.config_path.stem}.rbl"))
+    targets = [found for _, found in wanted] + [found for found in (model, blueprint) if found is not None]
 
     def download_one(found: RemoteObject) -> None:  # into the cache, FETCH_THREADS at a time (latency, not CPU)
         with fetched(found, plan.output_where):
@@ -145,21 +147,13 @@ def local_outputs(plan: Plan, entries: list[SegmentEntry]) -> Iterator[tuple[lis
             return held.enter_context(fetched(found, plan.output_where))
 
         yield (
-            [replace(e, path=local(state[e.url or ""])) for e in wanted],
+            [replace(e, path=local(found)) for e, found in wanted],
             local(model) if model is not None else None,
             local(blueprint) if blueprint is not None else None,
         )
 
 
 FETCH_THREADS = 8
-_NONE = RemoteObject("", "", 0)
-
-
-def _common_key(remote: RemoteOutputs, plan: Plan) -> str:
-    """The key prefix every output of the plan shares (the folder of the manifest, at least)."""
-    paths = [s.output for s in plan.dataset.segments] + [plan.dataset.manifest]
-    urls = [remote.url_of(p) for p in paths]
-    return _common_prefix(urls).removeprefix(remote.url_root)
 
 
 def input_versions(segment: Segment | None) -> dict[str, str]:

@@ -22,8 +22,7 @@ from .executors import ExecutorName, executor_for
 from .fingerprint import file_hashes_used, model_hash, remember_file_hashes, segment_hashes
 from .interrupts import exit_status, signal_name, signal_number
 from .manifest import Manifest
-from .remote_outputs import BucketState, adopted, bucket_state, fetch_manifest, input_versions, refuse_foreign, upload_run_files
-from .remote_outputs import up_to_date as remote_up_to_date
+from .remote_outputs import bucket_state, fetch_manifest, fresh_in_bucket, input_versions, upload_run_files
 
 if TYPE_CHECKING:
     from .catalog import CatalogReport
@@ -116,15 +115,15 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
             "each node writes only its layers (a single-layout recording would need the mesh files on every node)",
             plan.output_where,
         )
+    state = None
     if remote is not None:
-        fetch_manifest(plan, remote)  # the last run's, from the bucket (it may have run on another machine)
+        state = bucket_state(plan, remote)  # one listing of the outputs' prefix
+        fetch_manifest(plan, remote, state)  # the last run's, from the bucket (it may have run on another machine)
     manifest = _manifest(plan)
     jobs = build_jobs(plan)
-    state = bucket_state(plan, remote, jobs) if remote is not None else None
-    results, to_run = _up_to_date(jobs, manifest, options.force, state)
+    in_bucket = fresh_in_bucket(jobs, manifest, state, plan.output_where) if state is not None else None
+    results, to_run = _up_to_date(jobs, manifest, options.force, in_bucket)
     _prepare_outputs(plan, jobs, to_run, manifest)
-    if state is not None:
-        refuse_foreign(to_run, manifest, state, plan.output_where)
     if progress is not None:
         progress.start(len(jobs), sum(j.frames_expected or 0 for j in to_run), skipped=len(jobs) - len(to_run))
     to_run = _dispatched(to_run, options)
@@ -162,9 +161,10 @@ def _manifest(plan: Plan) -> Manifest:
 
 
 def _up_to_date(
-    jobs: list[SegmentJob], manifest: Manifest, force: bool, state: BucketState | None = None
+    jobs: list[SegmentJob], manifest: Manifest, force: bool, in_bucket: set[str] | None = None
 ) -> tuple[dict[str, SegmentResult], list[SegmentJob]]:
-    """The results of the jobs whose output is up to date (skipped unless `force`), and the jobs to run."""
+    """The results of the jobs whose output is up to date (skipped unless `force`), and the jobs to run. `in_bucket`:
+    outputs in S3, the labels `fresh_in_bucket` found up to date there."""
     # Hashes of files this run did not read (other episodes: `--episodes`) are kept while the file is there, so that
     # the next full re-run does not read them again; a changed file is hashed again anyway (size and mtime).
     kept = {path: entry for path, entry in manifest.files.items() if os.path.exists(path)}
@@ -172,11 +172,11 @@ def _up_to_date(
     results: dict[str, SegmentResult] = {}
     to_run: list[SegmentJob] = []
     for job in jobs:
-        if state is not None:  # outputs in S3: the bucket's listing says, then (not listed as it is) the object's metadata
-            fresh = remote_up_to_date(job, manifest, state) or (not force and _adopted_remote(job, manifest, state))
+        if in_bucket is not None:
+            fresh = job.label in in_bucket
         else:
             fresh = manifest.up_to_date(job.label, job.output, job.content_hash)
-        if not fresh and state is None and manifest.entry(job.label) is None:  # no manifest (deleted, another machine)
+        if not fresh and in_bucket is None and manifest.entry(job.label) is None:  # no manifest (deleted, another machine)
             fresh = _adopt_if_written(job, manifest)
         if fresh and not force:
             results[job.label] = SegmentResult(job.label, job.output, "skipped", job.content_hash, reason="up to date")
@@ -192,15 +192,6 @@ def _where_jobs_run(plan: Plan, options: RunOptions, to_run: list[SegmentJob]) -
     if options.executor != "ray" or plan.dataset.remote is None:
         return [], to_run
     return [job for job in to_run if job.segment is None], [job for job in to_run if job.segment is not None]
-
-
-def _adopted_remote(job: SegmentJob, manifest: Manifest, state: BucketState) -> bool:
-    """An object of ours with this content hash the manifest does not list (left for `refuse_foreign` to name when
-    it is not ours)."""
-    try:
-        return adopted(job, manifest, state, None)
-    except UserError:
-        return False
 
 
 def _dispatched(to_run: list[SegmentJob], options: RunOptions) -> list[SegmentJob]:

@@ -58,11 +58,13 @@ class Shared:
 def browse_config(plan: Plan, target: Path, config_text: str, base: str | None = None) -> BrowseResult:
     """The browser of `plan`'s written outputs at `target`; a UserError naming the fix when the run never happened.
     `base`: `--base DIR_OR_GLOB`, the base recordings segments open with (read before anything is written)."""
-    from ..dataset import base_files, fetch_manifest, local_outputs, segment_summaries
+    from ..dataset import base_files, bucket_state, fetch_manifest, local_outputs, segment_summaries
     from ..execute import blueprint_path
 
+    state = None
     if plan.dataset.remote is not None:
-        fetch_manifest(plan, plan.dataset.remote)  # the bucket's, as the last run left it
+        state = bucket_state(plan, plan.dataset.remote)  # one listing of the outputs' prefix
+        fetch_manifest(plan, plan.dataset.remote, state)  # the bucket's, as the last run left it
     manifest = plan.dataset.manifest
     if not manifest.is_file():
         raise UserError(
@@ -71,8 +73,8 @@ def browse_config(plan: Plan, target: Path, config_text: str, base: str | None =
         )
     found = base_files(base) if base is not None else None
     entries = segment_summaries(plan)
-    if plan.dataset.remote is not None:  # outputs in S3: each recording fetched (the version the manifest recorded)
-        with local_outputs(plan, entries) as (fetched, model, blueprint):
+    if state is not None:  # outputs in S3: each recording fetched (the version the manifest recorded)
+        with local_outputs(plan, entries, state) as (fetched, model, blueprint):
             rows, bases = _rows(plan, fetched, config_text, found)
             return build_browser(target, plan.application_id, rows, Shared(model, blueprint), bases)
     rows, bases = _rows(plan, entries, config_text, found)
