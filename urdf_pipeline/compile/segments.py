@@ -66,19 +66,8 @@ def _compile_glob(ctx: CompileContext, name: str, kind: str, spec: dict[str, Any
     paths = _glob_files(ctx, pattern, kind, where)
     if not paths:
         raise UserError(f"'{spec[kind]}' matches no file (paths are relative to the config file: {ctx.config_dir})", where)
-    by_stem: dict[str, SourcePlan] = {}
-    seen: dict[str, Path] = {}
-    for path in paths:
-        stem = path.name.split(".", 1)[0]  # the name as matched: a symlink is named by its own name, not its target's
-        if stem in seen:
-            ctx.problems.add(f"two files matched by '{spec[kind]}' share the stem '{stem}' ({seen[stem]} and {path}); rename one", where)
-            continue
-        seen[stem] = path
-        try:
-            by_stem[stem] = KINDS[kind].compile_source(name, {**spec, kind: str(path)}, ctx.document, ctx.config_dir)
-        except UserError as exc:
-            ctx.problems.extend(exc)
-    return by_stem
+    # each stem is the name as matched: a symlink is named by its own name, not its target's
+    return _compile_matches(ctx, name, kind, spec, where, [str(path) for path in paths], "files", threads=1)
 
 
 def _compile_remote_glob(ctx: CompileContext, name: str, kind: str, spec: dict[str, Any], where: Where) -> dict[str, SourcePlan]:
@@ -87,26 +76,37 @@ def _compile_remote_glob(ctx: CompileContext, name: str, kind: str, spec: dict[s
     objects = remote_glob(spec[kind], where, f"{kind} glob")
     if not objects:
         raise UserError(f"'{shown(spec[kind])}' matches no object", where)
+    # each object's metadata costs a few ranged GETs of network latency: REMOTE_METADATA_THREADS objects at a time
+    return _compile_matches(ctx, name, kind, spec, where, [o.url for o in objects], "objects", REMOTE_METADATA_THREADS)
+
+
+def _compile_matches(
+    ctx: CompileContext, name: str, kind: str, spec: dict[str, Any], where: Where, matches: list[str], what: str, threads: int
+) -> dict[str, SourcePlan]:
+    """Each file (path or URL) a glob matched, compiled like a single one (metadata only), keyed by stem; two matches
+    sharing a stem are refused. `threads` compile at once (remote files: their latency, not their CPU)."""
     seen: dict[str, str] = {}
-    for remote in objects:
-        stem = remote.url.rsplit("/", 1)[-1].split(".", 1)[0]
+    for match in matches:
+        stem = match.rsplit("/", 1)[-1].split(".", 1)[0]
         if stem in seen:
             ctx.problems.add(
-                f"two objects matched by '{shown(spec[kind])}' share the stem '{stem}' ({seen[stem]} and {remote.url}); rename one", where
+                f"two {what} matched by '{shown(spec[kind])}' share the stem '{stem}' ({seen[stem]} and {match}); rename one", where
             )
             continue
-        seen[stem] = remote.url
+        seen[stem] = match
 
-    def compiled(url: str) -> SourcePlan | UserError:
+    def compiled(text: str) -> SourcePlan | UserError:
         try:
-            plan: SourcePlan = KINDS[kind].compile_source(name, {**spec, kind: url}, ctx.document, ctx.config_dir)
+            plan: SourcePlan = KINDS[kind].compile_source(name, {**spec, kind: text}, ctx.document, ctx.config_dir)
             return plan
         except UserError as exc:
             return exc
 
-    # Each object's metadata costs a few ranged GETs of network latency: REMOTE_METADATA_THREADS objects at a time.
-    with ThreadPoolExecutor(REMOTE_METADATA_THREADS, thread_name_prefix="remote-metadata") as pool:
-        plans = dict(zip(seen, pool.map(compiled, seen.values()), strict=True))
+    if threads > 1:
+        with ThreadPoolExecutor(threads, thread_name_prefix="remote-metadata") as pool:
+            plans = dict(zip(seen, pool.map(compiled, seen.values()), strict=True))
+    else:
+        plans = {stem: compiled(text) for stem, text in seen.items()}
     by_stem: dict[str, SourcePlan] = {}
     for stem, plan in plans.items():
         if isinstance(plan, UserError):
