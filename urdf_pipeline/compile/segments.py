@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from ..confine import Unresolvable, file_state, resolved
-from ..errors import UserError, Where, listing, shown
+from ..errors import UserError, Where, listing, quoted, shown
 from ..plan import DatasetPlan, LeRobotSourcePlan, Segment, SourcePlan
 from ..remote import is_remote, remote_glob
 from ..sources import KINDS, kind_of, refuse_control_characters
@@ -90,7 +90,8 @@ def _compile_matches(
         stem = match.rsplit("/", 1)[-1].split(".", 1)[0]
         if stem in seen:
             ctx.problems.add(
-                f"two {what} matched by '{shown(spec[kind])}' share the stem '{stem}' ({seen[stem]} and {match}); rename one", where
+                f"two {what} matched by '{shown(spec[kind])}' share the stem {quoted(stem)} ({shown(seen[stem])} and {shown(match)}); rename one",
+                where,
             )
             continue
         seen[stem] = match
