@@ -6,6 +6,8 @@ The Python API, for notebooks and scripts (docs/python-api.md):
     urdf_pipeline.run("configs/demo.yaml", jobs=2)            # what `urdf-pipeline run` does; the written paths
     urdf_pipeline.log("configs/demo.yaml", recording=rec)     # model, FK and edges into your RecordingStream
     fk = urdf_pipeline.forward_kinematics(plan)               # {robot: RobotKinematics}: links x rows poses
+    with urdf_pipeline.live("configs/arm.yaml") as view:       # a live view for a control loop (spawns a viewer)
+        view.push(q)                                          # one sample, in the source's names order
 
 Every call raises `urdf_pipeline.ConfigError` with the command line's located messages (`error.lines()`).
 """
@@ -70,8 +72,9 @@ class PandasLeftOut:
 
 
 if TYPE_CHECKING:  # the public API, the one list: lazy_surface reads these lines
-    from .api import ConfigError, forward_kinematics, load, log, run
+    from .api import ConfigError, forward_kinematics, live, load, log, run
     from .execute import RobotKinematics
+    from .live import LiveView
     from .plan import Plan
 
 if not TYPE_CHECKING:  # nothing heavy is imported until a name is used

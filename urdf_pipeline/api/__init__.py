@@ -1,4 +1,4 @@
-"""The Python API (`urdf_pipeline.load`, `run`, `log`, `forward_kinematics`), beside the command line.
+"""The Python API (`urdf_pipeline.load`, `run`, `log`, `forward_kinematics`, `live`), beside the command line.
 
 The names below are the package's public surface; `urdf_pipeline/__init__.py` re-exports them.
 """
@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 from .. import lazy_surface
 
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
-    from .calls import ConfigError, forward_kinematics, load, log, run
+    from .calls import ConfigError, forward_kinematics, live, load, log, run
 
 if not TYPE_CHECKING:  # the names above, imported when first used
     __all__, __getattr__ = lazy_surface(__name__, __file__)

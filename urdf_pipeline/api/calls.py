@@ -19,6 +19,7 @@ if TYPE_CHECKING:
     from rerun import RecordingStream
 
     from ..execute import RobotKinematics
+    from ..live import LiveView, TimeKind
 
 ConfigError = UserError
 
@@ -76,6 +77,41 @@ def forward_kinematics(plan: Plan | str | os.PathLike[str], segment: str | None 
 
     compiled = plan if isinstance(plan, Plan) else load(plan)
     return segment_kinematics(compiled.for_segment(compiled.segment_named(segment, "segment=", first_by_default=False)))
+
+
+def live(
+    path: str | os.PathLike[str],
+    recording: RecordingStream | None = None,
+    *,
+    robot: str | None = None,
+    spawn: bool = False,
+    connect: str | None = None,
+    save: str | os.PathLike[str] | None = None,
+    timeline: str | None = None,
+    time_kind: TimeKind = "timestamp",
+    max_delay: float = 0.01,
+) -> LiveView:
+    """A live view of one robot of a config, for a control loop: `view.push(values, time=None)` one sample (a sequence
+    in the source's `names` order, or a mapping name -> value), `view.push_batch(rows, times)`, `view.close()` (or
+    `with`). It logs the robot's model and the calibration edges once, then each sample's joint transforms and temporal
+    edges, with the config's mapping, units, mimic joints, holds and limits (values beyond them are reported every few
+    seconds and clamped or shown as `on_violation` says). Source names come from `names:`, else from the source's data.
+
+    `recording`: yours; else a new one that `spawn`s a viewer (the default), `connect`s to one
+    ("rerun+http://HOST:PORT/proxy") and/or `save`s to a file, closed with the view. `timeline` (default: the
+    source's, "time" for a file source) holds `time_kind` values: seconds since the epoch (timestamp, default: now),
+    seconds (duration, default: since the view began) or integers (sequence, default: a counter). Pushed samples are
+    sent together every `max_delay` seconds by a thread of the view's (0: each push is sent at once)."""
+    from ..compile import compile_live
+    from ..live import LiveView, live_recording
+
+    plan = compile_live(Path(path), names_from_data=True)
+    chosen = plan.robot_named(robot)
+    if recording is not None and (spawn or connect or save):
+        raise UserError("urdf_pipeline.live: give either a recording or spawn/connect/save for one it makes, not both")
+    spawned = spawn or (connect is None and save is None)
+    target = recording if recording is not None else live_recording(plan.application_id, spawned, connect, save)
+    return LiveView(plan, chosen, target, timeline=timeline, time_kind=time_kind, max_delay=max_delay, owns_recording=recording is None)
 
 
 def _episodes(episodes: str | Iterable[int] | None) -> str | None:

@@ -138,7 +138,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
     results = []
     for config in args.configs:
-        result = validate_config(config, data=not args.no_data, skip_non_configs=args.skip_non_configs)
+        result = validate_config(config, data=not args.no_data, skip_non_configs=args.skip_non_configs, live=args.live)
         results.append(result)
         if args.format == "text":  # each config as it is done; its errors with every other's at the end
             progress = render_text_progress(result)
@@ -151,6 +151,21 @@ def cmd_validate(args: argparse.Namespace) -> int:
         sys.stdout.write(shown.stdout)
         sys.stderr.write(shown.stderr)
     return ExitCode.OK if all(result.ok for result in results) else ExitCode.USER_ERROR
+
+
+def cmd_live(args: argparse.Namespace) -> int:
+    """A robot's stream into a viewer (--connect, --spawn: the default without --save) and/or a file (--save): the
+    config checked before anything is subscribed; Ctrl-C or SIGTERM end it, as the stream's end does (exit 0)."""
+    from ..live import LiveOptions, live_command
+    from ..progress import say
+
+    viewer = require_viewer(args.connect) if args.connect else None
+    if args.spawn or (viewer is None and args.save is None):
+        viewer = spawn_viewer()
+    save = Path(args.save) if args.save else None
+    summary = live_command(LiveOptions(Path(args.config), args.source, viewer, save, args.reconnects))
+    say(summary.line())
+    return ExitCode.OK
 
 
 def cmd_check(args: argparse.Namespace) -> int:

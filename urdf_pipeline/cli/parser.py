@@ -8,7 +8,19 @@ import sys
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, NoReturn
 
-from .commands import cmd_browse, cmd_check, cmd_diff, cmd_init, cmd_plan, cmd_run, cmd_schema, cmd_serve, cmd_snapshot, cmd_validate
+from .commands import (
+    cmd_browse,
+    cmd_check,
+    cmd_diff,
+    cmd_init,
+    cmd_live,
+    cmd_plan,
+    cmd_run,
+    cmd_schema,
+    cmd_serve,
+    cmd_snapshot,
+    cmd_validate,
+)
 
 if TYPE_CHECKING:
     from ..render import Size
@@ -99,6 +111,7 @@ def build_parser() -> argparse.ArgumentParser:
         _add_diff,
         _add_browse,
         _add_serve,
+        _add_live,
     ):
         add_command(commands)
     return parser
@@ -148,10 +161,41 @@ def _add_validate(commands: _Commands) -> None:
         "graph only; names that only the data holds are checked by validate with the data, and by run",
     )
     validate.add_argument(
+        "--live",
+        action="store_true",
+        help="check CONFIG for `live --from` without data: --no-data's checks, and every source a robot reads an MCAP "
+        "topic (names unknown without data are taken from the stream's first message)",
+    )
+    validate.add_argument(
         "--skip-non-configs",
         action="store_true",
         help="skip a YAML file that is not a config (a top-level list such as a sidecar edges file, or a mapping with "
         "none of a config's top-level keys), with a `skipped:` line on stderr; for the pre-commit hook",
+    )
+
+
+def _add_live(commands: _Commands) -> None:
+    """live: where the samples come from and where they go."""
+    live = commands.add_parser(
+        "live",
+        cmd_live,
+        help="drive CONFIG's robots from a live stream (a Foxglove WebSocket server, an MCAP file being written) into a viewer",
+        description="Subscribe to the JointState topics CONFIG's MCAP sources name, on a Foxglove WebSocket server "
+        "(foxglove_bridge, the Foxglove SDK) or in an MCAP file still being written, and show the robots move, with the "
+        "config's mapping, units, limits and edges. The config is checked before anything is subscribed. Ctrl-C ends.",
+    )
+    live.add_argument("config")
+    live.add_argument(
+        "--from", dest="source", required=True, metavar="URL", help="ws://HOST:PORT, or the path of an MCAP file being written"
+    )
+    viewer = live.add_mutually_exclusive_group()
+    viewer.add_argument(
+        "--spawn", action="store_true", help="start a Rerun viewer (or use the one on port 9876); the default without --save"
+    )
+    viewer.add_argument("--connect", metavar="URL", help="send to the viewer at URL (rerun+http://HOST:PORT/proxy), checked first")
+    live.add_argument("--save", metavar="FILE.rrd", help="also write what is seen to FILE.rrd (renamed into place when live ends)")
+    live.add_argument(
+        "--reconnects", type=_positive, default=10, metavar="N", help="reconnect attempts in a row before giving up (default: 10)"
     )
 
 

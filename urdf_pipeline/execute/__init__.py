@@ -14,13 +14,15 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
     from .blueprint import blueprint_key, blueprint_path, write_blueprint
     from .edges_stream import CALIBRATION_ENTITY, calibration_stream
     from .held_signals import deferred_signals
-    from .joint_fk import rotation_matrices
+    from .joint_fk import ClosedFormJointTransforms, rotation_matrices
     from .kinematics import RobotKinematics, segment_kinematics
+    from .limits_report import check_joint_statistics
     from .model_stream import cached_tree, robot_model_stream
     from .provenance import stored_content_hash
     from .segment import Parts, RunResult, execute, log_segment
     from .segment_run import CONTENT_METADATA, SegmentJob, SegmentResult, install_run_plan, run_segment
     from .summary_record import JointPreview, SegmentSummary, TimeRange
+    from .temporal_stream import TemporalEdgeStats, TemporalEdgeValues, check_temporal_edges
     from .viewer_delivery import send_to_viewer, viewer_binary
     from .writer import process_alive, remove_stale_partials, require_ours, require_writable, write_file_atomically
 

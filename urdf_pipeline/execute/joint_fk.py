@@ -88,6 +88,12 @@ class ClosedFormJointTransforms:
         structs = pa.StructArray.from_arrays([translation, quaternions, fixed.parents, fixed.children], fields=self.fields)
         return pa.ListArray.from_arrays(fixed.offsets, structs, type=self.type)
 
+    def frame_names(self) -> tuple[list[str], list[str]]:
+        """Each joint's parent and child frame, frame prefix included, as Rerun's FK names them (a live view sends
+        the transforms of `arrays` with these)."""
+        frames = self._rerun(np.zeros((1, len(self.names)))).values
+        return frames.field("parent_frame").to_pylist(), frames.field("child_frame").to_pylist()
+
     def arrays(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The same transforms as numpy arrays in float64 (rows x joints x 3 translations, x 4 quaternions), for
         analysis (`kinematics.py`): not rounded to float32 as the recording's are."""

@@ -18,7 +18,7 @@ from . import csv, hdf5, lerobot, mcap, parquet, rrd
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it), with the names defined below
     from .base import GLOB, EntryField, SourceDescription, SourceKind, refuse_control_characters, resolve_input
     from .callbacks import CallbackErrors
-    from .joint_values import JointValueMapper, raw_matrix, wrapped
+    from .joint_values import ChannelStats, JointValueMapper, RobotStats, raw_matrix, wrapped
     from .lerobot import local_dataset
     from .ordering import NeedsSorting, sorted_in_memory, with_sorting_retry
     from .stream import SourceStream

@@ -107,11 +107,13 @@ class Annotation:
         return head + data
 
 
-def validate_config(config: str, *, data: bool = True, skip_non_configs: bool = False) -> ConfigResult:
+def validate_config(config: str, *, data: bool = True, skip_non_configs: bool = False, live: bool = False) -> ConfigResult:
     """Compile the config as `validate` does, collecting its errors and warnings instead of printing them. `data`
     False (`--no-data`): every check that opens no source file, and a note per source whose names only its data
-    holds. `skip_non_configs`: a YAML file that is no config (non_config.py) is skipped rather than refused."""
-    from ...compile import check_config_without_data, compile_config
+    holds. `live` (`--live`): what `live --from` checks before it subscribes, opening no source file (every source a
+    robot reads is an MCAP topic). `skip_non_configs`: a YAML file that is no config (non_config.py) is skipped rather
+    than refused."""
+    from ...compile import check_config_without_data, check_live_config, compile_config
 
     if skip_non_configs:
         reason = not_a_config(Path(config))
@@ -122,7 +124,11 @@ def validate_config(config: str, *, data: bool = True, skip_non_configs: bool = 
     warnings: list[ConfigWarning]
     with collect_warnings() as warnings:
         try:  # one catch for both paths: a check that raises instead of collecting is a problem of this config too
-            if data:
+            if live:
+                checked = check_live_config(Path(config), stream_only=True)
+                errors = list(checked.errors)
+                notes = tuple(Problem("note", note.message, note.where) for note in checked.notes)
+            elif data:
                 compile_config(Path(config))
             else:
                 found = check_config_without_data(Path(config))

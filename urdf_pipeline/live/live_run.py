@@ -1,0 +1,261 @@
+"""`urdf-pipeline live CONFIG --from URL`: a robot's stream into a viewer and/or a file, with the config's checks.
+
+The config is checked before anything is subscribed (`check_live_config`, as `validate --live`); each MCAP source's
+names come from `names:` or from the first message on its topic, and the plan is compiled then (a map naming a joint
+the stream lacks is refused at that first message). Samples are sent as each poll of the feed brings them. Ctrl-C and
+SIGTERM end the view as the end of the stream does: views closed, the recording finished, `--save` renamed into place.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+import time
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import FrameType
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..compile import LivePlan, LiveSourceSpec, check_live_config, compile_live
+from ..errors import UserError, UserErrors, Where, shown
+from ..execute import write_file_atomically
+from ..progress import say
+from .joint_state import Feed, JointStateSample, same_topic
+from .latency import Latencies
+from .live_view import LiveView
+from .recordings import live_recording
+
+if TYPE_CHECKING:
+    from rerun import RecordingStream
+
+FROM_OPTION = Where(Path("--from"), 0)
+SAVE_OPTION = Where(Path("--save"), 0)
+WAIT_NOTE_SECONDS = 5.0  # "waiting for the first message on ..." repeated this often
+MAX_EARLY_SAMPLES = 10_000  # kept while the first messages of other topics are awaited
+
+
+@dataclass(frozen=True)
+class LiveOptions:
+    config: Path
+    source: str  # --from: ws://HOST:PORT, or an MCAP file being written
+    viewer_url: str | None  # --connect / --spawn, settled by the command line
+    save: Path | None
+    reconnects: int = 10
+
+
+@dataclass
+class LiveSummary:
+    """What `live` says when it ends."""
+
+    received: int = 0
+    sent: int = 0
+    seconds: float = 0.0
+    ended: str = "the stream ended"
+    latency: Latencies = field(default_factory=Latencies)
+    saved: Path | None = None
+
+    def line(self) -> str:
+        saved = f"; saved {self.saved}" if self.saved else ""
+        return (
+            f"live: {self.received} samples in {self.seconds:.1f} s, {self.sent} sent ({self.ended}); "
+            f"from arrival to sent: {self.latency.text()}{saved}"
+        )
+
+
+def open_feed(source: str, topics: Mapping[str, Where | None], reconnects: int) -> Feed:
+    """`--from`: a Foxglove WebSocket server (ws://, wss://) or a path to an MCAP file being written."""
+    if source.startswith(("ws://", "wss://")):
+        from .foxglove_feed import FoxgloveFeed
+
+        return FoxgloveFeed(source, topics, reconnects=reconnects)
+    if "://" in source:
+        raise UserError(
+            f"{shown(source)}: live --from takes ws://HOST:PORT (a Foxglove WebSocket server, such as foxglove_bridge) or the path of "
+            "an MCAP file being written",
+            FROM_OPTION,
+        )
+    from .mcap_follow import McapFollowFeed
+
+    return McapFollowFeed(Path(source), topics, FROM_OPTION)
+
+
+def live_command(options: LiveOptions) -> LiveSummary:
+    """Check, subscribe, show; the summary of what was seen. A problem found once samples were sent keeps them in
+    `--save` (a complete recording of what came before it) and is raised after, saying so."""
+    check = check_live_config(options.config, stream_only=True)
+    if check.errors:
+        raise UserErrors(list(check.errors))
+    topics = {spec.topic: spec.where for spec in check.sources if spec.topic is not None}
+    summary = LiveSummary()
+    session = _Session(options, check.sources, summary)
+    feed = open_feed(options.source, topics, options.reconnects)
+    say(f"live: {options.config} from {feed.description}, topics {', '.join(shown(t) for t in topics)}")
+    with _stop_on_signals(summary, feed):
+        if options.save is None:
+            session.run(feed, None)
+        else:
+            write_file_atomically(options.save, lambda partial: session.run(feed, partial), "recording", SAVE_OPTION)
+            summary.saved = options.save if session.sent_any else None
+    if session.late_error is not None:
+        error = session.late_error
+        kept = f"; the {summary.sent} samples before it are saved in {options.save}" if options.save else ""
+        raise UserError(f"{error.message}{kept}", error.where)
+    return summary
+
+
+@contextmanager
+def _stop_on_signals(summary: LiveSummary, feed: Feed) -> Iterator[None]:
+    """Ctrl-C and SIGTERM close the feed (its `batches` ends within a poll), so the session ends as at the stream's
+    end; a second signal is the default's (Ctrl-C raises at once)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(signum: int, frame: FrameType | None) -> None:
+        summary.ended = "stopped by Ctrl-C" if signum == signal.SIGINT else f"stopped by {signal.Signals(signum).name}"
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        feed.close()
+
+    previous = {signum: signal.signal(signum, stop) for signum in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
+
+class _Session:
+    """One subscription's views: made once every source's names are known, fed each poll's samples."""
+
+    def __init__(self, options: LiveOptions, specs: tuple[LiveSourceSpec, ...], summary: LiveSummary) -> None:
+        self.options, self.specs, self.summary = options, specs, summary
+        self.stream_names: dict[str, tuple[str, ...]] = {}
+        self.early: list[JointStateSample] = []
+        self.views: dict[str, list[LiveView]] = {}  # topic as the config writes it -> views of robots its source drives
+        self.stamps: dict[str, str] = {}  # topic -> header | log_time | publish_time
+        self.recording: RecordingStream | None = None
+        self.sent_any = False
+        self.late_error: UserError | None = None
+
+    def run(self, feed: Feed, partial: Path | None) -> None:
+        started = time.monotonic()
+        noted = started
+        try:
+            for batch in feed.batches():
+                self.summary.received += len(batch)
+                if self.recording is None:
+                    batch = self._await_names(batch, partial)
+                    if self.recording is None:
+                        noted = self._note_waiting(noted)
+                        continue
+                self._show(batch)
+        except UserError as error:
+            if not self.sent_any:
+                raise
+            self.late_error = error
+        finally:
+            self.summary.seconds = time.monotonic() - started
+            feed.close()
+            self._finish()
+
+    def _await_names(self, batch: list[JointStateSample], partial: Path | None) -> list[JointStateSample]:
+        """Samples before every source's names are known are kept (bounded); then the plan and the views are made."""
+        for sample in batch:
+            for spec in self.specs:
+                if spec.topic is not None and same_topic(spec.topic, sample.topic) and spec.name not in self.stream_names:
+                    self.stream_names[spec.name] = spec.names or _first_names(sample, spec)
+        self.early = (self.early + batch)[-MAX_EARLY_SAMPLES:]
+        if len(self.stream_names) < len([s for s in self.specs if s.topic is not None]):
+            return []
+        plan = compile_live(self.options.config, self.stream_names)
+        _require_robots(plan)
+        self.recording = _recording(plan, self.options.viewer_url, partial)
+        for source in plan.sources:
+            assert source.topic is not None
+            self.stamps[source.topic] = source.stamp
+            self.views[source.topic] = [LiveView(plan, robot, self.recording) for robot in plan.robots_for(source.name)]
+        early, self.early = self.early, []
+        return early
+
+    def _note_waiting(self, noted: float) -> float:
+        if time.monotonic() - noted < WAIT_NOTE_SECONDS:
+            return noted
+        waiting = [shown(s.topic) for s in self.specs if s.topic is not None and s.name not in self.stream_names]
+        say(f"live: waiting for the first message on {', '.join(waiting)}")
+        return time.monotonic()
+
+    def _show(self, batch: list[JointStateSample]) -> None:
+        for topic, views in self.views.items():
+            samples = [s for s in batch if same_topic(topic, s.topic)]
+            if not samples:
+                continue
+            times = _times(samples, self.stamps[topic], views[0])
+            for view in views:
+                view.push_named([s.names for s in samples], [s.positions for s in samples], times)
+            self.sent_any = True
+            self.summary.sent += len(samples)
+            received = np.fromiter((s.received_ns for s in samples), np.int64, len(samples))
+            self.summary.latency.add(time.monotonic_ns() - received)
+
+    def _finish(self) -> None:
+        problems: list[BaseException] = []
+        for view in (v for views in self.views.values() for v in views):
+            _closing(view.close, problems)
+        if self.recording is not None:
+            _closing(self.recording.flush, problems)
+            _closing(self.recording.disconnect, problems)
+        if problems:
+            raise problems[0]
+
+
+def _closing(step: Callable[[], Any], problems: list[BaseException]) -> None:
+    try:
+        step()
+    except BaseException as exc:  # noqa: BLE001 - every view and the recording are closed; the first failure is raised
+        problems.append(exc)
+
+
+def _first_names(sample: JointStateSample, spec: LiveSourceSpec) -> tuple[str, ...]:
+    """A topic's names from its first message, as `validate` reads a bag's: some, each once."""
+    if not sample.names:
+        raise UserError(f"the first message on '{shown(spec.topic)}' names no joints; give the names with names: [...]", spec.where)
+    if len(set(sample.names)) != len(sample.names):
+        raise UserError(
+            f"the first message on '{shown(spec.topic)}' names a joint twice: {', '.join(map(shown, sample.names))}", spec.where
+        )
+    return sample.names
+
+
+def _require_robots(plan: LivePlan) -> None:
+    for source in plan.sources:
+        if not plan.robots_for(source.name):
+            raise UserError(
+                f"source '{source.name}' drives no robot, only temporal edges; live shows robots driven by a topic "
+                "(a temporal edge read from a stream alone is not supported yet)",
+                source.where,
+            )
+
+
+def _times(samples: list[JointStateSample], stamp: str, view: LiveView) -> np.ndarray:
+    """Each sample's time on the source's timeline, as a run of the same bag places it; a zero header stamp is
+    refused as a run refuses it."""
+    if stamp == "log_time":
+        return np.fromiter((s.log_time_ns for s in samples), np.int64, len(samples))
+    if stamp == "publish_time":
+        return np.fromiter((s.publish_time_ns for s in samples), np.int64, len(samples))
+    times = np.fromiter((s.header_ns for s in samples), np.int64, len(samples))
+    if not times.all():
+        raise UserError(
+            f"messages on '{shown(samples[0].topic)}' have a zero header stamp, so they would all sit at time 0; set "
+            f"sources.{view.source.name}.timeline: log_time to use the time the messages were sent",
+            view.source.where,
+        )
+    return times
+
+
+def _recording(plan: LivePlan, viewer_url: str | None, partial: Path | None) -> RecordingStream:
+    return live_recording(plan.application_id, False, viewer_url, partial)
