@@ -74,7 +74,7 @@ class PandasLeftOut:
 if TYPE_CHECKING:  # the public API, the one list: lazy_surface reads these lines
     from .api import ConfigError, forward_kinematics, live, load, log, run
     from .execute import RobotKinematics
-    from .live import LiveView
+    from .live_views import LiveView
     from .plan import Plan
 
 if not TYPE_CHECKING:  # nothing heavy is imported until a name is used

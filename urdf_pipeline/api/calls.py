@@ -19,7 +19,7 @@ if TYPE_CHECKING:
     from rerun import RecordingStream
 
     from ..execute import RobotKinematics
-    from ..live import LiveView, TimeKind
+    from ..live_views import LiveView, TimeKind
 
 ConfigError = UserError
 
@@ -103,7 +103,7 @@ def live(
     seconds (duration, default: since the view began) or integers (sequence, default: a counter). Pushed samples are
     sent together every `max_delay` seconds by a thread of the view's (0: each push is sent at once)."""
     from ..compile import compile_live
-    from ..live import LiveView, live_recording
+    from ..live_views import LiveView, live_recording
 
     plan = compile_live(Path(path), names_from_data=True)
     chosen = plan.robot_named(robot)

@@ -156,7 +156,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
 def cmd_live(args: argparse.Namespace) -> int:
     """A robot's stream into a viewer (--connect, --spawn: the default without --save) and/or a file (--save): the
     config checked before anything is subscribed; Ctrl-C or SIGTERM end it, as the stream's end does (exit 0)."""
-    from ..live import LiveOptions, live_command
+    from ..live_views import LiveOptions, live_command
     from ..progress import say
 
     viewer = require_viewer(args.connect) if args.connect else None

@@ -27,6 +27,7 @@ class LimitReports:
         self.mapper, self.temporal, self.source, self.every = mapper, temporal, source, every
         self.last = -float("inf")
         self.reported = 0  # warnings given, over the view's life
+        self.before = 0  # samples of the windows already reported: row numbers in messages count from the view's start
 
     def due(self) -> bool:
         return time.monotonic() - self.last >= self.every and self._anything()
@@ -35,6 +36,9 @@ class LimitReports:
         """The window's warnings (`final`: whatever is left when the view closes), then a fresh window."""
         if not (self._anything() and (final or self.due())):
             return
+        for channel in self.mapper.stats.channels:
+            if channel.first_nonfinite_row >= 0:
+                channel.first_nonfinite_row += self.before
         problems = Problems()
         lines: list[tuple[str, Where | None]] = [(text, None) for text in check_joint_statistics(self.mapper, problems)]
         check_temporal_edges([v for v in self.temporal if v.stats.rows], problems)
@@ -44,6 +48,7 @@ class LimitReports:
             warn(f"live: {text} ({window}; a live view shows the samples it can, it cannot refuse them)", where)
         self.reported += len(lines)
         self.last = time.monotonic()
+        self.before += self.mapper.stats.rows
         self.mapper.stats = RobotStats(channels=[ChannelStats() for _ in self.mapper.robot.channels])
         for values in self.temporal:
             values.stats = TemporalEdgeStats()
