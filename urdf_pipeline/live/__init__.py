@@ -12,6 +12,7 @@ from .. import lazy_surface
 
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
     from .joint_state import JOINT_STATE, Feed, JointStateDecoder, JointStateSample
+    from .mcap_follow import McapFollowFeed
 
 if not TYPE_CHECKING:  # the names above, imported when first used
     __all__, __getattr__ = lazy_surface(__name__, __file__)
