@@ -15,6 +15,7 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
     from .latency import Latencies
     from .live_run import LiveOptions, LiveSummary, live_command, open_feed
     from .live_view import LiveView, TimeKind
+    from .mcap_follow import McapFollowFeed
     from .recordings import live_recording
 
 if not TYPE_CHECKING:  # the names above, imported when first used
