@@ -2,7 +2,20 @@
 
 from __future__ import annotations
 
+import os
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
+
+import numpy as np
+import yaml
+
+from ..execute.test_fk_against_pinocchio import check_robot
+from ..reference_fk import PinocchioRobot
+from ..rrd_frames import read_frames
+from .follow_motion import header_ns, log_time_ns, position
 
 
 def test_validate_live_notes_names_from_the_stream(examples_dir: Path, run_cli) -> None:
@@ -31,3 +44,97 @@ def test_live_refuses_a_url_it_cannot_follow(examples_dir: Path, run_cli, tmp_pa
     assert result.code == 1
     assert "error: --from: http://robot:8765: live --from takes ws://HOST:PORT" in result.err, result.err
     assert not list(tmp_path.iterdir())
+
+
+UR5 = {
+    "shoulder_pan": "shoulder_pan_joint",
+    "shoulder_lift": "shoulder_lift_joint",
+    "elbow": "elbow_joint",
+    "wrist_1": "wrist_1_joint",
+    "wrist_2": "wrist_2_joint",
+    "gripper": "wrist_3_joint",  # follow_motion's sixth name
+}
+
+
+def live_config(examples_dir: Path, name: str, timeline: str = "header") -> Path:
+    """The UR5 bag config with the test streams' names mapped, its bag absent: live reads only the stream."""
+    data = yaml.safe_load((examples_dir / "ur5_ros2_bag.yaml").read_text())
+    data["sources"]["joint_states"] = {"mcap": "data/not_recorded_yet.mcap", "topic": "/joint_states", "timeline": timeline}
+    data["robots"]["ur5"]["joints"]["map"] = UR5
+    data["output"]["segment"] = name
+    path = examples_dir / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def check_ur5(saved: Path, examples_dir: Path, timeline: str, stamps: list[int], ks: list[int], seed: int = 0) -> None:
+    """Poses composed from the saved recording equal pinocchio's at follow_motion's values for messages `ks`."""
+    reference = PinocchioRobot(examples_dir / "robots/share/example-robot-data/robots/ur_description/urdf/ur5_robot.urdf")
+    frames = read_frames(saved, timeline)
+    root = reference.model.frames[1].name
+    values = {k: {UR5[j]: position(j, k, seed) for j in UR5} for k in ks}
+    compared = check_robot(frames, {k: stamps[i] for i, k in enumerate(ks)}, reference, values, "", np.eye(4), root, ks)
+    assert compared == len(ks) * len(reference.link_poses({}))
+
+
+def test_live_follows_a_growing_bag_until_its_writer_closes_it(examples_dir: Path, run_cli, tmp_path: Path, appender) -> None:
+    config = live_config(examples_dir, "live_follow")
+    bag, saved = tmp_path / "growing.mcap", tmp_path / "take.rrd"
+    appender(bag, "--count", "300", "--rate", "1000", "--other-every", "7")
+    result = run_cli("live", str(config), "--from", str(bag), "--save", str(saved))
+    assert result.code == 0, result.err
+    assert "was closed by its writer after 300 messages" in result.err
+    assert "live: 300 samples in" in result.err and "300 sent (the stream ended)" in result.err and "99th percentile" in result.err
+    ks = [0, 1, 150, 299]
+    check_ur5(saved, examples_dir, "ros2_timestamp", [header_ns(k) for k in ks], ks)
+    assert len(read_frames(saved, "ros2_timestamp").temporal["shoulder_link"]) == 300
+    assert {p.name for p in tmp_path.iterdir()} == {"growing.mcap", "take.rrd"}  # no partial file left
+
+
+def test_live_places_samples_by_their_log_time_when_asked(examples_dir: Path, run_cli, tmp_path: Path, appender) -> None:
+    config = live_config(examples_dir, "live_log_time", timeline="log_time")
+    bag, saved = tmp_path / "log_time.mcap", tmp_path / "take.rrd"
+    appender(bag, "--count", "40")
+    result = run_cli("live", str(config), "--from", str(bag), "--save", str(saved))
+    assert result.code == 0, result.err
+    ks = [0, 39]
+    check_ur5(saved, examples_dir, "message_log_time", [log_time_ns(k) for k in ks], ks)
+
+
+def test_a_map_naming_a_joint_the_stream_lacks_is_refused_at_the_first_message(
+    examples_dir: Path, run_cli, tmp_path: Path, appender
+) -> None:
+    config = live_config(examples_dir, "live_missing")
+    text = config.read_text().replace("gripper:", "wrist_3:")
+    config.write_text(text)
+    bag, saved = tmp_path / "short.mcap", tmp_path / "take.rrd"
+    appender(bag, "--count", "20")
+    result = run_cli("live", str(config), "--from", str(bag), "--save", str(saved))
+    assert result.code == 1
+    errors = [line for line in result.err.splitlines() if line.startswith("error:")]
+    assert errors and "wrist_3" in errors[0], result.err
+    assert not saved.exists() and {p.name for p in tmp_path.iterdir()} == {"short.mcap"}
+
+
+def test_sigterm_ends_live_cleanly_with_a_complete_recording(examples_dir: Path, tmp_path: Path, appender) -> None:
+    config = live_config(examples_dir, "live_sigterm")
+    bag, saved = tmp_path / "endless.mcap", tmp_path / "take.rrd"
+    appender(bag, "--count", "100000", "--rate", "200", "--no-footer")
+    command = [sys.executable, "-m", "urdf_pipeline", "live", str(config), "--from", str(bag), "--save", str(saved)]
+    env = {**os.environ, "URDF_PIPELINE_ALLOW_PATHS": str(examples_dir)}
+    child = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, env=env)
+    assert child.stderr is not None
+    deadline = time.monotonic() + 60
+    while not list(tmp_path.glob(".take.rrd.partial-*")):  # the recording starts with the first message's views
+        assert time.monotonic() < deadline and child.poll() is None
+        time.sleep(0.05)
+    time.sleep(1.0)  # samples flow meanwhile
+    child.send_signal(signal.SIGTERM)
+    rest = child.stderr.read()
+    assert child.wait(timeout=60) == 0, rest
+    assert "stopped by SIGTERM" in rest, rest
+    sent = int(rest.split(" sent (")[0].rsplit(", ", 1)[1])
+    assert sent > 50
+    frames = read_frames(saved, "ros2_timestamp")
+    assert len(frames.temporal["shoulder_link"]) == sent  # every sample sent is in the file, which reads to its end
+    assert {p.name for p in tmp_path.iterdir()} == {"endless.mcap", "take.rrd"}

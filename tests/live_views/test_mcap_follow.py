@@ -13,7 +13,6 @@ import logging
 import os
 import struct
 import subprocess
-import sys
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -27,27 +26,11 @@ from urdf_pipeline.live_views.joint_state import JointStateSample
 from urdf_pipeline.live_views.mcap_follow import McapFollowFeed
 from urdf_pipeline.live_views.mcap_records import MAGIC, RecordSplitter
 
-from ..local_processes import stop
 from .follow_motion import TOPIC, header_ns, log_time_ns, names, position, publish_time_ns
 
 REPO = Path(__file__).resolve().parents[2]
 WATCHDOG_SECONDS = 60.0
 Step = Callable[[list[JointStateSample]], None]
-
-
-@pytest.fixture
-def appender() -> Iterator[Callable[..., subprocess.Popen[bytes]]]:
-    """Starts tests/live_views/mcap_appender.py on a file with options; every child is stopped and reaped after the test."""
-    children: list[subprocess.Popen[bytes]] = []
-
-    def start(path: Path, *options: str) -> subprocess.Popen[bytes]:
-        command = [sys.executable, "-m", "tests.live_views.mcap_appender", str(path), *options]
-        children.append(subprocess.Popen(command, cwd=REPO, env={**os.environ, "PYTHONPATH": str(REPO)}))
-        return children[-1]
-
-    yield start
-    for child in children:
-        stop(child)
 
 
 @contextmanager
