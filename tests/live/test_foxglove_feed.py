@@ -35,7 +35,7 @@ from ..local_processes import free_port, stop
 from .conftest import FoxgloveServer, ready_line
 from .joint_motion import LOG_DELAY_NS, NAMES, index_of, order, values
 
-WAIT_SECONDS = 15.0  # generous bounds on waits for what must come; no test asserts how fast
+WAIT_SECONDS = 60.0  # generous bounds on waits for what must come; no test asserts how fast
 RATE = 200  # messages per second
 PERIOD_NS = 1_000_000_000 // RATE
 WHERE = Where(Path("live.yaml"), 7, "sources.0.topic", 12)

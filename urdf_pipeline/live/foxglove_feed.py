@@ -6,13 +6,14 @@ gives new channel ids), and nothing waits without a bound.
 
 from __future__ import annotations
 
+import re
 import threading
 import time
 from collections.abc import Iterator, Mapping
 from typing import Any, NamedTuple, cast
 
 from ..errors import UserError, Where, quoted, shown
-from ..progress import say
+from ..progress import detail, say
 from .foxglove_protocol import Advertised, ProtocolError, advertised, message_data, server_message, subscribe, unadvertised
 from .foxglove_socket import BINARY, CONNECT_SECONDS, TEXT, Connection, Lost, check_url
 from .joint_state import JOINT_STATE, POLL_SECONDS, JointStateDecoder, JointStateSample, same_topic
@@ -21,8 +22,10 @@ MAX_BATCH = 1000  # frames read into one batch: the caller gets to stop or flush
 FIRST_DELAY, MAX_DELAY = 0.25, 2.0  # seconds before a reconnect: doubling from the first to the most
 NOTE_AFTER_SECONDS = 2.0  # connected this long with no wanted topic advertised: say so, once per connection
 MAX_NAME_ORDERS = 4096  # distinct name lists kept per topic for reuse; past it the cache starts again
+MAX_RESUBSCRIBES, RESUBSCRIBE_SECONDS = 8, 0.1  # per connection, each later than the last: _Session._subscribe_again
 MAX_STATUS_LINES = 10  # the server's warnings and errors said per connection (a server may repeat one forever)
 _LISTED_TOPICS = 8
+_UNKNOWN_CHANNEL = re.compile(r"Unknown channel ID: (\d+)")  # foxglove-sdk's status for a channel it does not know
 
 
 class _Subscription(NamedTuple):
@@ -43,6 +46,8 @@ class _Session:
         self._by_channel: dict[int, int] = {}  # the server's channel id -> our subscription id
         self._next_subscription = 0
         self._statuses = 0  # status lines said
+        self._resubscribed = 0  # subscriptions sent again (_subscribe_again)
+        self._again: dict[int, float] = {}  # channel id -> when to subscribe it again
         self._other_topics: dict[str, None] = {}  # advertised, not wanted: named in the note
         self._opened, self._noted = time.monotonic(), False
 
@@ -71,6 +76,7 @@ class _Session:
                 break
             frame = self.connection.receive(POLL_SECONDS)
         self.connection.keep_alive()
+        self._subscribe_due()
         self._note_missing()
         return samples
 
@@ -129,10 +135,36 @@ class _Session:
     def _status(self, message: dict[str, Any]) -> None:
         """The server's warnings and errors (a subscription it refused: why no data comes), the first few of each
         connection; its infos are left out."""
+        text = message.get("message")
+        unknown = _UNKNOWN_CHANNEL.fullmatch(text) if isinstance(text, str) else None
+        if unknown is not None and self._subscribe_again(int(unknown[1])):
+            return
         if message.get("level") in (1, 2) and self._statuses < MAX_STATUS_LINES:
             self._statuses += 1
             level = "error" if message["level"] == 2 else "warning"
             say(f"live: {self.url} says ({level}): {shown(message.get('message'))}")
+
+    def _subscribe_again(self, channel: int) -> bool:
+        """foxglove-sdk (0.30) sends a new channel's advertise before it records the channel, and answers a
+        subscription that comes in between with "Unknown channel ID" (its connected_client.rs): a channel we
+        subscribed is subscribed again a moment later (by `batch`), a few times per connection at most. Seen here
+        in about one in ten late advertisements on a loaded machine."""
+        if channel not in self._by_channel or self._resubscribed >= MAX_RESUBSCRIBES:
+            return False
+        self._resubscribed += 1
+        self._again[channel] = time.monotonic() + RESUBSCRIBE_SECONDS * self._resubscribed  # a starved server: later
+        detail(f"live: {self.url} did not know channel {channel} yet; subscribing again")
+        return True
+
+    def _subscribe_due(self) -> None:
+        """The subscriptions `_subscribe_again` put off whose time has come (of channels still advertised)."""
+        now = time.monotonic()
+        due = [channel for channel, at in self._again.items() if at <= now]
+        for channel in due:
+            del self._again[channel]
+        again = [(self._by_channel[channel], channel) for channel in due if channel in self._by_channel]
+        if again:
+            self.connection.send(subscribe(again))
 
     def _advertise(self, channels: list[Advertised]) -> None:
         """Subscribe each new channel of a wanted topic, its decoder made (and its schema checked) first."""
@@ -217,7 +249,7 @@ class FoxgloveFeed:
         self._reconnects = reconnects
         self._names: dict[str, dict[tuple[str, ...], tuple[str, ...]]] = {topic: {} for topic in topics}
         self._stop = threading.Event()
-        self._guard = threading.Lock()  # over _connection, which close() wakes from another thread
+        self._guard = threading.Lock()  # over _connection, which close() ends from another thread
         self._connection: Connection | None = None
 
     def batches(self) -> Iterator[list[JointStateSample]]:
@@ -239,7 +271,7 @@ class FoxgloveFeed:
         with self._guard:
             connection = self._connection
         if connection is not None:
-            connection.wake()
+            connection.goodbye()
 
     def _stream(self, retries: _Retries) -> Iterator[list[JointStateSample]]:
         session = _Session(self._connect(), self._wanted, self._names)
@@ -255,7 +287,7 @@ class FoxgloveFeed:
         connection = Connection.open(self.description)
         with self._guard:
             self._connection = connection
-        if self._stop.is_set():  # close() came while connecting, before it could wake this connection
+        if self._stop.is_set():  # close() came while connecting, before it could end this connection
             raise Lost("closed")
         return connection
 

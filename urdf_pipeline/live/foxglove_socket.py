@@ -1,6 +1,6 @@
 """One WebSocket connection to a Foxglove server, through websocket-client (synchronous: the feed's caller's thread
 reads it, no thread of ours): opened offering both Foxglove subprotocols, every wait bounded (connect, handshake,
-each receive), each message bounded in size before it is read, and woken from another thread by `wake`.
+each receive), each message bounded in size before it is read, and ended from another thread by `goodbye`.
 
 Its failures come in two kinds: `Lost` (refused, closed, reset, silent: the feed reconnects) and `UserError` (no
 Foxglove server at that URL, a frame too large or malformed: reconnecting would not help).
@@ -125,7 +125,7 @@ def _open_failure(url: str, exc: Exception) -> Exception:
 
 class Connection:
     """An open WebSocket to a Foxglove server. `receive`, `pending`, `send`, `keep_alive` and `close` are called by
-    the feed's one reading thread; `wake` from any thread."""
+    the feed's one reading thread; `goodbye` from any thread."""
 
     def __init__(self, url: str, socket_: _BoundedWebSocket) -> None:
         self.url = url
@@ -198,12 +198,12 @@ class Connection:
             except (websocket.WebSocketException, OSError) as exc:
                 raise Lost(_lost_reason(exc)) from None
 
-    def wake(self) -> None:
-        """From another thread: a `receive` under way returns at once (the socket shut down; the reader sees Lost)."""
-        sock = self._ws.sock
-        if sock is not None:
-            with contextlib.suppress(OSError):
-                sock.shutdown(socket.SHUT_RDWR)
+    def goodbye(self) -> None:
+        """From another thread: a close frame, which the server answers with its own before it closes the connection
+        (released even when nobody reads it any more); a `receive` under way sees that answer as Lost. (websocket-client
+        sends from one thread while another receives, under its lock.)"""
+        with contextlib.suppress(websocket.WebSocketException, OSError):
+            self._ws.send_close()
 
     def close(self) -> None:
         """A close frame and a short wait for the server's (a closed or woken connection skips both), then the
