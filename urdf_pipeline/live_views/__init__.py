@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 from .. import lazy_surface
 
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
+    from .foxglove_feed import FoxgloveFeed
     from .joint_state import JOINT_STATE, Feed, JointStateDecoder, JointStateSample
     from .latency import Latencies
     from .live_run import LiveOptions, LiveSummary, live_command, open_feed

@@ -57,7 +57,9 @@ class JointStateDecoder:
     """CDR payloads of one channel -> (header stamp ns, names, positions). Made from the channel's schema; anything
     that is not ROS 2 JointState in CDR is refused by name (`where`: the config's source)."""
 
-    def __init__(self, topic: str, schema_name: str, schema_encoding: str, schema_text: str, message_encoding: str, where: Where) -> None:
+    def __init__(
+        self, topic: str, schema_name: str, schema_encoding: str, schema_text: str, message_encoding: str, where: Where | None
+    ) -> None:
         self.topic, self.where = topic, where
         if schema_name != JOINT_STATE or schema_encoding != "ros2msg" or message_encoding != "cdr":
             raise UserError(
