@@ -10,12 +10,16 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 import yaml
 
 from ..execute.test_fk_against_pinocchio import check_robot
+from ..local_processes import free_port, stop
 from ..reference_fk import PinocchioRobot
 from ..rrd_frames import read_frames
 from .follow_motion import header_ns, log_time_ns, position
+from .joint_motion import stamp_ns as motion_stamp
+from .joint_motion import values as motion_values
 
 
 def test_validate_live_notes_names_from_the_stream(examples_dir: Path, run_cli) -> None:
@@ -138,3 +142,101 @@ def test_sigterm_ends_live_cleanly_with_a_complete_recording(examples_dir: Path,
     frames = read_frames(saved, "ros2_timestamp")
     assert len(frames.temporal["shoulder_link"]) == sent  # every sample sent is in the file, which reads to its end
     assert {p.name for p in tmp_path.iterdir()} == {"endless.mcap", "take.rrd"}
+
+
+UR5_JOINTS = ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint", "wrist_3_joint")
+
+
+def ws_config(examples_dir: Path, name: str) -> Path:
+    """The UR5 bag config as written (its map names the UR5's joints), its bag absent: names from the first message."""
+    data = yaml.safe_load((examples_dir / "ur5_ros2_bag.yaml").read_text())
+    data["sources"]["joint_states"]["mcap"] = "data/not_recorded_yet.mcap"
+    data["output"]["segment"] = name
+    path = examples_dir / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+class LiveChild:
+    """`urdf-pipeline live` in a child process, its stderr read line by line (for the lines a test waits for)."""
+
+    def __init__(self, examples_dir: Path, *arguments: str) -> None:
+        command = [sys.executable, "-m", "urdf_pipeline", "live", *arguments]
+        env = {**os.environ, "URDF_PIPELINE_ALLOW_PATHS": str(examples_dir)}
+        self.process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, env=env)
+        self.lines: list[str] = []
+
+    def wait_for(self, text: str, seconds: float = 60.0) -> str:
+        assert self.process.stderr is not None
+        deadline = time.monotonic() + seconds
+        for line in self.process.stderr:
+            self.lines.append(line)
+            if text in line:
+                return line
+            assert time.monotonic() < deadline, "".join(self.lines)
+        raise AssertionError(f"live ended without {text!r}:\n{''.join(self.lines)}")
+
+    def stop(self) -> tuple[int, str]:
+        """SIGTERM, then its exit status and the rest of its stderr."""
+        assert self.process.stderr is not None
+        self.process.send_signal(signal.SIGTERM)
+        rest = self.process.stderr.read()
+        code = self.process.wait(timeout=60)
+        self.process.stderr.close()
+        return code, "".join(self.lines) + rest
+
+
+def check_ur5_ws(saved: Path, examples_dir: Path, ks: list[int], period_ns: int) -> None:
+    """Poses in the saved recording equal pinocchio's at joint_motion's values for messages `ks`."""
+    reference = PinocchioRobot(examples_dir / "robots/share/example-robot-data/robots/ur_description/urdf/ur5_robot.urdf")
+    frames = read_frames(saved, "ros2_timestamp")
+    root = reference.model.frames[1].name
+    values = {k: dict(zip(UR5_JOINTS, motion_values(k, UR5_JOINTS), strict=True)) for k in ks}
+    stamps = {k: motion_stamp(k, period_ns) for k in ks}
+    assert check_robot(frames, stamps, reference, values, "", np.eye(4), root, ks) == len(ks) * len(reference.link_poses({}))
+
+
+def test_live_records_a_foxglove_server_and_survives_its_restart(examples_dir: Path, tmp_path: Path, foxglove_server) -> None:
+    """A real foxglove-sdk server publishes 150 messages at 500 Hz, stops, and comes back on the same port with
+    150 more: live says so in a line each, and the saved recording holds all 300, each pose equal to pinocchio's."""
+    names = ",".join(UR5_JOINTS)
+    server = foxglove_server("--rate", "500", "--count", "150", "--names", names, "--exit-when-done")
+    saved = tmp_path / "take.rrd"
+    live = LiveChild(examples_dir, str(ws_config(examples_dir, "live_ws")), "--from", server.url, "--save", str(saved))
+    live.wait_for("reconnecting in")  # the server published its 150 and went away
+    foxglove_server("--rate", "500", "--count", "150", "--first", "150", "--names", names, "--exit-when-done", port=server.port)
+    live.wait_for("reconnected to")
+    live.wait_for("reconnecting in")  # the second run published its 150 too
+    code, err = live.stop()
+    assert code == 0, err
+    assert "300 sent (stopped by SIGTERM)" in err, err
+    assert {p.name for p in tmp_path.iterdir()} == {"take.rrd"}
+    assert len(read_frames(saved, "ros2_timestamp").temporal["shoulder_link"]) == 300
+    check_ur5_ws(saved, examples_dir, [0, 1, 149, 150, 299], period_ns=2_000_000)
+
+
+@pytest.mark.filterwarnings("ignore:RRD file has no footer")  # rerun --save writes the stream as it comes, no footer
+def test_live_connects_to_a_running_rerun_server(examples_dir: Path, tmp_path: Path, foxglove_server) -> None:
+    """`--connect`: Rerun's own gRPC server (`rerun --save`, which writes what reaches it) receives what `--save` holds."""
+    port = free_port()
+    received = tmp_path / "received.rrd"
+    command = [sys.executable, "-m", "rerun", "--bind", "127.0.0.1", "--port", str(port), "--save", str(received)]
+    viewer = subprocess.Popen(command, stderr=subprocess.DEVNULL)
+    try:
+        server = foxglove_server("--rate", "200", "--count", "50", "--names", ",".join(UR5_JOINTS), "--exit-when-done")
+        url = f"rerun+http://127.0.0.1:{port}/proxy"
+        deadline = time.monotonic() + 60
+        while not received.exists():  # rerun --save opens its file once it serves
+            assert time.monotonic() < deadline and viewer.poll() is None
+            time.sleep(0.05)
+        saved = tmp_path / "take.rrd"
+        live = LiveChild(
+            examples_dir, str(ws_config(examples_dir, "live_connect")), "--from", server.url, "--connect", url, "--save", str(saved)
+        )
+        live.wait_for("reconnecting in")  # the server published its 50 and went away
+        code, err = live.stop()
+        assert code == 0 and "50 sent" in err, err
+    finally:
+        stop(viewer)
+    assert len(read_frames(received, "ros2_timestamp").temporal["shoulder_link"]) == 50
+    check_ur5_ws(received, examples_dir, [0, 49], period_ns=5_000_000)
