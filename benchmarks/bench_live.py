@@ -70,7 +70,7 @@ def motion(names: list[str], samples: int) -> object:
     import numpy as np
 
     t = np.arange(samples)[:, None] / 1000.0
-    return 0.3 * np.sin(2 * np.pi * 0.5 * t + np.arange(len(names))[None, :])
+    return 0.075 + 0.12 * np.sin(2 * np.pi * 0.5 * t + np.arange(len(names))[None, :])  # within every G1 joint's limits
 
 
 def loop(variant: str, config: Path, samples: int, out: Path) -> dict[str, float]:

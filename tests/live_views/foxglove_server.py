@@ -17,7 +17,7 @@ from collections.abc import Iterator
 import foxglove
 from foxglove.websocket import ChannelView, Client, ServerListener
 
-from tests.live_views.joint_motion import LOG_DELAY_NS, NAMES, message, stamp_ns
+from tests.live_views.joint_motion import LOG_DELAY_NS, LOWER, NAMES, UPPER, message, stamp_ns
 from urdf_pipeline.examples import JOINT_STATE_MSGDEF
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
@@ -45,6 +45,7 @@ def _arguments() -> argparse.Namespace:
     parser.add_argument("--garbage-bytes", type=int, default=0, help="publish payloads of this many 0xff bytes instead")
     parser.add_argument("--advertise-on-input", action="store_true", help="advertise the topic after a line on stdin")
     parser.add_argument("--exit-when-done", action="store_true")
+    parser.add_argument("--range", default=f"{LOWER},{UPPER}", help="LOW,HIGH: the values stay within it (joint_motion.values)")
     return parser.parse_args()
 
 
@@ -54,10 +55,13 @@ def _payloads(options: argparse.Namespace, period_ns: int) -> Iterator[tuple[int
 
     encode = serialize_dynamic(JOINT_STATE, JOINT_STATE_MSGDEF)[JOINT_STATE]
     names = options.names.split(",")
+    lower, upper = (float(v) for v in options.range.split(","))
     k = options.first
     while options.count == 0 or k < options.first + options.count:
         stamp = stamp_ns(k, period_ns)
-        payload = b"\xff" * options.garbage_bytes if options.garbage_bytes else encode(message(k, names, period_ns))
+        payload = (
+            b"\xff" * options.garbage_bytes if options.garbage_bytes else encode(message(k, names, period_ns, lower=lower, upper=upper))
+        )
         yield stamp + LOG_DELAY_NS, payload
         k += 1
 
@@ -88,6 +92,7 @@ def main() -> int:
         time.sleep(max(next_time - time.monotonic(), 0.0))
     if not options.exit_when_done:
         threading.Event().wait()
+    time.sleep(1.0)  # the server queues each client's messages: stopping at once would drop the last ones unsent
     server.stop()
     return 0
 

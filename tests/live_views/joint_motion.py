@@ -38,10 +38,12 @@ def index_of(header_ns: int, period_ns: int, start_ns: int = START_NS) -> int:
     return k
 
 
-def message(k: int, names: Sequence[str], period_ns: int, start_ns: int = START_NS) -> dict[str, Any]:
+def message(
+    k: int, names: Sequence[str], period_ns: int, start_ns: int = START_NS, lower: float = LOWER, upper: float = UPPER
+) -> dict[str, Any]:
     """The sensor_msgs/msg/JointState fields of message k, as the CDR encoder takes them."""
     sec, nanosec = divmod(stamp_ns(k, period_ns, start_ns), 1_000_000_000)
-    shuffled, positions = order(k, len(names)), values(k, names)
+    shuffled, positions = order(k, len(names)), values(k, names, lower, upper)
     return {
         "header": {"stamp": {"sec": sec, "nanosec": nanosec}, "frame_id": ""},
         "name": [names[i] for i in shuffled],

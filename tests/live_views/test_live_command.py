@@ -96,11 +96,17 @@ def test_live_follows_a_growing_bag_until_its_writer_closes_it(examples_dir: Pat
 
 
 def test_live_places_samples_by_their_log_time_when_asked(examples_dir: Path, run_cli, tmp_path: Path, appender) -> None:
+    """Also: a second take saved over the first (a recording live wrote: its own) replaces it; a stranger's is kept."""
     config = live_config(examples_dir, "live_log_time", timeline="log_time")
     bag, saved = tmp_path / "log_time.mcap", tmp_path / "take.rrd"
-    appender(bag, "--count", "40")
-    result = run_cli("live", str(config), "--from", str(bag), "--save", str(saved))
-    assert result.code == 0, result.err
+    saved.write_bytes((examples_dir / "data" / "ur5_joint_states.mcap").read_bytes())  # somebody's file at the name
+    appender(bag, "--count", "40").wait()
+    refused = run_cli("live", str(config), "--from", str(bag), "--save", str(saved))
+    assert refused.code == 1 and "urdf-pipeline never overwrites a file it did not write" in refused.err, refused.err
+    saved.unlink()
+    for _ in range(2):
+        result = run_cli("live", str(config), "--from", str(bag), "--save", str(saved))
+        assert result.code == 0, result.err
     ks = [0, 39]
     check_ur5(saved, examples_dir, "message_log_time", [log_time_ns(k) for k in ks], ks)
 

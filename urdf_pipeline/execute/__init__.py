@@ -18,7 +18,7 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
     from .kinematics import RobotKinematics, segment_kinematics
     from .limits_report import check_joint_statistics
     from .model_stream import cached_tree, robot_model_stream
-    from .provenance import stored_content_hash
+    from .provenance import provenance_stream, stored_content_hash
     from .segment import Parts, RunResult, execute, log_segment
     from .segment_run import CONTENT_METADATA, SegmentJob, SegmentResult, install_run_plan, run_segment
     from .summary_record import JointPreview, SegmentSummary, TimeRange

@@ -6,7 +6,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .. import __version__
-from ..plan import RecordingPlan
+from ..plan import ScenePlan
 
 if TYPE_CHECKING:
     from rerun.chunk import LazyChunkStream
@@ -15,7 +15,7 @@ PROPERTY_NAME = "urdf_pipeline"
 MODEL_PROPERTY_NAME = "urdf_pipeline_model"  # the model asset's own: it never collides with a segment's properties
 
 
-def provenance_fields(plan: RecordingPlan, extra: dict[str, str] | None = None) -> dict[str, str]:
+def provenance_fields(plan: ScenePlan, extra: dict[str, str] | None = None) -> dict[str, str]:
     fields = {"version": __version__, **(extra or {})}
     for robot in plan.robots:
         fields[f"{robot.key}_urdf_sha256"] = robot.urdf_sha256
@@ -23,7 +23,7 @@ def provenance_fields(plan: RecordingPlan, extra: dict[str, str] | None = None) 
     return fields
 
 
-def provenance_stream(plan: RecordingPlan, parts: str = "all", extra: dict[str, str] | None = None) -> LazyChunkStream:
+def provenance_stream(plan: ScenePlan, parts: str = "all", extra: dict[str, str] | None = None) -> LazyChunkStream:
     import rerun as rr
     from rerun.chunk import Chunk, LazyChunkStream
 

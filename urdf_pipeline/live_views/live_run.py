@@ -22,11 +22,12 @@ import numpy as np
 
 from ..compile import LivePlan, LiveSourceSpec, check_live_config, compile_live
 from ..errors import UserError, UserErrors, Where, shown
-from ..execute import write_file_atomically
+from ..execute import provenance_stream, write_file_atomically
 from ..progress import say
 from .joint_state import Feed, JointStateSample, same_topic
 from .latency import Latencies
 from .live_view import LiveView
+from .prefetch import Prefetched
 from .recordings import live_recording
 
 if TYPE_CHECKING:
@@ -57,11 +58,13 @@ class LiveSummary:
     ended: str = "the stream ended"
     latency: Latencies = field(default_factory=Latencies)
     saved: Path | None = None
+    dropped: int = 0  # samples dropped because the views fell behind (said when it happens)
 
     def line(self) -> str:
         saved = f"; saved {self.saved}" if self.saved else ""
+        dropped = f", {self.dropped} dropped behind" if self.dropped else ""
         return (
-            f"live: {self.received} samples in {self.seconds:.1f} s, {self.sent} sent ({self.ended}); "
+            f"live: {self.received} samples in {self.seconds:.1f} s, {self.sent} sent ({self.ended}{dropped}); "
             f"from arrival to sent: {self.latency.text()}{saved}"
         )
 
@@ -139,13 +142,19 @@ class _Session:
         self.stamps: dict[str, str] = {}  # topic -> header | log_time | publish_time
         self.recording: RecordingStream | None = None
         self.sent_any = False
+        self.early_dropped = 0  # samples dropped while waiting for every topic's names
         self.late_error: UserError | None = None
 
     def run(self, feed: Feed, partial: Path | None) -> None:
+        """The views first when the config names every source's values; else at the first messages. The feed is read
+        ahead on a thread (prefetch.py), so the views' own pauses lose nothing."""
         started = time.monotonic()
         noted = started
+        ahead = Prefetched(feed)
         try:
-            for batch in feed.batches():
+            if all(spec.names is not None for spec in self.specs):
+                self._make_views(partial)
+            for batch in ahead.batches():
                 self.summary.received += len(batch)
                 if self.recording is None:
                     batch = self._await_names(batch, partial)
@@ -159,7 +168,8 @@ class _Session:
             self.late_error = error
         finally:
             self.summary.seconds = time.monotonic() - started
-            feed.close()
+            self.summary.dropped = ahead.dropped + self.early_dropped
+            ahead.close()
             self._finish()
 
     def _await_names(self, batch: list[JointStateSample], partial: Path | None) -> list[JointStateSample]:
@@ -168,18 +178,30 @@ class _Session:
             for spec in self.specs:
                 if spec.topic is not None and same_topic(spec.topic, sample.topic) and spec.name not in self.stream_names:
                     self.stream_names[spec.name] = spec.names or _first_names(sample, spec)
-        self.early = (self.early + batch)[-MAX_EARLY_SAMPLES:]
+        self.early += batch
+        if len(self.early) > MAX_EARLY_SAMPLES:  # the topics with names wait for those without: bounded, and said
+            over = len(self.early) - MAX_EARLY_SAMPLES
+            self.early = self.early[over:]
+            self.early_dropped += over
+            say(f"live: dropped the {over} oldest samples while waiting for the first message of every topic")
         if len(self.stream_names) < len([s for s in self.specs if s.topic is not None]):
             return []
+        self._make_views(partial)
+        early, self.early = self.early, []
+        return early
+
+    def _make_views(self, partial: Path | None) -> None:
         plan = compile_live(self.options.config, self.stream_names)
         _require_robots(plan)
         self.recording = _recording(plan, self.options.viewer_url, partial)
+        self.recording.send_chunks(provenance_stream(plan, "all", {"live_from": self.options.source}))
         for source in plan.sources:
             assert source.topic is not None
             self.stamps[source.topic] = source.stamp
-            self.views[source.topic] = [LiveView(plan, robot, self.recording) for robot in plan.robots_for(source.name)]
-        early, self.early = self.early, []
-        return early
+            robots = plan.robots_for(source.name)
+            self.views[source.topic] = [
+                LiveView(plan, robot, self.recording, scene=not self.views and not i) for i, robot in enumerate(robots)
+            ]
 
     def _note_waiting(self, noted: float) -> float:
         if time.monotonic() - noted < WAIT_NOTE_SECONDS:

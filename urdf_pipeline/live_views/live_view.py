@@ -24,6 +24,7 @@ from ..execute import (
     TemporalEdgeValues,
     cached_tree,
     calibration_stream,
+    provenance_stream,
     robot_model_stream,
 )
 from ..plan import RobotPlan
@@ -81,6 +82,8 @@ class LiveView:
         self._failure: BaseException | None = None  # the flusher thread's, raised in the caller's next call
         self._stop = threading.Event()
         self._flusher: threading.Thread | None = None
+        if owns_recording:  # what it was made from, as a run's recordings say it (`live --save` may replace it later)
+            recording.send_chunks(provenance_stream(plan, "all", {"live_from": "urdf_pipeline.live"}))
         recording.send_chunks(robot_model_stream(robot, tree))
         if scene:  # the calibration edges and the robots no source drives (a table, a camera mount)
             recording.send_chunks(calibration_stream(plan.edges))

@@ -1,0 +1,69 @@
+"""The feed read ahead on a thread: samples wait in a bounded queue while the views are busy; beyond the bound the
+oldest are dropped and said, never silently; the feed's error reaches the reader."""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+
+from urdf_pipeline.errors import UserError
+from urdf_pipeline.live_views.joint_state import JointStateSample
+from urdf_pipeline.live_views.prefetch import Prefetched
+
+
+def sample(k: int) -> JointStateSample:
+    return JointStateSample("/joint_states", ("a",), np.array([float(k)]), k, k, k, k)
+
+
+class ListFeed:
+    """A feed of given batches, then (optionally) an error: the protocol's shape, in memory."""
+
+    description = "a list"
+
+    def __init__(self, batches: list[list[JointStateSample]], failure: UserError | None = None) -> None:
+        self.given, self.failure = batches, failure
+        self.all_read = threading.Event()
+        self.closed = threading.Event()
+
+    def batches(self) -> Iterator[list[JointStateSample]]:
+        for batch in self.given:
+            if self.closed.is_set():
+                return
+            yield batch
+        self.all_read.set()
+        if self.failure is not None:
+            raise self.failure
+
+    def close(self) -> None:
+        self.closed.set()
+
+
+def test_samples_arrive_in_order() -> None:
+    feed = ListFeed([[sample(k), sample(k + 1)] for k in range(0, 100, 2)])
+    got = [s.header_ns for batch in Prefetched(feed).batches() for s in batch]
+    assert got == list(range(100))
+
+
+def test_a_slow_reader_drops_the_oldest_and_says_so(caplog: pytest.LogCaptureFixture) -> None:
+    caplog.set_level(logging.WARNING, logger="urdf_pipeline")
+    feed = ListFeed([[sample(k)] for k in range(50)])
+    ahead = Prefetched(feed, max_queued=10)
+    reader = ahead.batches()
+    assert feed.all_read.wait(30)  # the reader was busy: nothing taken while the feed ran
+    got = [s.header_ns for batch in reader for s in batch]
+    assert got == list(range(40, 50)) and ahead.dropped == 40
+    said = [r.getMessage() for r in caplog.records]
+    assert said and all("fell behind a list: dropped the 1 oldest samples" in line for line in said) and "(40 in all)" in said[-1]
+
+
+def test_the_feeds_error_reaches_the_reader_after_its_samples() -> None:
+    feed = ListFeed([[sample(0)], [sample(1)]], UserError("lost ws://x after 3 reconnects"))
+    got: list[int] = []
+    with pytest.raises(UserError, match="lost ws://x"):
+        for batch in Prefetched(feed).batches():
+            got += [s.header_ns for s in batch]
+    assert got == [0, 1]
