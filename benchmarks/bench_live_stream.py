@@ -38,8 +38,7 @@ def _server(names: list[str], rate: int, count: int) -> tuple[subprocess.Popen[b
         "--names",
         ",".join(names),
         "--exit-when-done",
-        "--range",
-        "-0.05,0.2",
+        "--range=-0.05,0.2",
     ]  # within every G1 joint's limits
     server = subprocess.Popen(command, cwd=REPO, stdout=subprocess.PIPE, env={**os.environ, "PYTHONPATH": str(REPO)})
     assert server.stdout is not None
