@@ -13,8 +13,11 @@ import pytest
 import urdf_pipeline
 from urdf_pipeline.errors import UserError
 
+from ..compile.test_temporal_edges import POSE_NAMES, TEMPORAL_EDGE, expected_pose, random_poses
+from ..edge_helpers import panda_config, write_config
 from ..execute.test_fk_against_pinocchio import (
     PANDA_ARM,
+    assert_poses_match,
     check_robot,
     panda_contract_raw,
     panda_joint_values,
@@ -122,3 +125,22 @@ def test_live_needs_names_it_can_find(tmp_path: Path, examples_dir: Path) -> Non
     config.write_text(text)
     with pytest.raises(UserError, match=r"live view without the data needs the names: give names"):
         urdf_pipeline.live(config, save=tmp_path / "x.rrd")
+
+
+def test_a_pushed_base_pose_is_a_temporal_edge(examples_dir: Path, tmp_path: Path) -> None:
+    """One source drives the arm and its moving base (a temporal edge): each push's pose places the whole robot."""
+    reference = PinocchioRobot(examples_dir / "robots" / "panda.urdf")
+    q = random_within_limits(reference, [*PANDA_ARM, "panda_finger_joint1"], frames=30, seed=37)
+    poses = random_poses(30, seed=38)
+    data = panda_config(examples_dir, "live_base", "data/not_needed.parquet", [{**TEMPORAL_EDGE, "source": "arm_state"}])
+    data["sources"]["arm_state"]["names"] += POSE_NAMES
+    data["robots"]["arm"]["joints"]["ignore"] = POSE_NAMES
+    config = write_config(examples_dir, "live_base", data)
+    saved = tmp_path / "base.rrd"
+    with urdf_pipeline.live(config, save=saved, time_kind="sequence") as view:
+        view.push_batch(np.concatenate([panda_contract_raw(q), poses], axis=1))
+    frames = read_frames(saved, "time")
+    for frame in (0, 11, 29):
+        world_from_base = expected_pose(poses[frame])
+        for link, link_pose in reference.link_poses(panda_joint_values(q[frame])).items():
+            assert_poses_match(frames.world_pose(link, frame, "world"), world_from_base @ link_pose, f"{link} at {frame}")

@@ -126,8 +126,11 @@ def test_a_map_naming_a_joint_the_stream_lacks_is_refused_at_the_first_message(
     assert not saved.exists() and {p.name for p in tmp_path.iterdir()} == {"short.mcap"}
 
 
-def test_sigterm_ends_live_cleanly_with_a_complete_recording(examples_dir: Path, tmp_path: Path, appender) -> None:
-    config = live_config(examples_dir, "live_sigterm")
+@pytest.mark.parametrize(("signum", "said"), [(signal.SIGTERM, "stopped by SIGTERM"), (signal.SIGINT, "stopped by Ctrl-C")])
+def test_a_signal_ends_live_cleanly_with_a_complete_recording(
+    examples_dir: Path, tmp_path: Path, appender, signum: signal.Signals, said: str
+) -> None:
+    config = live_config(examples_dir, f"live_{signum.name}")
     bag, saved = tmp_path / "endless.mcap", tmp_path / "take.rrd"
     appender(bag, "--count", "100000", "--rate", "200", "--no-footer")
     command = [sys.executable, "-m", "urdf_pipeline", "live", str(config), "--from", str(bag), "--save", str(saved)]
@@ -139,10 +142,10 @@ def test_sigterm_ends_live_cleanly_with_a_complete_recording(examples_dir: Path,
         assert time.monotonic() < deadline and child.poll() is None
         time.sleep(0.05)
     time.sleep(1.0)  # samples flow meanwhile
-    child.send_signal(signal.SIGTERM)
+    child.send_signal(signum)
     rest = child.stderr.read()
     assert child.wait(timeout=60) == 0, rest
-    assert "stopped by SIGTERM" in rest, rest
+    assert said in rest, rest
     sent = int(rest.split(" sent (")[0].rsplit(", ", 1)[1])
     assert sent > 50
     frames = read_frames(saved, "ros2_timestamp")
