@@ -156,7 +156,7 @@ SHARED_NAMES: frozenset[str] = frozenset()
 
 def test_no_two_modules_share_a_name() -> None:
     """A module's or subpackage's name says what it does across the whole package (`render/headless_viewer.py`,
-    `execute/viewer_delivery.py`; `review/plan_report/`, not a `plan` beside `plan.py`), so a traceback, an editor tab or a
+    `execute/viewer_delivery.py`; `review/plan_report/`, not a `plan` beside the `plan/` package), so a traceback, an editor tab or a
     grep names one thing; `__init__.py` aside."""
     by_name: dict[str, list[str]] = {}
     for path in sorted(PACKAGE.rglob("*.py")):

@@ -1,0 +1,41 @@
+"""The frozen, typed plan: everything decided before any joint value is read.
+
+Two levels: `Plan` is the whole config (what `compile_config` and `urdf_pipeline.load` return, what `plan`, `diff`
+and `run` read); `RecordingPlan` is one recording of it (a segment, or the split layout's model: what `execute`
+writes), made by `Plan.for_segment` / `for_model`. Only the latter has sources and an output.
+
+Its parts, one module each: the sources (`source_plans.py`), the robots and the edges between their frames
+(`robot_plans.py`), the outputs, segments and the plans themselves (`scene_plans.py`). Every stage imports them from
+here, the package's surface.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from .. import lazy_surface
+
+if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
+    from .robot_plans import EdgeKind, EdgePlan, FixedChain, HeldJoint, JointChannel, MimicJoint, RobotPlan, TemporalEdgePlan
+    from .scene_plans import DatasetPlan, Layout, OutputPlan, Plan, RecordingPlan, RemoteOutputs, ScenePlan, Segment
+    from .source_plans import (
+        CsvSourcePlan,
+        FileSourcePlan,
+        Hdf5SourcePlan,
+        IndexPlan,
+        LeRobotSourcePlan,
+        McapSourcePlan,
+        NanPolicy,
+        OnViolation,
+        ParquetSourcePlan,
+        RemoteDataset,
+        RemoteObject,
+        RrdSourcePlan,
+        SourcePlan,
+        TimelineKind,
+        remote_of,
+        with_local_path,
+    )
+
+if not TYPE_CHECKING:  # the names above, imported when first used
+    __all__, __getattr__ = lazy_surface(__name__, __file__)
