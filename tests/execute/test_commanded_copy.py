@@ -13,6 +13,9 @@ import yaml
 from rerun.chunk import RrdReader
 
 from urdf_pipeline.examples import write_lerobot_dataset
+from urdf_pipeline.execute.differences import PairDifferences
+from urdf_pipeline.execute.summary_record import JointDifferences
+from urdf_pipeline.plan import Comparison, JointChannel, RobotPlan
 
 from ..reference_fk import PinocchioRobot
 from ..rrd_frames import read_frames
@@ -49,10 +52,12 @@ def commanded_config(examples_dir: Path, name: str, dataset: str, robot_extra: d
     cmd = json.loads(json.dumps(arm))
     cmd["joints"]["source"] = "action"
     cmd.update(
-        frame_prefix="cmd_",
-        appearance={"color": COLOR, "opacity": OPACITY},
-        compare={"robot": "arm", "threshold": {"angle": "2 deg", "length": "5 mm"}},
-        **(robot_extra or {}),
+        {
+            "frame_prefix": "cmd_",
+            "appearance": {"color": COLOR, "opacity": OPACITY},
+            "compare": {"robot": "arm", "threshold": {"angle": "2 deg", "length": "5 mm"}},
+            **(robot_extra or {}),
+        }
     )
     data["robots"] = {"arm": arm, "cmd": cmd}
     data["frames"] = {"root": "world"}
@@ -66,7 +71,7 @@ def commanded_config(examples_dir: Path, name: str, dataset: str, robot_extra: d
     return path
 
 
-def _episodes(reference: PinocchioRobot) -> tuple[list[np.ndarray], list[np.ndarray]]:
+def episodes(reference: PinocchioRobot) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """Two episodes of measured q (rad) and commanded q: episode 0 off by 3 deg on elbow_flex in rows 10..19, episode
     1 off by 1 deg everywhere (within the 2 deg threshold) but by 3.5 deg on the gripper at row 5 (within 90% of the limits)."""
     measured = [0.9 * random_within_limits(reference, SO101_JOINTS, frames=FRAMES, seed=seed) for seed in (21, 22)]
@@ -90,7 +95,7 @@ def _colours(path: Path) -> dict[str, list[int]]:
 
 def test_commanded_copy_is_drawn_apart_and_its_differences_are_listed(examples_dir: Path, run_cli, erd_share: Path) -> None:
     reference = PinocchioRobot(erd_share / "robots" / "so_arm_description" / "urdf" / "so101.urdf")
-    measured, commanded = _episodes(reference)
+    measured, commanded = episodes(reference)
     write_commanded_dataset(examples_dir / "data" / "cmd_so101", [np.degrees(q) for q in measured], [np.degrees(q) for q in commanded])
     config = commanded_config(examples_dir, "cmd_so101", "data/cmd_so101")
     result = run_cli("run", str(config))
@@ -136,3 +141,53 @@ def test_commanded_copy_is_drawn_apart_and_its_differences_are_listed(examples_d
     rows = {row["id"]: row for row in json.loads((site / "segments.json").read_text())["segments"]}
     assert rows["episode_000000"]["diff"] == [{"copy": "cmd", "measured": "arm", "rows": FRAMES, "beyond": 10, "joints": ["elbow_flex"]}]
     assert rows["episode_000001"]["diff"] == [{"copy": "cmd", "measured": "arm", "rows": FRAMES, "beyond": 1, "joints": ["gripper"]}]
+
+
+def _pair() -> PairDifferences:
+    """A copy `cmd` of `arm` over three revolute joints and one prismatic one, the measured robot's map in another order."""
+    channel = dict(source_index=0, source_unit="rad", factor=1.0, sign=1.0, offset=0.0, lower=None, upper=None, slack=0.0, where=None)
+    joints = ["a", "b", "c", "slide"]
+    plan = dict(
+        urdf_path=Path("x.urdf"), urdf_text="", urdf_origin="", urdf_sha256="", robot_name="x", root_link="base", links=(),
+        joint_links=(), entity_path_prefix="/x", frame_prefix="", keep_collisions=False, source="s", holds=(), mimics=(),
+        on_violation="error", where=None,
+    )  # fmt: skip
+    copy = RobotPlan(key="cmd", channels=tuple(JointChannel(joint=j, source_name=j, **channel) for j in joints), **plan)
+    arm = RobotPlan(key="arm", channels=tuple(JointChannel(joint=j, source_name=j, **channel) for j in reversed(joints)), **plan)
+    comparison = Comparison("arm", np.radians(2.0), 0.005, "{angle: 2 deg, length: 5 mm}", (np.radians(2.0),) * 3 + (0.005,))
+    return PairDifferences(copy, arm, comparison)
+
+
+def test_differences_match_rows_across_uneven_batches_and_skip_rows_left_out() -> None:
+    rng = np.random.default_rng(5)
+    measured = rng.uniform(-1, 1, size=(1000, 4))
+    commanded = measured + rng.normal(0, 0.03, size=measured.shape)
+    left_out = np.zeros(1000, dtype=bool)
+    left_out[[3, 500, 999]] = True
+    commanded[500] += 10.0  # a row the copy left out: never compared
+    pair = _pair()
+    for start, stop in ((0, 700), (700, 1000)):  # the copy's batches
+        pair.add("cmd", commanded[start:stop], left_out[start:stop])
+    for start, stop in ((0, 128), (128, 129), (129, 1000)):  # the measured robot's, its columns in its own order
+        pair.add("arm", measured[start:stop, ::-1], None)
+    result = pair.result()
+    kept = ~left_out
+    difference = np.abs(commanded - measured)[kept]
+    limits = np.array([np.radians(2.0)] * 3 + [0.005])
+    assert result.rows == kept.sum() and result.unmatched == 0
+    np.testing.assert_array_equal(result.largest, difference.max(axis=0))
+    assert result.beyond == tuple((difference > limits).sum(axis=0).tolist())
+    assert result.rows_beyond == int((difference > limits).any(axis=1).sum())
+    assert not pair.pending["cmd"][0].size and not pair.pending["arm"][0].size, "everything matched: nothing kept"
+
+
+def test_differences_survive_the_manifest_and_hand_edits_drop_them() -> None:
+    pair = _pair()
+    pair.add("cmd", np.zeros((4, 4)), None)
+    pair.add("arm", np.full((3, 4), 0.1), None)
+    result = pair.result()
+    assert result.unmatched == 1 and result.rows == 3 and result.joints_beyond == ("a", "b", "c", "slide")
+    assert JointDifferences.from_json(json.loads(json.dumps(result.as_json()))) == result
+    for edit in ({"beyond": [1, 2]}, {"largest": ["x", 0, 0, 0]}, {"rows": -1}, {"copy": 3}, {"joints": []}, {"beyond": [True, 0, 0, 0]}):
+        assert JointDifferences.from_json({**result.as_json(), **edit}) is None, edit
+    assert JointDifferences.from_json({**result.as_json(), "copy": "a\nb" + "x" * 500}).copy.startswith("a")
