@@ -4,6 +4,7 @@ both against pinocchio, its meshes in the configured colour, and the per-episode
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +13,8 @@ import pyarrow.parquet as pq
 import yaml
 from rerun.chunk import RrdReader
 
+from urdf_pipeline.compile import compile_config
+from urdf_pipeline.dataset.fingerprint import model_hash, segment_hashes
 from urdf_pipeline.examples import write_lerobot_dataset
 from urdf_pipeline.execute.differences import PairDifferences
 from urdf_pipeline.execute.summary_record import JointDifferences
@@ -191,3 +194,15 @@ def test_differences_survive_the_manifest_and_hand_edits_drop_them() -> None:
     for edit in ({"beyond": [1, 2]}, {"largest": ["x", 0, 0, 0]}, {"rows": -1}, {"copy": 3}, {"joints": []}, {"beyond": [True, 0, 0, 0]}):
         assert JointDifferences.from_json({**result.as_json(), **edit}) is None, edit
     assert JointDifferences.from_json({**result.as_json(), "copy": "a\nb" + "x" * 500}).copy.startswith("a")
+
+
+def test_appearance_changes_the_models_hash_and_compare_the_segments(examples_dir: Path) -> None:
+    """A colour changed rewrites the split layout's model; a threshold changed rewrites the layers (their summaries);
+    a config without either keeps the model hash it had."""
+    plan = compile_config(examples_dir / "so101_dataset.yaml")
+    robot = plan.robots[0]
+    coloured = replace(plan, robots=(replace(robot, appearance=(1.0, 0.5, 0.0, 0.4)),))
+    assert model_hash(coloured) != model_hash(plan)
+    assert model_hash(replace(plan, robots=(replace(robot, appearance=None),))) == model_hash(plan)
+    compared = replace(plan, robots=(replace(robot, compare=Comparison("other", 0.1, 0.01, "{angle: 0.1 rad, length: 1 cm}")),))
+    assert segment_hashes(compared, False) != segment_hashes(plan, False)
