@@ -107,7 +107,8 @@ def test_commanded_copy_is_drawn_apart_and_its_differences_are_listed(examples_d
     lines = [line for line in result.err.splitlines() if "'cmd' against 'arm'" in line]
     assert len(lines) == 2, result.err
     assert "episode_000000: 'cmd' against 'arm' over 50 rows: 10 rows beyond {angle: 2 deg, length: 5 mm}: elbow_flex" in lines[0]
-    assert "gripper (max" in lines[1] and "1 rows beyond" in lines[1] and "elbow_flex" not in lines[1]
+    assert "elbow_flex (max 3 deg, 10 rows)" in lines[0]
+    assert "1 rows beyond" in lines[1] and "gripper (max 3.5 deg, 1 rows)" in lines[1] and "elbow_flex" not in lines[1]
 
     out = examples_dir / "out" / "cmd_so101"
     # both copies' poses equal pinocchio's
@@ -157,7 +158,8 @@ def _pair() -> PairDifferences:
     )  # fmt: skip
     copy = RobotPlan(key="cmd", channels=tuple(JointChannel(joint=j, source_name=j, **channel) for j in joints), **plan)
     arm = RobotPlan(key="arm", channels=tuple(JointChannel(joint=j, source_name=j, **channel) for j in reversed(joints)), **plan)
-    comparison = Comparison("arm", np.radians(2.0), 0.005, "{angle: 2 deg, length: 5 mm}", (np.radians(2.0),) * 3 + (0.005,))
+    thresholds = (np.radians(2.0),) * 3 + (0.005,)
+    comparison = Comparison("arm", np.radians(2.0), 0.005, "{angle: 2 deg, length: 5 mm}", thresholds, ("deg",) * 3 + ("mm",))
     return PairDifferences(copy, arm, comparison)
 
 
@@ -191,6 +193,8 @@ def test_differences_survive_the_manifest_and_hand_edits_drop_them() -> None:
     result = pair.result()
     assert result.unmatched == 1 and result.rows == 3 and result.joints_beyond == ("a", "b", "c", "slide")
     assert JointDifferences.from_json(json.loads(json.dumps(result.as_json()))) == result
+    assert (result.largest_text(0), result.largest_text(3)) == ("5.73 deg", "100 mm")
+    assert JointDifferences.from_json({**result.as_json(), "units": ["deg"]}).largest_text(0) == "0.1"  # type: ignore[union-attr]
     for edit in ({"beyond": [1, 2]}, {"largest": ["x", 0, 0, 0]}, {"rows": -1}, {"copy": 3}, {"joints": []}, {"beyond": [True, 0, 0, 0]}):
         assert JointDifferences.from_json({**result.as_json(), **edit}) is None, edit
     assert JointDifferences.from_json({**result.as_json(), "copy": "a\nb" + "x" * 500}).copy.startswith("a")

@@ -26,15 +26,16 @@ def appearance_of(spec: dict[str, Any]) -> tuple[float, float, float, float] | N
     return (red, green, blue, float(written.get("opacity", 1.0)))
 
 
-def _threshold(written: dict[str, str]) -> tuple[float, float, str]:
-    """(rad, m, text) of a schema-checked threshold, its defaults filled in."""
+def _threshold(written: dict[str, str]) -> tuple[dict[str, tuple[float, str]], str]:
+    """By kind (angle, length): (URDF units, the unit written), and the text, of a schema-checked threshold, its
+    defaults filled in."""
     parts = {**DEFAULT_THRESHOLD, **written}
-    values: dict[str, float] = {}
+    values: dict[str, tuple[float, str]] = {}
     for kind, text in parts.items():
         match = _QUANTITY.match(text)
         assert match is not None, text  # the schema's pattern
-        values[kind] = float(match.group(1)) * FACTORS[match.group(2)]
-    return values["angle"], values["length"], f"{{angle: {parts['angle'].strip()}, length: {parts['length'].strip()}}}"
+        values[kind] = (float(match.group(1)) * FACTORS[match.group(2)], match.group(2))
+    return values, f"{{angle: {parts['angle'].strip()}, length: {parts['length'].strip()}}}"
 
 
 def with_comparisons(ctx: CompileContext, robots: list[RobotPlan], models: dict[str, UrdfModel]) -> list[RobotPlan]:
@@ -51,10 +52,13 @@ def with_comparisons(ctx: CompileContext, robots: list[RobotPlan], models: dict[
         if measured is None:
             resolved.append(robot)
             continue
-        angle, length, text = _threshold(written.get("threshold", {}))
+        values, text = _threshold(written.get("threshold", {}))
         kinds = {joint.name: joint.type for joint in models[robot.key].joints}
-        thresholds = tuple(length if kinds[c.joint] == "prismatic" else angle for c in robot.channels)
-        resolved.append(replace(robot, compare=Comparison(measured.key, angle, length, text, thresholds)))
+        per_joint = [values["length" if kinds[c.joint] == "prismatic" else "angle"] for c in robot.channels]
+        comparison = Comparison(
+            measured.key, values["angle"][0], values["length"][0], text, tuple(v for v, _ in per_joint), tuple(u for _, u in per_joint)
+        )
+        resolved.append(replace(robot, compare=comparison))
     return resolved
 
 

@@ -42,7 +42,7 @@ def summary_table(results: tuple[SegmentResult, ...]) -> str:
 
 def differences_lines(results: tuple[SegmentResult, ...]) -> list[str]:
     """`compare:`: one line per segment and compared pair, naming the joints beyond the threshold (largest difference
-    in URDF units, rad or m, and the rows beyond), or saying the copy kept within it."""
+    in the threshold's unit, and the rows beyond), or saying the copy kept within it."""
     lines = []
     for result in results:
         for d in result.summary.differences if result.summary is not None else ():
@@ -52,8 +52,8 @@ def differences_lines(results: tuple[SegmentResult, ...]) -> list[str]:
                 lines.append(neutral_line(f"{head}: within {d.threshold}{unmatched}"))
                 continue
             joints = ", ".join(
-                f"{shown(joint)} (max {largest:.4g}, {rows:,} rows)"
-                for joint, largest, rows in zip(d.joints, d.largest, d.beyond, strict=True)
+                f"{shown(joint)} (max {d.largest_text(i)}, {rows:,} rows)"
+                for i, (joint, rows) in enumerate(zip(d.joints, d.beyond, strict=True))
                 if rows
             )
             lines.append(neutral_line(f"{head}: {d.rows_beyond:,} rows beyond {d.threshold}: {joints}{unmatched}"))

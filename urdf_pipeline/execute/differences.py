@@ -26,6 +26,7 @@ class PairDifferences:
         self.order = np.array([position[joint] for joint in self.joints], dtype=np.intp)  # measured columns, copy's order
         self.thresholds = np.array(comparison.thresholds, dtype=np.float64)
         self.written = comparison.written
+        self.units = comparison.units
         self.largest = np.zeros(len(self.joints))
         self.beyond = np.zeros(len(self.joints), dtype=np.int64)
         self.rows_beyond = 0
@@ -72,6 +73,7 @@ class PairDifferences:
             joints=self.joints,
             largest=tuple(float(v) for v in self.largest),
             beyond=tuple(int(v) for v in self.beyond),
+            units=self.units,
         )
 
 

@@ -102,10 +102,19 @@ class JointDifferences:
     joints: tuple[str, ...]
     largest: tuple[float, ...]  # per joint: the largest absolute difference
     beyond: tuple[int, ...]  # per joint: rows beyond its threshold
+    units: tuple[str, ...] = ()  # per joint: its threshold's unit as written ("deg", "mm"); () shows URDF units
 
     @property
     def joints_beyond(self) -> tuple[str, ...]:
         return tuple(joint for joint, rows in zip(self.joints, self.beyond, strict=True) if rows)
+
+    def largest_text(self, joint: int) -> str:
+        """A joint's largest difference in its threshold's unit: "3.5 deg" (URDF units, bare, for an entry without)."""
+        from ..compile import FACTORS
+
+        value = self.largest[joint]
+        unit = self.units[joint] if len(self.units) == len(self.joints) else ""
+        return f"{value / FACTORS[unit]:.3g} {unit}" if unit in FACTORS else f"{value:.4g}"
 
     def as_json(self) -> dict[str, Any]:
         return {
@@ -118,6 +127,7 @@ class JointDifferences:
             "joints": list(self.joints),
             "largest": list(self.largest),
             "beyond": list(self.beyond),
+            "units": list(self.units),
         }
 
     @classmethod
@@ -147,6 +157,7 @@ class JointDifferences:
             tuple(shown(n, NAME_LIMIT) for n in names),
             tuple(largest),
             tuple(beyond),
+            tuple(_items(data.get("units"), str, len(joints)) or ()),  # a unit not in FACTORS is shown as no unit
         )
 
 

@@ -103,6 +103,7 @@ class Comparison:
     length: float  # m: the threshold of prismatic joints
     written: str  # the threshold as the config wrote it, for messages: "{angle: 2 deg, length: 5 mm}"
     thresholds: tuple[float, ...] = ()  # per channel of the copy, in its order: angle or length by the joint's kind
+    units: tuple[str, ...] = ()  # per channel: the unit its threshold was written in ("deg", "mm"), for messages
 
 
 @dataclass(frozen=True)
