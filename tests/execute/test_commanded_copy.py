@@ -210,3 +210,26 @@ def test_appearance_changes_the_models_hash_and_compare_the_segments(examples_di
     assert model_hash(replace(plan, robots=(replace(robot, appearance=None),))) == model_hash(plan)
     compared = replace(plan, robots=(replace(robot, compare=Comparison("other", 0.1, 0.01, "{angle: 0.1 rad, length: 1 cm}")),))
     assert segment_hashes(compared, False) != segment_hashes(plan, False)
+
+
+def test_plan_shows_the_copy_and_diff_its_changes(examples_dir: Path, erd_share: Path, run_cli) -> None:
+    reference = PinocchioRobot(erd_share / "robots" / "so_arm_description" / "urdf" / "so101.urdf")
+    measured, commanded = episodes(reference)
+    write_commanded_dataset(examples_dir / "data" / "cmd_plan", [np.degrees(q) for q in measured], [np.degrees(q) for q in commanded])
+    old = commanded_config(examples_dir, "cmd_plan_old", "data/cmd_plan")
+    new = commanded_config(
+        examples_dir, "cmd_plan_old_edit", "data/cmd_plan", {"appearance": {"color": COLOR}, "compare": {"robot": "arm"}}
+    )
+    text = run_cli("plan", str(old))
+    assert text.code == 0, text.err
+    assert (
+        "  drawn in colour [1, 0.5, 0] at opacity 0.4; a copy compared with robot 'arm', threshold {angle: 2 deg, length: 5 mm}" in text.out
+    )
+    report = json.loads(run_cli("plan", "--format", "json", str(old)).out)
+    robots = {robot["key"]: robot for robot in report["robots"]}
+    assert robots["cmd"]["appearance"] == {"color": COLOR, "opacity": OPACITY}
+    assert robots["cmd"]["compare"] == {"robot": "arm", "threshold": "{angle: 2 deg, length: 5 mm}"}
+    assert "appearance" not in robots["arm"] and "compare" not in robots["arm"]
+    diff = run_cli("diff", str(old), str(new))
+    assert "robot cmd: appearance [1, 0.5, 0, 0.4] -> [1, 0.5, 0, 1]" in diff.out
+    assert "robot cmd: compare arm {angle: 2 deg, length: 5 mm} -> arm {angle: 1 deg, length: 1 mm}" in diff.out  # the defaults
