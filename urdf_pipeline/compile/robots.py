@@ -25,6 +25,7 @@ from ..urdf import (
     rewrite_mesh_uris,
     text_for_rerun,
 )
+from .comparisons import appearance_of
 from .context import CompileContext, SourceNames
 from .joint_mapping import JointMapping, compile_joints
 
@@ -141,6 +142,7 @@ def compile_robot(ctx: CompileContext, key: str, spec: dict[str, Any], sources: 
         on_violation=joints.on_violation,
         where=ctx.where("robots", key),
         nan_policy=(spec.get("joints") or {}).get("nan", "error"),
+        appearance=appearance_of(spec),
     )
     return CompiledRobot(plan, model)
 
