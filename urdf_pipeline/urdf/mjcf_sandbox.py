@@ -51,6 +51,11 @@ def compile_answer(request: Mapping[str, Any]) -> dict[str, Any]:
                 "error": f"compiling {request['shown']} with MuJoCo needs more than {megabytes} MB of memory ({text[:300]}); the person running the tool can raise the bound with URDF_PIPELINE_MJCF_MEMORY_MB"
             }
         return {"error": f"MuJoCo cannot compile {request['shown']}: {text[:2000]}"}
+    except RuntimeError as exc:  # a C++ exception MuJoCo's binding does not name: std::bad_alloc under the memory bound
+        megabytes = request["limits"]["memory_bytes"] >> 20
+        return {
+            "error": f"compiling {request['shown']} with MuJoCo failed ({exc}): it may need more than {megabytes} MB of memory; the person running the tool can raise the bound with URDF_PIPELINE_MJCF_MEMORY_MB"
+        }
     try:
         text, notes = urdf_from_model(model, mujoco, request["name"])
     except NotRepresentable as exc:
