@@ -15,6 +15,7 @@ ARM = """<mujoco model="mjcf_arm">
   <include file="mjcf_arm_assets.xml"/>
   <worldbody>
     <geom name="floor" type="plane" size="1 1 0.1"/>
+    <body name="target" mocap="true" pos="0.3 0 0.2" quat="0 1 0 0"><geom type="sphere" size="0.02"/></body>
     <body name="base" pos="0 0 0.1" euler="30 10 0">
       <joint name="shoulder" type="hinge" axis="0 0 1" range="-170 170" pos="0.02 0 0"/>
       <geom type="mesh" mesh="tetra" pos="0.01 0 0"/>

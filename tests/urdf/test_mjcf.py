@@ -97,6 +97,14 @@ def test_asset_files_outside_the_roots_are_refused(tmp_path: Path, element: str,
         _load(tmp_path / "robot.xml")
 
 
+def test_an_attached_models_files_are_checked(tmp_path: Path) -> None:
+    (tmp_path / "parts").mkdir()
+    (tmp_path / "parts" / "hand.xml").write_text('<mujoco><compiler meshdir="../../../../../../../../etc"/></mujoco>', encoding="utf-8")
+    (tmp_path / "robot.xml").write_text('<mujoco><asset><model name="hand" file="parts/hand.xml"/></asset></mujoco>', encoding="utf-8")
+    with pytest.raises(UserError, match=r"MJCF <compiler meshdir> folder .*/etc is outside"):
+        _load(tmp_path / "robot.xml")
+
+
 def test_an_include_cycle_is_refused(tmp_path: Path) -> None:
     (tmp_path / "robot.xml").write_text('<mujoco><include file="robot.xml"/></mujoco>', encoding="utf-8")
     with pytest.raises(UserError, match=r"includes itself"):

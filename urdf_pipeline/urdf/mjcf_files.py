@@ -81,9 +81,10 @@ def _include(files: MjcfFiles, includer: Path, name: str) -> Path:
     return found
 
 
-def scan_mjcf(main: Path, confinement: Confinement, where: Where) -> MjcfFiles:
-    """Every file `main` (resolved, allowed) names, checked: a UserError at `where` for the first refused."""
-    files = MjcfFiles(main, confinement, where)
+def scan_mjcf(main: Path, confinement: Confinement, where: Where, seen: list[Path] | None = None) -> MjcfFiles:
+    """Every file `main` (resolved, allowed) names, checked: a UserError at `where` for the first refused. A `<model
+    file>` asset (a model MuJoCo attaches) is scanned as a model of its own, its folders relative to its own file."""
+    files = MjcfFiles(main, confinement, where, seen if seen is not None else [])
     _scan(files, main)
     base = main.parent
     folders = [base, *(base / files.folders[name] for name in _FOLDERS if name in files.folders)]
@@ -93,6 +94,11 @@ def scan_mjcf(main: Path, confinement: Confinement, where: Where) -> MjcfFiles:
     for includer, tag, name in files.named:
         if tag == "include":
             continue
-        for folder in dict.fromkeys((*folders, includer.parent)):
+        candidates = [
             files.check(folder / name, f"MJCF <{tag}> file {name!r} in {includer.name}:")
+            for folder in dict.fromkeys((*folders, includer.parent))
+        ]
+        if tag == "model":
+            for candidate in dict.fromkeys(c for c in candidates if c.is_file() and c not in files.xml_files):
+                scan_mjcf(candidate, confinement, where, files.xml_files)
     return files

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import os
 import sys
 from collections.abc import Mapping
 from typing import Any
@@ -57,7 +58,7 @@ def compile_answer(request: Mapping[str, Any]) -> dict[str, Any]:
             "error": f"compiling {request['shown']} with MuJoCo failed ({exc}): it may need more than {megabytes} MB of memory; the person running the tool can raise the bound with URDF_PIPELINE_MJCF_MEMORY_MB"
         }
     try:
-        text, notes = urdf_from_model(model, mujoco, request["name"])
+        text, notes = urdf_from_model(model, mujoco, request["name"], os.path.dirname(request["file"]))
     except NotRepresentable as exc:
         return {"error": f"{request['shown']} cannot be drawn as a URDF robot: {exc}"}
     return {"text": text, "notes": notes}

@@ -15,6 +15,7 @@ qpos. What a URDF cannot say is refused by name: a free joint below another body
 from __future__ import annotations
 
 import math
+import os
 import re
 from typing import Any
 from xml.sax.saxutils import quoteattr
@@ -86,7 +87,8 @@ def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 class _Writer:
-    def __init__(self, model: Any, mujoco: Any) -> None:
+    def __init__(self, model: Any, mujoco: Any, folder: str) -> None:
+        self.folder = folder  # the MJCF file's: mesh paths are written relative to it, so the text is the same anywhere
         self.m = model
         self.mj = mujoco
         self.lines: list[str] = []
@@ -156,6 +158,7 @@ class _Writer:
         file_quat = _quat_mul(quat, inverse)
         file_pos = pos - _rotate(file_quat, self.m.mesh_pos[mesh])
         scale = " ".join(map(_num, self.m.mesh_scale[mesh]))
+        path = os.path.relpath(path, self.folder).replace(os.sep, "/") if os.path.isabs(path) else path
         return f"<mesh filename={quoteattr(path)} scale={quoteattr(scale)}/>", file_pos, file_quat
 
     def body(self, body: int) -> None:
@@ -164,8 +167,9 @@ class _Writer:
         parent = self.body_name(int(self.m.body_parentid[body]))
         pos, quat = self.m.body_pos[body], self.m.body_quat[body]
         first, count = int(self.m.body_jntadr[body]), int(self.m.body_jntnum[body])
-        if count == 0:
-            self.joint(f"{name}__fixed", "fixed", parent, name, _origin(pos, quat))
+        if count == 0:  # a mocap body: floating, so a temporal edge can drive it as MuJoCo's mocap_pos does
+            hanging = "floating" if self.m.body_mocapid[body] >= 0 else "fixed"
+            self.joint(f"{name}__{hanging}", hanging, parent, name, _origin(pos, quat))
             self.link(name, body)
             return
         origin = _origin(pos, quat)
@@ -231,11 +235,12 @@ class _Writer:
         return f'{axis}<limit lower="{_num(lower)}" upper="{_num(upper)}" effort="0" velocity="0"/>'
 
 
-def urdf_from_model(model: Any, mujoco: Any, robot_name: str) -> tuple[str, list[str]]:
-    """The URDF text of `model` and the geoms left undrawn; NotRepresentable for what a URDF cannot hold."""
+def urdf_from_model(model: Any, mujoco: Any, robot_name: str, folder: str) -> tuple[str, list[str]]:
+    """The URDF text of `model` (compiled from a file in `folder`) and the geoms left undrawn; NotRepresentable for what a
+    URDF cannot hold."""
     if model.nflex:
         raise NotRepresentable(f"the model has {model.nflex} flex object(s) (deformable bodies): a URDF has rigid links only")
-    writer = _Writer(model, mujoco)
+    writer = _Writer(model, mujoco, folder)
     writer.lines.append(f"<robot name={quoteattr(robot_name)}>")
     writer.link("world", 0)
     for body in range(1, model.nbody):
