@@ -5,6 +5,8 @@ Each model is compiled once by the loader (the bounded child process) and once b
 hinge and slide values (within their limits) every body's world pose from pinocchio on the URDF text must equal
 MuJoCo's `xpos`/`xquat` within 1e-5 m / rad (free and ball joints at their reference pose: a URDF floating joint is
 static). A model the loader refuses must be listed in REFUSED with its reason; a listed refusal that now loads fails.
+
+`python benchmarks/mjcf_sweep.py` prints the table model by model.
 """
 
 from __future__ import annotations
@@ -27,6 +29,8 @@ pin = pytest.importorskip("pinocchio")
 
 from ..reference_fk import PinocchioRobot  # noqa: E402
 from ..rrd_frames import rotation_angle  # noqa: E402
+
+pytestmark = pytest.mark.slow  # every MJCF file of dm_control, each compiled twice (about 25 s)
 
 TOLERANCE = 1e-5  # m and rad
 FRAMES = 3
