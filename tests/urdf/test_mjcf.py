@@ -105,6 +105,29 @@ def test_an_attached_models_files_are_checked(tmp_path: Path) -> None:
         _load(tmp_path / "robot.xml")
 
 
+def test_every_compiler_folder_is_checked(tmp_path: Path) -> None:
+    write_mjcf_inputs(tmp_path)
+    text = ARM.replace("<worldbody>", '<compiler meshdir="/etc"/><compiler meshdir="mjcf_meshes"/><worldbody>')
+    (tmp_path / "robot.xml").write_text(text, encoding="utf-8")
+    with pytest.raises(UserError, match=r"MJCF <compiler meshdir> folder /etc is outside"):
+        _load(tmp_path / "robot.xml")
+
+
+def test_deeply_nested_includes_are_refused(tmp_path: Path) -> None:
+    for level in range(100):
+        (tmp_path / f"{level}.xml").write_text(f'<mujoco><include file="{level + 1}.xml"/></mujoco>', encoding="utf-8")
+    with pytest.raises(UserError, match=r"nests includes \(or <model> files\) more than 64 deep"):
+        _load(tmp_path / "0.xml")
+
+
+def test_deeply_nested_models_are_refused(tmp_path: Path) -> None:
+    for level in range(1000):
+        model = f'<mujoco><asset><model name="m" file="{level + 1}.xml"/></asset></mujoco>'
+        (tmp_path / f"{level}.xml").write_text(model, encoding="utf-8")
+    with pytest.raises(UserError, match=r"nests includes \(or <model> files\) more than 64 deep"):
+        _load(tmp_path / "0.xml")
+
+
 def test_an_include_cycle_is_refused(tmp_path: Path) -> None:
     (tmp_path / "robot.xml").write_text('<mujoco><include file="robot.xml"/></mujoco>', encoding="utf-8")
     with pytest.raises(UserError, match=r"includes itself"):

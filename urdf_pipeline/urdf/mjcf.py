@@ -74,7 +74,8 @@ def load_mjcf(spec: dict[str, Any], config_dir: Path, confinement: Confinement, 
         "name": path.name.removesuffix(".xml"),
         "limits": {"memory_bytes": memory_mb << 20, "cpu_seconds": int(timeout) + 1, "output_bytes": OUTPUT_BYTES},
     }
-    answer = _run([sys.executable, "-I", "-S", "-X", "utf8", "-c", _BOOTSTRAP, *search], request, memory_mb, timeout, where)
+    command = [sys.executable, "-I", "-S", "-X", "utf8", "-c", _BOOTSTRAP, *search]
+    answer = _run(command, request, memory_mb, timeout, where)
     if "error" in answer:
         raise UserError(str(answer["error"]), where)
     notes = [str(note) for note in answer.get("notes", [])]
@@ -89,7 +90,9 @@ def _run(command: list[str], request: dict[str, Any], memory_mb: int, timeout: f
     shown = request["shown"]
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
         try:
-            child = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=out, stderr=err, env=environment, close_fds=True)
+            child = subprocess.Popen(
+                command, stdin=subprocess.PIPE, stdout=out, stderr=err, env=environment, close_fds=True, cwd=Path(request["file"]).parent
+            )  # in the model's folder: no path MuJoCo reads is relative to ours
         except OSError as exc:
             raise UserError(f"cannot compile {shown}: {exc}", where) from None
         try:

@@ -19,6 +19,7 @@ from ..errors import UserError, Where
 
 MAX_XML_BYTES = 64 << 20  # one MJCF file (the XML; meshes are read by MuJoCo in the bounded child)
 MAX_FILES = 1000  # included files of one model
+MAX_DEPTH = 64  # includes within includes
 _FOLDERS = ("meshdir", "texturedir", "assetdir")
 
 
@@ -30,7 +31,7 @@ class MjcfFiles:
     confinement: Confinement
     where: Where
     xml_files: list[Path] = field(default_factory=list)
-    folders: dict[str, str] = field(default_factory=dict)  # compiler meshdir/texturedir/assetdir, as written
+    folders: list[tuple[str, str]] = field(default_factory=list)  # every compiler meshdir/texturedir/assetdir, as written
     named: list[tuple[Path, str, str]] = field(default_factory=list)  # (including file, element tag, file as written)
 
     def check(self, path: Path, what: str) -> Path:
@@ -51,8 +52,12 @@ def _parse(path: Path, shown: str, where: Where) -> ET.Element:
         raise UserError(f"MJCF file {shown} is not valid XML: {exc}", where) from None
 
 
-def _scan(files: MjcfFiles, path: Path) -> None:
+def _scan(files: MjcfFiles, path: Path, depth: int = 0) -> None:
     """One XML file: its compiler folders, the files it names, and its includes, depth first (as MuJoCo inlines them)."""
+    if depth > MAX_DEPTH:
+        raise UserError(
+            f"MJCF model {files.main.name} nests includes (or <model> files) more than {MAX_DEPTH} deep (at {path.name})", files.where
+        )
     if len(files.xml_files) >= MAX_FILES:
         raise UserError(f"MJCF model {files.main.name} includes more than {MAX_FILES} files", files.where)
     if path in files.xml_files:
@@ -61,12 +66,12 @@ def _scan(files: MjcfFiles, path: Path) -> None:
     root = _parse(path, str(path), files.where)
     for element in root.iter():
         if element.tag == "compiler":
-            files.folders.update({name: element.attrib[name] for name in _FOLDERS if name in element.attrib})
+            files.folders.extend((name, element.attrib[name]) for name in _FOLDERS if name in element.attrib)
         for attribute, value in element.attrib.items():
             if attribute.startswith("file") and value:
                 files.named.append((path, str(element.tag), value))
         if element.tag == "include" and element.get("file"):
-            _scan(files, _include(files, path, element.attrib["file"]))
+            _scan(files, _include(files, path, element.attrib["file"]), depth + 1)
 
 
 def _include(files: MjcfFiles, includer: Path, name: str) -> Path:
@@ -81,16 +86,15 @@ def _include(files: MjcfFiles, includer: Path, name: str) -> Path:
     return found
 
 
-def scan_mjcf(main: Path, confinement: Confinement, where: Where, seen: list[Path] | None = None) -> MjcfFiles:
+def scan_mjcf(main: Path, confinement: Confinement, where: Where, seen: list[Path] | None = None, depth: int = 0) -> MjcfFiles:
     """Every file `main` (resolved, allowed) names, checked: a UserError at `where` for the first refused. A `<model
     file>` asset (a model MuJoCo attaches) is scanned as a model of its own, its folders relative to its own file."""
     files = MjcfFiles(main, confinement, where, seen if seen is not None else [])
-    _scan(files, main)
+    _scan(files, main, depth)
     base = main.parent
-    folders = [base, *(base / files.folders[name] for name in _FOLDERS if name in files.folders)]
-    for name in _FOLDERS:
-        if name in files.folders:
-            files.check(base / files.folders[name], f"MJCF <compiler {name}> folder")
+    folders = [base, *(base / written for _, written in files.folders)]  # every one given: which MuJoCo keeps matters not
+    for name, written in files.folders:
+        files.check(base / written, f"MJCF <compiler {name}> folder")
     for includer, tag, name in files.named:
         if tag == "include":
             continue
@@ -100,5 +104,5 @@ def scan_mjcf(main: Path, confinement: Confinement, where: Where, seen: list[Pat
         ]
         if tag == "model":
             for candidate in dict.fromkeys(c for c in candidates if c.is_file() and c not in files.xml_files):
-                scan_mjcf(candidate, confinement, where, files.xml_files)
+                scan_mjcf(candidate, confinement, where, files.xml_files, depth + 1)
     return files
