@@ -63,6 +63,7 @@ def test_run_records_mujocos_poses(examples_dir: Path, run_cli) -> None:
 
     assert result.code == 0, result.err
     assert "geom floor (plane)" in result.err, "what a URDF cannot draw is said"
+    assert "Rerun's URDF loader refuses" not in result.err, "the URDF text needs no repair"
     frames = read_frames(Path(result.out.strip()), "frame_index")
     for frame in (0, 7, FRAMES - 1):
         expected = _body_poses(model, values[frame].astype(np.float64))  # qpos is the joints in order: 4 x 1 dof
@@ -161,3 +162,43 @@ def test_without_mujoco_the_form_says_how_to_install_it(tmp_path: Path, monkeypa
     monkeypatch.setattr(importlib.util, "find_spec", lambda name, *rest: None if name == "mujoco" else found(name, *rest))
     with pytest.raises(UserError, match=r"need the mujoco package: pip install 'urdf-pipeline\[mjcf\]'"):
         _load(tmp_path / "mjcf_arm.xml")
+
+
+def _rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    cr, sr, cp, sp, cy, sy = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
+    return (
+        np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+        @ np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+        @ np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    )
+
+
+def test_a_mesh_is_drawn_where_mujoco_puts_it(tmp_path: Path) -> None:
+    """MuJoCo recentres a mesh at its centre of mass and turns it to its principal axes; the URDF draws the file's
+    vertices at the frame it moved them from: both must give the same points."""
+    import xml.etree.ElementTree as ET
+
+    from ..mjcf_inputs import tetrahedron_stl
+
+    write_mjcf_inputs(tmp_path)
+    urdf = ET.fromstring(_load(tmp_path / "mjcf_arm.xml"))
+    visual = next(v for v in urdf.iterfind("link[@name='base']/visual") if v.find("geometry/mesh") is not None)
+    origin, mesh = visual.find("origin"), visual.find("geometry/mesh")
+    assert origin is not None and mesh is not None
+    assert mesh.get("filename") == "mjcf_meshes/tetra.stl", "relative to the MJCF file"
+    rotation = _rpy_matrix(*(float(v) for v in origin.get("rpy", "").split()))
+    scale = np.array([float(v) for v in mesh.get("scale", "").split()])
+    facets = np.frombuffer(tetrahedron_stl()[84:], dtype=np.dtype([("n", "<3f4"), ("v", "<3f4", (3,)), ("a", "<u2")]))
+    corners = np.unique(facets["v"].reshape(-1, 3), axis=0).astype(np.float64) * scale
+    ours = corners @ rotation.T + np.array([float(v) for v in origin.get("xyz", "").split()])  # in the body's frame
+
+    model = mujoco.MjModel.from_xml_path(str(tmp_path / "mjcf_arm.xml"))
+    geom = next(g for g in range(model.ngeom) if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH)
+    mesh_id = model.geom_dataid[geom]
+    start, count = model.mesh_vertadr[mesh_id], model.mesh_vertnum[mesh_id]
+    matrix = np.zeros(9)
+    mujoco.mju_quat2Mat(matrix, model.geom_quat[geom])
+    theirs = model.mesh_vert[start : start + count].astype(np.float64) @ matrix.reshape(3, 3).T + model.geom_pos[geom]
+    assert len(theirs) == len(ours) == 4
+    distances = np.linalg.norm(theirs[:, None, :] - ours[None, :, :], axis=2).min(axis=1)
+    assert distances.max() < 1e-6, "MuJoCo stores the moved vertices in 32-bit floats"

@@ -126,7 +126,8 @@ class _Writer:
         element, pos, quat = shape
         tag = "visual" if self.m.geom_group[geom] < VISUAL_GROUPS else "collision"
         rgba = self.m.geom_rgba[geom]
-        material = f'<material name=""><color rgba="{" ".join(map(_num, rgba))}"/></material>' if tag == "visual" else ""
+        color = f'<color rgba="{" ".join(map(_num, rgba))}"/>'
+        material = f'<material name="mjcf_geom{geom}">{color}</material>' if tag == "visual" else ""  # Rerun needs a name
         self.lines.append(f"    <{tag}>{_origin(pos, quat)}<geometry>{element}</geometry>{material}</{tag}>")
 
     def shape(self, geom: int) -> tuple[str, np.ndarray, np.ndarray] | None:
