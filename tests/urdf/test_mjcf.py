@@ -202,3 +202,10 @@ def test_a_mesh_is_drawn_where_mujoco_puts_it(tmp_path: Path) -> None:
     assert len(theirs) == len(ours) == 4
     distances = np.linalg.norm(theirs[:, None, :] - ours[None, :, :], axis=2).min(axis=1)
     assert distances.max() < 1e-6, "MuJoCo stores the moved vertices in 32-bit floats"
+
+
+def test_mujocos_log_is_not_written_beside_the_model(tmp_path: Path) -> None:
+    write_mjcf_inputs(tmp_path)
+    (tmp_path / "robot.xml").write_text(ARM.replace("<compiler ", '<compiler settotalmass="2" '), encoding="utf-8")  # a warning
+    _load(tmp_path / "robot.xml")
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()

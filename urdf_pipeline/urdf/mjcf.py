@@ -88,11 +88,11 @@ def _run(command: list[str], request: dict[str, Any], memory_mb: int, timeout: f
     environment = {name: os.environ[name] for name in _PASSED_ENV if name in os.environ}
     environment["OPENBLAS_NUM_THREADS"] = "1"  # each BLAS thread reserves address space
     shown = request["shown"]
-    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
+    # In a folder of its own: MuJoCo writes MUJOCO_LOG.TXT into the working folder, never into the user's (and every
+    # path it reads is absolute, so none is relative to ours).
+    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err, tempfile.TemporaryDirectory() as folder:
         try:
-            child = subprocess.Popen(
-                command, stdin=subprocess.PIPE, stdout=out, stderr=err, env=environment, close_fds=True, cwd=Path(request["file"]).parent
-            )  # in the model's folder: no path MuJoCo reads is relative to ours
+            child = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=out, stderr=err, env=environment, close_fds=True, cwd=folder)
         except OSError as exc:
             raise UserError(f"cannot compile {shown}: {exc}", where) from None
         try:
