@@ -74,7 +74,7 @@ def load_urdf(ctx: CompileContext, key: str, spec: dict[str, Any], package_paths
     where = ctx.where("robots", key, "urdf")
     loaded = load_urdf_source(spec["urdf"], package_paths, ctx.config_dir, ctx.confinement, where, ctx.xacro_budget)
     try:
-        is_file = isinstance(spec["urdf"], str) or "xacro" not in spec["urdf"]  # an expanded xacro has no lines to point at
+        is_file = isinstance(spec["urdf"], str) or "robot_descriptions" in spec["urdf"]  # an expanded xacro or MJCF has no lines
         model, root = parse_urdf(loaded.text, str(loaded.path), source_lines=is_file)
         text, notes = text_for_rerun(loaded.text, str(loaded.path), root)
         if text is not loaded.text:  # repaired: the model is read from what Rerun will draw
