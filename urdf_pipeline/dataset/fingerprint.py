@@ -104,6 +104,7 @@ def segment_hashes(plan: Plan, with_model: bool) -> dict[str, str]:
             "meshes": [file_sha256(p) for p in _mesh_files(plan)] if with_model else [],
             # only when set: the hashes of recordings without the series are what they were before the option
             **({"joint_series": True} if plan.dataset.joint_series else {}),
+            **({"trails": _canonical(plan.trails)} if plan.trails else {}),  # the same rule for `trails:`
         }
     )
     return {

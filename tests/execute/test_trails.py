@@ -1,0 +1,108 @@
+"""Trails (`trails:`): the positions written to each trail's entity equal pinocchio's link poses composed with the
+calibration edge, at every row; a line's rows are the segments between consecutive positions; the blueprint holds
+each trail's window; the recording's FK is what it was without trails."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from rerun.chunk import RrdReader
+
+from urdf_pipeline.examples import write_joint_parquet
+
+from ..reference_fk import PinocchioRobot
+from ..rrd_frames import pose, read_frames
+from .test_fk_against_pinocchio import PANDA_ARM, panda_contract_raw, panda_joint_values, random_within_limits, variant
+
+TOLERANCE_M = 1e-5  # the positions are float32, as Rerun's: ~1e-7 m at a metre
+ROWS = 64
+EDGE_Q = [0.1, -0.3, 0.4, 0.8]  # the calibration edge world -> panda_link0, rotated so a wrong composition shows
+TRAILS = [
+    {"link": "panda_hand", "window": "50 rows", "color": [255, 80, 0]},  # in world (the default), a line
+    {"link": "panda_link4", "frame": "panda_link0", "style": "points", "window": "20 rows"},  # the robot's root
+    {"link": "panda_leftfinger", "frame": "panda_link5", "style": "points"},  # a link above it, past fixed joints
+]
+
+
+def _trail_rows(path: Path, entity: str, component: str) -> dict[int, object]:
+    """frame_index -> the row's component value (None where the row is left out), from the written recording."""
+    rows: dict[int, object] = {}
+    for chunk in RrdReader(path).stream().to_chunks():
+        if str(chunk.entity_path) != entity or chunk.is_static:
+            continue
+        batch = chunk.to_record_batch()
+        if component in batch.schema.names:
+            rows.update(zip(batch.column("frame_index").to_pylist(), batch.column(component).to_pylist(), strict=True))
+    return rows
+
+
+def _statics(path: Path, entity: str) -> dict[str, object]:
+    found: dict[str, object] = {}
+    for chunk in RrdReader(path).stream().to_chunks():
+        if str(chunk.entity_path) == entity and chunk.is_static:
+            found.update({k: v for k, v in chunk.to_record_batch().to_pylist()[0].items() if k != "rerun.controls.RowId"})
+    return found
+
+
+def _with_trails(examples_dir: Path, name: str, trails: list[dict]) -> Path:
+    def edit(data: dict) -> None:
+        data["sources"]["arm_state"]["parquet"] = "data/random_trails.parquet"
+        data["edges"][0]["quaternion_xyzw"] = EDGE_Q
+        data["trails"] = trails
+
+    return variant(examples_dir, "demo.yaml", name, edit)
+
+
+def test_trails_match_pinocchio(examples_dir: Path, run_cli) -> None:
+    reference = PinocchioRobot(examples_dir / "robots" / "panda.urdf")
+    q = random_within_limits(reference, [*PANDA_ARM, "panda_finger_joint1"], frames=ROWS, seed=26)
+    write_joint_parquet(examples_dir / "data" / "random_trails.parquet", panda_contract_raw(q))
+    result = run_cli("run", str(_with_trails(examples_dir, "trails_panda", TRAILS)))
+    assert result.code == 0, result.err
+    recording = Path(result.out.strip())
+
+    world_from_base = pose([0.0, 0.0, 0.5], EDGE_Q)
+    links = [reference.link_poses(panda_joint_values(row)) for row in q]
+    hand = np.array([(world_from_base @ poses["panda_hand"])[:3, 3] for poses in links])
+    link4 = np.array([poses["panda_link4"][:3, 3] for poses in links])
+    finger = np.array([(np.linalg.inv(poses["panda_link5"]) @ poses["panda_leftfinger"])[:3, 3] for poses in links])
+
+    strips = _trail_rows(recording, "/arm/trails/panda_hand", "LineStrips3D:strips")
+    assert sorted(strips) == list(range(ROWS))
+    segments = np.array([strips[row] for row in range(ROWS)])  # rows x 1 strip x 2 points x 3
+    previous = np.vstack([hand[:1], hand[:-1]])  # the first row: a segment of zero length at the first position
+    np.testing.assert_allclose(segments[:, 0, 1], hand, atol=TOLERANCE_M)
+    np.testing.assert_allclose(segments[:, 0, 0], previous, atol=TOLERANCE_M)
+    for entity, expected in (("/arm/trails/panda_link4", link4), ("/arm/trails/panda_leftfinger", finger)):
+        points = _trail_rows(recording, entity, "Points3D:positions")
+        np.testing.assert_allclose(np.array([points[row] for row in range(ROWS)])[:, 0], expected, atol=TOLERANCE_M, err_msg=entity)
+
+    assert _statics(recording, "/arm/trails/panda_hand")["CoordinateFrame:frame"] == ["world"]
+    assert _statics(recording, "/arm/trails/panda_link4")["CoordinateFrame:frame"] == ["panda_link0"]
+    assert _statics(recording, "/arm/trails/panda_hand")["LineStrips3D:colors"] == [0xFF5000FF]
+
+    # The FK is the same as without trails: the composed world pose of the hand is the trail's last point.
+    frames = read_frames(recording, "frame_index")
+    np.testing.assert_allclose(frames.world_pose("panda_hand", 17, "world")[:3, 3], hand[17], atol=TOLERANCE_M)
+
+
+def test_blueprint_holds_the_window(examples_dir: Path, run_cli) -> None:
+    reference = PinocchioRobot(examples_dir / "robots" / "panda.urdf")
+    q = random_within_limits(reference, [*PANDA_ARM, "panda_finger_joint1"], frames=ROWS, seed=27)
+    write_joint_parquet(examples_dir / "data" / "random_trails.parquet", panda_contract_raw(q))
+    result = run_cli("run", str(_with_trails(examples_dir, "trails_window", TRAILS[:2])))
+    assert result.code == 0, result.err
+    blueprint = Path(result.out.strip()).with_name("trails_window.rbl")
+    reader = RrdReader(blueprint)
+    ranges = [
+        row["VisibleTimeRanges:ranges"]
+        for chunk in reader.stream(store=reader.blueprints()[0]).to_chunks()
+        if "VisibleTimeRanges:ranges" in (batch := chunk.to_record_batch()).schema.names
+        for row in batch.to_pylist()
+    ]
+    assert len(ranges) == 2  # the scene's 3D view and the robot's
+    for views in ranges:
+        assert [r["timeline"] for r in views] == ["frame_index"]
+        assert views[0]["range"]["start"] == -50  # the widest window, relative to the time cursor
+        assert views[0]["range"]["end"] == 0
