@@ -106,3 +106,71 @@ def test_blueprint_holds_the_window(examples_dir: Path, run_cli) -> None:
         assert [r["timeline"] for r in views] == ["frame_index"]
         assert views[0]["range"]["start"] == -50  # the widest window, relative to the time cursor
         assert views[0]["range"]["end"] == 0
+
+
+def test_rows_left_out_and_a_time_index(examples_dir: Path, run_cli) -> None:
+    """`joints.nan: drop_row`: a row without a pose has no trail row, and the line goes on from the last position
+    kept. On a timestamp index the window is a duration, and the blueprint's range is in seconds."""
+    reference = PinocchioRobot(examples_dir / "robots" / "panda.urdf")
+    q = random_within_limits(reference, [*PANDA_ARM, "panda_finger_joint1"], frames=ROWS, seed=28)
+    raw = panda_contract_raw(q)
+    raw[[5, 6, 40], 2] = np.nan
+    write_joint_parquet(examples_dir / "data" / "random_trails.parquet", raw)
+
+    def edit(data: dict) -> None:
+        data["sources"]["arm_state"].update(parquet="data/random_trails.parquet", index={"timestamp": "timestamp", "unit": "s"})
+        data["robots"]["arm"]["joints"]["nan"] = "drop_row"
+        data["edges"][0]["quaternion_xyzw"] = EDGE_Q
+        data["trails"] = [{"link": "panda_hand", "window": "1.5 s"}]
+
+    result = run_cli("run", str(variant(examples_dir, "demo.yaml", "trails_dropped", edit)))
+    assert result.code == 0, result.err
+    recording = Path(result.out.strip())
+    world_from_base = pose([0.0, 0.0, 0.5], EDGE_Q)
+    hand = np.array([(world_from_base @ reference.link_poses(panda_joint_values(row))["panda_hand"])[:3, 3] for row in q])
+    rows: dict[int, object] = {}
+    for chunk in RrdReader(recording).stream().to_chunks():
+        batch = chunk.to_record_batch()
+        if str(chunk.entity_path) == "/arm/trails/panda_hand" and not chunk.is_static:
+            times = batch.column("timestamp").cast("int64").to_pylist()
+            rows.update(zip(times, batch.column("LineStrips3D:strips").to_pylist(), strict=True))
+    by_row = [rows.get(round(index / 30.0 * 1e9), "absent") for index in range(ROWS)]
+    kept = [index for index in range(ROWS) if index not in (5, 6, 40)]
+    assert all(by_row[index] in (None, "absent") for index in (5, 6, 40))
+    for before, index in zip([kept[0], *kept[:-1]], kept, strict=True):
+        np.testing.assert_allclose(np.array(by_row[index])[0], [hand[before], hand[index]], atol=TOLERANCE_M, err_msg=f"row {index}")
+    blueprint = recording.with_name("trails_dropped.rbl")
+    reader = RrdReader(blueprint)
+    ranges = [
+        row["VisibleTimeRanges:ranges"]
+        for chunk in reader.stream(store=reader.blueprints()[0]).to_chunks()
+        if "VisibleTimeRanges:ranges" in (batch := chunk.to_record_batch()).schema.names
+        for row in batch.to_pylist()
+    ]
+    assert ranges and all(views[0]["timeline"] == "timestamp" and views[0]["range"]["start"] == -1_500_000_000 for views in ranges)
+
+
+def test_validate_without_data_refuses_a_bad_trail(examples_dir: Path, run_cli) -> None:
+    config = variant(examples_dir, "demo.yaml", "trails_no_data", lambda d: d.update(trails=[{"link": "panda_hnad"}]))
+    result = run_cli("validate", "--no-data", str(config))
+    assert result.code == 1
+    assert "trails[0].link: robot 'arm' has no link 'panda_hnad' (did you mean 'panda_hand'?)" in result.err
+
+
+def test_bottom_up_positions_equal_the_composed_joint_transforms(examples_dir: Path) -> None:
+    """The fast path (positions moved up joint by joint) is taken, and equals the FK's transforms composed top down,
+    for a chain of turns, fixed joints and a slide (the finger), under a rotated calibration edge."""
+    from urdf_pipeline.compile import compile_config
+    from urdf_pipeline.execute.model_stream import cached_tree
+    from urdf_pipeline.execute.trail_stream import TrailPositions
+    from urdf_pipeline.sources import JointValueMapper
+
+    write_joint_parquet(examples_dir / "data" / "random_trails.parquet", np.zeros((4, 8)))
+    plan = compile_config(_with_trails(examples_dir, "trails_unit", TRAILS))
+    robot = plan.robots[0]
+    names = list(JointValueMapper(robot, plan.for_segment(plan.segments[0]).sources[0]).joint_names)
+    values = np.random.default_rng(29).uniform(-3.0, 3.0, (500, len(names)))
+    for trail in plan.trails:
+        positions = TrailPositions(trail, cached_tree(robot), names)
+        assert positions.fast, trail.link
+        np.testing.assert_allclose(positions.positions(values), positions.composed(values), atol=1e-12, err_msg=trail.link)
