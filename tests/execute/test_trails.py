@@ -7,6 +7,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
+import rerun as rr
 from rerun.chunk import RrdReader
 
 from urdf_pipeline.examples import write_joint_parquet
@@ -35,6 +37,14 @@ def _trail_rows(path: Path, entity: str, component: str) -> dict[int, object]:
         if component in batch.schema.names:
             rows.update(zip(batch.column("frame_index").to_pylist(), batch.column(component).to_pylist(), strict=True))
     return rows
+
+
+def _component_type(path: Path, entity: str, component: str) -> pa.DataType:
+    for chunk in RrdReader(path).stream().to_chunks():
+        batch = chunk.to_record_batch()
+        if str(chunk.entity_path) == entity and component in batch.schema.names:
+            return batch.schema.field(component).type
+    raise AssertionError(f"no {component} on {entity}")
 
 
 def _statics(path: Path, entity: str) -> dict[str, object]:
@@ -78,6 +88,11 @@ def test_trails_match_pinocchio(examples_dir: Path, run_cli) -> None:
         points = _trail_rows(recording, entity, "Points3D:positions")
         np.testing.assert_allclose(np.array([points[row] for row in range(ROWS)])[:, 0], expected, atol=TOLERANCE_M, err_msg=entity)
 
+    # The viewer refuses a component whose arrow type differs from the SDK's (a nullable float item, pyarrow's default).
+    position_type = rr.components.Position3DBatch([[0.0, 0.0, 0.0]]).as_arrow_array().type
+    strip_type = rr.components.LineStrip3DBatch([[[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]]]).as_arrow_array().type
+    assert _component_type(recording, "/arm/trails/panda_hand", "LineStrips3D:strips") == pa.list_(strip_type)
+    assert _component_type(recording, "/arm/trails/panda_link4", "Points3D:positions") == pa.list_(position_type)
     assert _statics(recording, "/arm/trails/panda_hand")["CoordinateFrame:frame"] == ["world"]
     assert _statics(recording, "/arm/trails/panda_link4")["CoordinateFrame:frame"] == ["panda_link0"]
     assert _statics(recording, "/arm/trails/panda_hand")["LineStrips3D:colors"] == [0xFF5000FF]

@@ -27,6 +27,8 @@ if TYPE_CHECKING:
     from rerun.chunk import DeriveLens, LazyChunkStream
     from rerun.urdf import UrdfJoint, UrdfTree
 
+VECTOR_TYPE = pa.list_(pa.field("item", pa.float32(), nullable=False), 3)  # rerun.components.Position3D's arrow type
+STRIP_TYPE = pa.list_(pa.field("item", VECTOR_TYPE, nullable=False))  # LineStrip3D's
 TRAIL_RADIUS = 0.004  # m: points and lines thin enough not to hide the link they follow
 
 
@@ -118,7 +120,7 @@ class TrailPositions:
                 before[kept] = np.vstack([previous[None], here[kept[:-1]]])
                 self._last = here[kept[-1]].copy()
         points = np.stack([before, here], axis=1).reshape(-1, 3)
-        strips = pa.ListArray.from_arrays(pa.array(np.arange(rows + 1, dtype=np.int32) * 2), _vectors(points))
+        strips = pa.ListArray.from_arrays(pa.array(np.arange(rows + 1, dtype=np.int32) * 2), _vectors(points), type=STRIP_TYPE)
         return pa.ListArray.from_arrays(offsets, strips, mask=mask)
 
 
@@ -158,7 +160,10 @@ class _Step:
 
 
 def _vectors(points: np.ndarray) -> pa.Array:
-    return pa.FixedSizeListArray.from_arrays(pa.array(np.ascontiguousarray(points, dtype=np.float32).reshape(-1)), 3)
+    """Positions as Rerun's Position3D/Vec3D arrays: fixed_size_list<float32 not null>[3] (the viewer refuses a
+    nullable item type, which is pyarrow's default)."""
+    flat = pa.array(np.ascontiguousarray(points, dtype=np.float32).reshape(-1))
+    return pa.FixedSizeListArray.from_arrays(flat, type=VECTOR_TYPE)
 
 
 def _chain(tree: UrdfTree, start: str, link: str) -> list:
