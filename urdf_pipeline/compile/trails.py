@@ -45,6 +45,21 @@ def source_timelines(source: SourcePlan) -> tuple[tuple[str, str], ...]:
     return ((timeline, "timestamp"),) if isinstance(timeline, str) else ()
 
 
+def spec_timelines(spec: Mapping[str, Any]) -> tuple[tuple[str, str], ...]:
+    """The same from a source's config entry, for `validate --no-data`: a file's `index:` (a name: a sequence; or
+    `{sequence|timestamp|duration: column}`), a LeRobot dataset's frame_index; () for the kinds whose timeline only
+    the compiled source knows."""
+    if "lerobot" in spec:
+        return (("frame_index", "sequence"),)
+    index = spec.get("index") if ("parquet" in spec or "csv" in spec) else None
+    if isinstance(index, str):
+        return ((index, "sequence"),)
+    if isinstance(index, Mapping) and len(index) >= 1:
+        kind = next(key for key in ("sequence", "timestamp", "duration", "") if key in index or not key)
+        return ((str(index[kind]), kind),) if kind else ()
+    return ()
+
+
 class _Graph:
     """Each frame's parent, as the trails walk it: URDF joints, static edges, temporal edges."""
 
@@ -68,16 +83,17 @@ def compile_trails(
     edges: Sequence[EdgePlan],
     temporal: Sequence[TemporalEdgePlan],
     root: str,
-    sources: Mapping[str, SourcePlan] | None,
+    timelines: Mapping[str, tuple[tuple[str, str], ...]],
 ) -> tuple[TrailPlan, ...]:
-    """Every trail of the config; problems added to ctx. `sources` None (`validate --no-data`): the window's unit is
-    not checked against the source's timelines."""
+    """Every trail of the config; problems added to ctx. `timelines`: each source's (timeline, kind), from its plan
+    (`source_timelines`) or, without data, its config entry (`spec_timelines`); a window is checked against those
+    of its robot's source when they are known."""
     graph = _Graph(robots, edges, temporal)
     by_key = {robot.key: robot for robot in robots}
     trails: list[TrailPlan] = []
     taken: dict[str, int] = {}
     for index, spec in enumerate(ctx.data.get("trails", [])):
-        trail = _trail(ctx, index, spec, by_key, graph, root, sources)
+        trail = _trail(ctx, index, spec, by_key, graph, root, timelines)
         if trail is None:
             continue
         if trail.entity in taken:
@@ -98,7 +114,7 @@ def _trail(
     robots: dict[str, RobotPlan],
     graph: _Graph,
     root: str,
-    sources: Mapping[str, SourcePlan] | None,
+    timelines: Mapping[str, tuple[tuple[str, str], ...]],
 ) -> TrailPlan | None:
     where = ctx.where("trails", index)
     robot = _robot(ctx, index, spec, robots)
@@ -116,7 +132,8 @@ def _trail(
         ctx.problems.add(f"no frame {quoted(frame)} in the frame graph{did_you_mean(frame, graph.frames)}", frame_where)
         return None
     path = _path(ctx, graph, robot, link, frame, frame_where)
-    window = _window(ctx, index, spec, robot, sources)
+    source = robot.source or ""
+    window = _window(ctx, index, spec, source, timelines.get(source, ()))
     if path is None or window is None:
         return None
     start_link, chain = path
@@ -203,12 +220,10 @@ def _through_temporal(ctx: CompileContext, edge: TemporalEdgePlan, link: str, fr
 
 
 def _window(
-    ctx: CompileContext, index: int, spec: dict[str, Any], robot: RobotPlan, sources: Mapping[str, SourcePlan] | None
+    ctx: CompileContext, index: int, spec: dict[str, Any], source: str, timelines: tuple[tuple[str, str], ...]
 ) -> tuple[float | None, WindowUnit, tuple[str, ...]] | None:
     """(span, unit, the timelines it applies to); a window that is neither a duration nor a row count, or whose unit
     fits none of the source's timelines, is a problem."""
-    known = sources is not None and robot.source is not None and robot.source in sources
-    timelines = source_timelines(sources[robot.source]) if known else ()  # type: ignore[index]
     if "window" not in spec:
         return None, "s", tuple(name for name, _ in timelines)
     where = ctx.where("trails", index, "window")
@@ -219,14 +234,12 @@ def _window(
         )
         return None
     span, unit = parsed
-    if sources is None or not timelines:
+    if not timelines:
         return span, unit, ()
     fitting = tuple(name for name, kind in timelines if (kind == "sequence") == (unit == "rows"))
     if not fitting:
         name, kind = timelines[0]
         wanted = "a number of rows (e.g. 200 rows)" if kind == "sequence" else "a duration (e.g. 2 s)"
-        ctx.problems.add(
-            f"source '{robot.source}' gives its rows on the {kind} timeline {quoted(name)}: give the window as {wanted}", where
-        )
+        ctx.problems.add(f"source '{source}' gives its rows on the {kind} timeline {quoted(name)}: give the window as {wanted}", where)
         return None
     return span, unit, fitting
