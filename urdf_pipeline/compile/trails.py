@@ -197,6 +197,14 @@ def _path(
             _through_temporal(ctx, graph.temporal[current], link, frame, where)
             return None
         edge = graph.static.get(current)
+        if edge is None and current in graph.joint_parent:  # mounted on another robot's link: its joints move it
+            other = graph.joint_parent[current][0].key
+            ctx.problems.add(
+                f"link {quoted(link)} of robot '{robot.key}' hangs from link {quoted(current)} of robot '{other}', which that "
+                f"robot's joints move: a trail follows one robot's joints; choose {quoted(current)} or a frame below it",
+                where,
+            )
+            return None
         if edge is None:
             ctx.problems.add(
                 f"frame {quoted(frame)} is not above link {quoted(link)} of robot '{robot.key}': the frames above it are "
