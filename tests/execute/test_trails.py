@@ -189,3 +189,48 @@ def test_bottom_up_positions_equal_the_composed_joint_transforms(examples_dir: P
         positions = TrailPositions(trail, cached_tree(robot), names)
         assert positions.fast, trail.link
         np.testing.assert_allclose(positions.positions(values), positions.composed(values), atol=1e-12, err_msg=trail.link)
+
+
+def test_a_line_is_continuous_across_blocks(examples_dir: Path, run_cli) -> None:
+    """5000 rows come in several blocks (the parquet reader's 1024-row chunks, joined into 2048-row blocks): each
+    row's segment starts where the previous row's ended, and matches pinocchio at the blocks' edges."""
+    reference = PinocchioRobot(examples_dir / "robots" / "panda.urdf")
+    rows = 5000
+    q = random_within_limits(reference, [*PANDA_ARM, "panda_finger_joint1"], frames=rows, seed=30)
+    write_joint_parquet(examples_dir / "data" / "random_trails.parquet", panda_contract_raw(q))
+    result = run_cli("run", str(_with_trails(examples_dir, "trails_blocks", [{"link": "panda_hand"}])))
+    assert result.code == 0, result.err
+    strips = _trail_rows(Path(result.out.strip()), "/arm/trails/panda_hand", "LineStrips3D:strips")
+    segments = np.array([strips[row] for row in range(rows)])[:, 0]  # rows x 2 points x 3
+    np.testing.assert_array_equal(segments[1:, 0], segments[:-1, 1])
+    world_from_base = pose([0.0, 0.0, 0.5], EDGE_Q)
+    for row in (0, 1023, 1024, 2047, 2048, 4095, 4096, rows - 1):
+        expected = (world_from_base @ reference.link_poses(panda_joint_values(q[row]))["panda_hand"])[:3, 3]
+        np.testing.assert_allclose(segments[row, 1], expected, atol=TOLERANCE_M, err_msg=f"row {row}")
+
+
+def _window_start(blueprint: Path) -> int:
+    reader = RrdReader(blueprint)
+    for chunk in reader.stream(store=reader.blueprints()[0]).to_chunks():
+        batch = chunk.to_record_batch()
+        if "VisibleTimeRanges:ranges" in batch.schema.names:
+            return int(batch.to_pylist()[0]["VisibleTimeRanges:ranges"][0]["range"]["start"])
+    raise AssertionError("no visible time range")
+
+
+def test_a_new_window_rewrites_the_blueprint_only(examples_dir: Path, run_cli) -> None:
+    """The window is the blueprint's: changing it leaves the recordings up to date; a new trail makes them stale."""
+    reference = PinocchioRobot(examples_dir / "robots" / "panda.urdf")
+    q = random_within_limits(reference, [*PANDA_ARM, "panda_finger_joint1"], frames=10, seed=31)
+    write_joint_parquet(examples_dir / "data" / "random_trails.parquet", panda_contract_raw(q))
+    config = _with_trails(examples_dir, "trails_stale", [{"link": "panda_hand", "window": "5 rows"}])
+    assert run_cli("run", str(config)).code == 0
+    blueprint = config.with_name("out") / "trails_stale.rbl"
+    assert _window_start(blueprint) == -5
+    config.write_text(config.read_text().replace("window: 5 rows", "window: 7 rows"))
+    again = run_cli("run", str(config))
+    assert again.code == 0 and "is up to date" in again.err
+    assert _window_start(blueprint) == -7
+    config.write_text(config.read_text().replace("link: panda_hand", "link: panda_link7"))
+    third = run_cli("run", str(config))
+    assert third.code == 0 and "is up to date" not in third.err
