@@ -1,10 +1,11 @@
 """Trails (`trails:`): a link's position in a chosen frame at every row, from the FK pass's own joint values.
 
 The FK's compute lens already holds each block's URDF values (rows x joints, corrections applied). For each trail
-it composes, over the whole block with numpy, the static calibration edges from the trail's frame down to the
-robot's root link and the URDF joints from there down to the link (the joints' transforms in float64 from
-`ClosedFormJointTransforms.arrays`, as `kinematics.py` composes them), and returns the positions beside the
-transforms; the second stage writes them to the trail's entity, in the same pass, one small row per source row:
+it moves the link's origin up, over the whole block with numpy in float64, through the URDF joints to the robot's
+root link (each joint's origin and its turn or slide in closed form) and the static calibration edges to the trail's
+frame; at construction this is checked against the FK's own joint transforms (`ClosedFormJointTransforms.arrays`,
+themselves checked against Rerun's FK) composed top down as `kinematics.py` does, which are used instead should they
+ever differ. It returns the positions beside the transforms; the second stage writes them to the trail's entity, in the same pass, one small row per source row:
 `points` a Points3D of one position, `line` a LineStrips3D of one segment from the previous row's position to this
 one's. Nothing is kept beyond a block and one position per trail, so memory does not grow with the segment or the
 window: the blueprint's visible time range (blueprint.py) shows the window's rows.
@@ -66,8 +67,8 @@ class TrailPositions:
     def positions(self, values: np.ndarray) -> np.ndarray:
         """rows x 3, float64: the link's position in the trail's frame at each row. Composed bottom up on the
         position alone (each joint's rotation applied to a vector in closed form, three 3x3 products a joint), which
-        agrees with composing the FK's joint transforms top down (checked at construction, `_agrees`) at a third
-        of the cost."""
+        agrees with composing the FK's joint transforms top down (checked at construction, `_agrees`) at about
+        half the cost."""
         if not self.fast:
             return self.composed(values)
         with np.errstate(invalid="ignore", over="ignore"):
