@@ -19,6 +19,7 @@ from .edges import assumed_identity_edges, compile_edges, frame_edges, urdf_fram
 from .frame_graph import check_frame_graph
 from .robots import compile_robot
 from .segments import check_segments_without_data, compile_sources, expand_segments
+from .trails import compile_trails, source_timelines, spec_timelines
 
 
 def compile_config(config_path: Path, episodes: str | None = None) -> Plan:
@@ -34,6 +35,8 @@ def compile_document(document: Document, episodes: str | None = None) -> Plan:
     sources: dict[str, SourcePlan] = compiled_sources.plans
     model = _compile_model(ctx, {name: plan.names for name, plan in sources.items()})
     dataset = expand_segments(ctx, compiled_sources, episodes) if len(sources) == len(ctx.data["sources"]) else None
+    timelines = {name: source_timelines(plan) for name, plan in sources.items()}
+    trails = compile_trails(ctx, model.robots, model.edges, model.temporal, model.root, timelines) if model.root is not None else ()
     ctx.problems.raise_if_any()
     assert model.root is not None and dataset is not None
     return Plan(
@@ -45,6 +48,7 @@ def compile_document(document: Document, episodes: str | None = None) -> Plan:
         dataset=dataset,
         application_id=ctx.data["output"]["application_id"],
         output_where=ctx.where("output"),
+        trails=trails,
     )
 
 
@@ -82,7 +86,10 @@ def check_config_without_data(config_path: Path) -> DatalessCheck:
         names[name] = tuple(spec["names"]) if "names" in spec else None
         if names[name] is None:
             notes.append(DataNote(_names_unknown(kind_of(spec)), ctx.where("sources", name)))
-    _compile_model(ctx, names)
+    model = _compile_model(ctx, names)
+    if model.root is not None:
+        timelines = {name: spec_timelines(spec) for name, spec in ctx.data["sources"].items()}
+        compile_trails(ctx, model.robots, model.edges, model.temporal, model.root, timelines)
     check_segments_without_data(ctx)
     return DatalessCheck(tuple(ctx.problems.errors), tuple(notes))
 

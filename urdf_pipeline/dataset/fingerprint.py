@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from .. import __version__
-from ..plan import Plan
+from ..plan import Plan, TrailPlan
 
 MESH_FILENAME = re.compile(r'filename\s*=\s*"([^"]+)"')
 
@@ -90,6 +90,11 @@ def _digest(parts: dict[str, Any]) -> str:
     return hashlib.sha256(json.dumps(parts, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
 
 
+def _drawn(trail: TrailPlan) -> TrailPlan:
+    """What of a trail its recording holds: the window is the blueprint's (its own key), not the recording's."""
+    return dataclasses.replace(trail, window=None, window_unit="s", timelines=())
+
+
 def segment_hashes(plan: Plan, with_model: bool) -> dict[str, str]:
     """The content hash of each segment's recording (single layout: with_model) or layer (split layout), by segment id."""
     common = _digest(
@@ -104,6 +109,7 @@ def segment_hashes(plan: Plan, with_model: bool) -> dict[str, str]:
             "meshes": [file_sha256(p) for p in _mesh_files(plan)] if with_model else [],
             # only when set: the hashes of recordings without the series are what they were before the option
             **({"joint_series": True} if plan.dataset.joint_series else {}),
+            **({"trails": _canonical([_drawn(t) for t in plan.trails])} if plan.trails else {}),  # the same rule for `trails:`
         }
     )
     return {

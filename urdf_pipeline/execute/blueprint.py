@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 
 from ..plan import Plan, RobotPlan
 from .joint_series import plotted_robots, series_entity
+from .trail_stream import trail_time_ranges
 from .writer import write_file_atomically
 
 if TYPE_CHECKING:
@@ -28,8 +29,9 @@ def recording_blueprint(plan: Plan) -> rrb.Blueprint:
     robot, so a jump in a plot and the pose at that time are seen together (the time cursor is shared)."""
     import rerun.blueprint as rrb
 
-    views = [rrb.Spatial3DView(origin="/", name=SCENE_VIEW)]
-    views += [rrb.Spatial3DView(origin=robot.entity_path_prefix, name=robot.key) for robot in plan.robots]
+    ranges = trail_time_ranges(plan.trails)  # `trails:`: the views show each trail's window before the time cursor
+    views = [rrb.Spatial3DView(origin="/", name=SCENE_VIEW, time_ranges=ranges)]
+    views += [rrb.Spatial3DView(origin=robot.entity_path_prefix, name=robot.key, time_ranges=ranges) for robot in plan.robots]
     spatial = rrb.Tabs(*views)
     plotted = _plotted(plan)
     if not plotted:
@@ -58,6 +60,8 @@ def blueprint_key(plan: Plan) -> str:
     plotted = _plotted(plan)
     if plotted:  # only then: the key of a blueprint without plots is as before
         parts.append({"joint_series": [r.key for r in plotted]})
+    if plan.trails:  # only then, as above
+        parts.append({"trails": [[t.timelines, t.window, t.window_unit] for t in plan.trails]})
     return hashlib.sha256(json.dumps(parts).encode()).hexdigest()
 
 

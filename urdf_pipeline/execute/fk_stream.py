@@ -12,6 +12,7 @@ from .joint_fk import ClosedFormJointTransforms
 from .joint_series import TRANSFORMS_FIELD, series_lens, with_values
 from .progress_meter import RowMeter
 from .segment_summary import ValuePreview
+from .trail_stream import TrailPositions, trail_field, trail_lenses
 from .transform_lenses import transform_lenses, transform_stream
 
 if TYPE_CHECKING:
@@ -36,12 +37,19 @@ class JointTransformBatches:
         progress: RowMeter | None = None,
         series: bool = False,
         preview: ValuePreview | None = None,
+        trails: list[TrailPositions] | None = None,
     ) -> None:
         self.mapper = mapper
         self.progress = progress
         self.preview = preview  # the manifest's preview of the values (segment_summary.py)
         self.transforms = ClosedFormJointTransforms(tree, list(mapper.joint_names))
         self.series = series  # output.joint_series: the driven values too, beside the transforms (joint_series.py)
+        self.trails = trails or []  # `trails:`: each trail's positions too, beside the transforms (trail_stream.py)
+
+    @property
+    def within(self) -> str:
+        """The field of the compute lens's struct holding the transforms; "" when it gives the transforms alone."""
+        return TRANSFORMS_FIELD if self.series or self.trails else ""
 
     def __call__(self, vectors: pa.Array) -> pa.Array:
         # Rows that name their values (MCAP JointState) are mapped by name, row by row; vectors by position.
@@ -54,9 +62,13 @@ class JointTransformBatches:
             batches = pa.ListArray.from_arrays(batches.offsets, batches.values, mask=pa.array(left_out))
         if self.progress is not None:
             self.progress.add(len(values))
-        if self.series:  # the driven joints are the matrix's first columns (mapped, then held, then mimic)
-            return with_values(batches, values[:, : len(self.mapper.columns)], left_out)
-        return batches
+        if not self.within:
+            return batches
+        # the driven joints are the matrix's first columns (mapped, then held, then mimic)
+        driven = values[:, : len(self.mapper.columns)] if self.series else None
+        return with_values(
+            batches, driven, left_out, {trail_field(i): trail.column(values, left_out) for i, trail in enumerate(self.trails)}
+        )
 
 
 def fk_stream(source: SourceStream, robots: list[tuple[RobotPlan, JointTransformBatches]], errors: CallbackErrors) -> LazyChunkStream:
@@ -70,9 +82,10 @@ def fk_stream(source: SourceStream, robots: list[tuple[RobotPlan, JointTransform
             robot.fk_entity,
             batches,
             errors,
-            TRANSFORMS_FIELD if batches.series else "",
+            batches.within,
         )
         for robot, batches in robots
     ]
     series = [series_lens(_batch_component(robot.key), robot) for robot, batches in robots if batches.series]
+    series += [lens for robot, batches in robots for lens in trail_lenses(_batch_component(robot.key), [t.trail for t in batches.trails])]
     return transform_stream(source, pairs, errors, series)

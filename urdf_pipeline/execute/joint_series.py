@@ -46,14 +46,23 @@ def plotted_robots(robots: tuple[RobotPlan, ...]) -> tuple[RobotPlan, ...]:
     return tuple(robot for robot in robots if robot.source is not None and robot.channels)
 
 
-def with_values(batches: pa.Array, values: np.ndarray, left_out: np.ndarray | None) -> pa.StructArray:
-    """One struct per row: the row's transforms and its driven values (`values`: rows x driven joints, float64). A row
-    the NaN policy leaves out has a null list, as its transforms: nothing is plotted at that time."""
-    rows, count = values.shape
-    offsets = pa.array(np.arange(rows + 1, dtype=np.int32) * count)
-    flat = pa.array(np.ascontiguousarray(values, dtype=np.float64).reshape(-1))
-    series = pa.ListArray.from_arrays(offsets, flat, mask=None if left_out is None else pa.array(left_out))
-    return pa.StructArray.from_arrays([batches, series], names=[TRANSFORMS_FIELD, VALUES_FIELD])
+def with_values(
+    batches: pa.Array, values: np.ndarray | None, left_out: np.ndarray | None, more: dict[str, pa.Array] | None = None
+) -> pa.StructArray:
+    """One struct per row: the row's transforms and its driven values (`values`: rows x driven joints, float64; None
+    without `output.joint_series`), and `more` fields (the trails' positions, trail_stream.py). A row the NaN policy leaves
+    out has a null list, as its transforms: nothing is plotted at that time."""
+    arrays, names = [batches], [TRANSFORMS_FIELD]
+    if values is not None:
+        rows, count = values.shape
+        offsets = pa.array(np.arange(rows + 1, dtype=np.int32) * count)
+        flat = pa.array(np.ascontiguousarray(values, dtype=np.float64).reshape(-1))
+        arrays.append(pa.ListArray.from_arrays(offsets, flat, mask=None if left_out is None else pa.array(left_out)))
+        names.append(VALUES_FIELD)
+    for name, array in (more or {}).items():
+        arrays.append(array)
+        names.append(name)
+    return pa.StructArray.from_arrays(arrays, names=names)
 
 
 def series_lens(component: str, robot: RobotPlan) -> DeriveLens:

@@ -27,6 +27,7 @@ from .segment_summary import TimeRanges, ValuePreview, observed, segment_summary
 from .stream_writer import drain_streams
 from .summary_record import SegmentSummary
 from .temporal_stream import TemporalEdgeValues, check_temporal_edges, temporal_edge_streams
+from .trail_stream import TrailPositions, trail_statics_stream
 from .writer import write_file_atomically
 
 if TYPE_CHECKING:
@@ -137,13 +138,16 @@ def _open(plan: RecordingPlan, parts: Parts, provenance: dict[str, str] | None, 
                 mappers.append(mapper)
                 previews.append(ValuePreview(robot.key, robot.channels, tuple(p for p in pairs if robot.key in (p.copy, p.measured))))
                 series = plan.output.joint_series and bool(robot.channels)
-                batches = JointTransformBatches(mapper, trees[robot.key], None if driven else meter, series, previews[-1])
+                trails = [TrailPositions(t, trees[robot.key], list(mapper.joint_names)) for t in plan.output.trails if t.robot == robot.key]
+                batches = JointTransformBatches(mapper, trees[robot.key], None if driven else meter, series, previews[-1], trails)
                 driven.append((robot, batches))
             if driven:  # a source used only by temporal edges is read there
                 streams.append(fk_stream(observed(module_for(source).open_stream(source), times), driven, errors))
         streams.append(calibration_stream(plan.edges))
         if plan.output.joint_series:
             streams.append(series_names_stream(plan.robots))
+        if plan.output.trails:
+            streams.append(trail_statics_stream(plan.output.trails))
     if provenance is not None:
         streams.append(provenance_stream(plan, parts, provenance))
     # Temporal edges (a mobile base, a floating pelvis): their sources are opened again, see temporal_edges.py.

@@ -36,6 +36,7 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
         remote_of,
         with_local_path,
     )
+    from .trail_plans import TrailPlan, TrailStyle, WindowUnit
 
 if not TYPE_CHECKING:  # the names above, imported when first used
     __all__, __getattr__ = lazy_surface(__name__, __file__)

@@ -9,6 +9,7 @@ from typing import Literal
 from ..errors import UserError, Where, did_you_mean, listing
 from .robot_plans import EdgePlan, RobotPlan, TemporalEdgePlan
 from .source_plans import SourcePlan
+from .trail_plans import TrailPlan
 
 Layout = Literal["single", "split"]
 
@@ -22,6 +23,7 @@ class OutputPlan:
     recording_id: str
     where: Where
     joint_series: bool = False  # output.joint_series: the driven joints' values also as time series
+    trails: tuple[TrailPlan, ...] = ()  # `trails:` (none in the split layout's model)
 
 
 @dataclass(frozen=True)
@@ -85,6 +87,7 @@ class Plan(ScenePlan):
     dataset: DatasetPlan
     application_id: str  # every recording's (output.application_id)
     output_where: Where  # the config's `output`, for errors about what a run writes
+    trails: tuple[TrailPlan, ...] = ()  # `trails:`, drawn by every segment's recording
 
     @property
     def segments(self) -> tuple[Segment, ...]:
@@ -114,7 +117,8 @@ class Plan(ScenePlan):
 
     def _recording(self, sources: tuple[SourcePlan, ...], path: Path, recording_id: str) -> RecordingPlan:
         series = self.dataset.joint_series and bool(sources)  # the split layout's model holds no values
-        output = OutputPlan(path, self.application_id, recording_id, self.output_where, series)
+        trails = self.trails if sources else ()
+        output = OutputPlan(path, self.application_id, recording_id, self.output_where, series, trails)
         return RecordingPlan(self.config_path, self.robots, self.edges, self.root_frame, self.temporal_edges, sources, output)
 
 
