@@ -1,0 +1,147 @@
+"""A ROS 2 bag that carries its own robot (/robot_description) and frames (/tf_static): a real bag written with the
+MCAP ROS 2 writer, run end to end, the recorded poses checked against pinocchio composed with the bag's transforms."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+pytest.importorskip("mcap_ros2", reason="writing ROS 2 bags needs mcap-ros2-support (a test dependency)")
+
+from ..bag_inputs import write_robot_bag  # noqa: E402
+from ..edge_helpers import RIG_URDF, matrix, write_config  # noqa: E402
+from ..reference_fk import PinocchioRobot  # noqa: E402
+from ..rrd_frames import read_frames, rotation_angle  # noqa: E402
+
+MOUNT = ("cam", "camera_optical", (0.01, -0.02, 0.05), (-0.5, 0.5, -0.5, 0.5))  # a camera's optical frame on its mount
+LIDAR_MOUNT = ("lidar", "lidar_scan", (0.0, 0.0, 0.03), (0.0, 0.0, 0.3826834, 0.9238795))
+DUPLICATE = ("adapter", "cam", (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))  # what the URDF's adapter_to_cam joint places
+
+
+def _bag(directory: Path, q: np.ndarray) -> Path:
+    path = directory / "data" / "robot.mcap"
+    old = RIG_URDF.replace('name="rig"', 'name="old_rig"')  # republished: the last description is the robot
+    write_robot_bag(path, [old, RIG_URDF], [[MOUNT, DUPLICATE], [LIDAR_MOUNT]], ["shoulder"], q[:, None])
+    return path
+
+
+def _config(edges: list[dict[str, Any]], urdf: Any = None) -> dict[str, Any]:
+    return {
+        "version": 1,
+        "sources": {"js": {"mcap": "data/robot.mcap", "topic": "/joint_states"}},
+        "robots": {
+            "rig": {"urdf": urdf or {"mcap": "data/robot.mcap"}, "joints": {"source": "js", "unit": "rad", "map": {"shoulder": "shoulder"}}}
+        },
+        "frames": {"root": "base"},
+        "edges": edges,
+        "output": {"path": "out/{segment}.rrd", "application_id": "bag_frames", "segment": "bag"},
+    }
+
+
+MOUNT_EDGES = [
+    {"parent": "cam", "child": "camera_optical", "tf_static": "data/robot.mcap"},
+    {"parent": "lidar", "child": "lidar_scan", "tf_static": "data/robot.mcap", "topic": "/tf_static"},
+]
+
+
+@pytest.fixture
+def bag_dir(tmp_path: Path) -> tuple[Path, np.ndarray]:
+    q = np.sin(np.linspace(0.0, 3.0, 40)) * 1.5
+    _bag(tmp_path, q)
+    return tmp_path, q
+
+
+def test_run_places_the_bag_robot_and_its_mounts_as_pinocchio_does(bag_dir: tuple[Path, np.ndarray], run_cli) -> None:
+    directory, q = bag_dir
+    config = write_config(directory, "bag", _config(MOUNT_EDGES))
+    result = run_cli("run", str(config))
+    assert result.code == 0, result.err
+    (directory / "rig.urdf").write_text(RIG_URDF, encoding="utf-8")
+    reference = PinocchioRobot(directory / "rig.urdf")
+    frames = read_frames(directory / "out" / "bag.rrd", "ros2_timestamp")
+    times = sorted(frames.temporal["arm"])
+    assert len(times) == len(q)
+    mounts = {child: (parent, matrix(t, quaternion)) for parent, child, t, quaternion in (MOUNT, LIDAR_MOUNT)}
+    for row in (0, 17, 39):
+        links = reference.link_poses({"shoulder": float(q[row])})
+        for child, (parent, local) in mounts.items():
+            expected = links[parent] @ local
+            got = frames.world_pose(child, times[row], "base")
+            assert np.allclose(got[:3, 3], expected[:3, 3], atol=1e-5), (child, row)
+            assert rotation_angle(got, expected) < 1e-5, (child, row)
+
+
+def test_the_origin_names_the_bag(bag_dir: tuple[Path, np.ndarray], run_cli) -> None:
+    directory, _ = bag_dir
+    result = run_cli("plan", "--format", "json", str(write_config(directory, "bag", _config(MOUNT_EDGES))))
+    assert result.code == 0, result.err
+    assert "mcap data/robot.mcap topic /robot_description" in result.out + result.err
+
+
+@pytest.mark.parametrize(
+    ("edges", "urdf", "expected"),
+    [
+        (
+            [{"parent": "cam", "child": "camera_optcal", "tf_static": "data/robot.mcap"}],
+            None,
+            "'/tf_static' of robot.mcap has no transform for child frame 'camera_optcal' (did you mean 'camera_optical'?); "
+            "its child frames: cam, camera_optical, lidar_scan",
+        ),
+        (
+            [{"parent": "base", "child": "camera_optical", "tf_static": "data/robot.mcap"}],
+            None,
+            "'/tf_static' of robot.mcap places 'camera_optical' in 'cam', not in 'base'; write parent: cam",
+        ),
+        (
+            [{"parent": "adapter", "child": "cam", "tf_static": "data/robot.mcap"}],
+            None,
+            "frame 'cam' has two parents: 'adapter' (URDF 'rig' joint 'adapter_to_cam' of robot 'rig') and 'adapter' (edges[0]",
+        ),
+        (
+            [{"parent": "cam", "child": "camera_optical", "tf_static": "data/robot.mcap", "topic": "/joint_states"}],
+            None,
+            "topic '/joint_states' of robot.mcap carries sensor_msgs/msg/JointState (cdr), not ROS 2 tf2_msgs/msg/TFMessage (cdr)",
+        ),
+        ([{"parent": "cam", "child": "x", "tf_static": "data/none.mcap"}], None, "MCAP file not found"),
+        (
+            [],
+            {"mcap": "data/robot.mcap", "topic": "/tf"},
+            "topic '/tf' not in robot.mcap; its std_msgs/msg/String topics: /robot_description",
+        ),
+        ([], {"mcap": "s3://bucket/robot.mcap"}, "MCAP file s3://bucket/robot.mcap is a URL; it is read from a local path"),
+    ],
+    ids=["unknown_child", "wrong_parent", "duplicates_urdf_joint", "not_tf", "no_file", "urdf_topic_absent", "urdf_url"],
+)
+def test_validate_refuses(bag_dir: tuple[Path, np.ndarray], run_cli, edges: list[dict[str, Any]], urdf: Any, expected: str) -> None:
+    directory, _ = bag_dir
+    config = write_config(directory, "bad", _config(edges, urdf))
+    result = run_cli("validate", str(config))
+    assert result.code == 1, result.err
+    assert expected in result.err, result.err
+    assert "bad.yaml:" in result.err  # located
+
+
+def test_a_huge_description_is_refused_from_the_summary(tmp_path: Path, run_cli) -> None:
+    """17 MiB of description: refused before Rerun's reader decodes any of it (a 2 GB one the same way)."""
+    huge = RIG_URDF.replace("</robot>", "<!--" + "x" * (17 * 2**20) + "--></robot>")
+    write_robot_bag(tmp_path / "data" / "robot.mcap", [huge], [], ["shoulder"], np.zeros((3, 1)))
+    result = run_cli("validate", str(write_config(tmp_path, "huge", _config([]))))
+    assert result.code == 1
+    assert "topic '/robot_description' of robot.mcap is held in" in result.err
+    assert "over the cap of 16,777,216" in result.err
+
+
+def test_frame_names_from_the_bag_are_shown_escaped(tmp_path: Path, run_cli) -> None:
+    hostile = "cam\x1b[31m\nerror: forged" + "y" * 5000
+    write_robot_bag(
+        tmp_path / "data" / "robot.mcap", [RIG_URDF], [[("cam", hostile, (0, 0, 0), (0, 0, 0, 1))]], ["shoulder"], np.zeros((3, 1))
+    )
+    edges = [{"parent": "cam", "child": "camera_optical", "tf_static": "data/robot.mcap"}]
+    result = run_cli("validate", str(write_config(tmp_path, "hostile", _config(edges))))
+    assert result.code == 1
+    assert "\x1b" not in result.err
+    assert "\nerror: forged" not in result.err
+    assert len(result.err) < 2000
