@@ -21,10 +21,20 @@ LIDAR_MOUNT = ("lidar", "lidar_scan", (0.0, 0.0, 0.03), (0.0, 0.0, 0.3826834, 0.
 DUPLICATE = ("adapter", "cam", (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))  # what the URDF's adapter_to_cam joint places
 
 
+def base_poses(rows: int) -> list[tuple[tuple[float, float, float], tuple[float, float, float, float]]]:
+    """A base driving a curve in odom: translation and a yaw quaternion per row."""
+    s = np.linspace(0.0, 2.0, rows)
+    return [
+        ((float(x), float(0.3 * x * x), 0.1), (0.0, 0.0, float(np.sin(y / 2)), float(np.cos(y / 2))))
+        for x, y in zip(s, 0.8 * s, strict=True)
+    ]
+
+
 def _bag(directory: Path, q: np.ndarray) -> Path:
     path = directory / "data" / "robot.mcap"
     old = RIG_URDF.replace('name="rig"', 'name="old_rig"')  # republished: the last description is the robot
-    write_robot_bag(path, [old, RIG_URDF], [[MOUNT, DUPLICATE], [LIDAR_MOUNT]], ["shoulder"], q[:, None])
+    moving = [[("odom", "base", t, quaternion), ("map", "odom", (1.0, 2.0, 0.0), (0, 0, 0, 1))] for t, quaternion in base_poses(len(q))]
+    write_robot_bag(path, [old, RIG_URDF], [[MOUNT, DUPLICATE], [LIDAR_MOUNT]], ["shoulder"], q[:, None], moving)
     return path
 
 
@@ -74,6 +84,30 @@ def test_run_places_the_bag_robot_and_its_mounts_as_pinocchio_does(bag_dir: tupl
             assert rotation_angle(got, expected) < 1e-5, (child, row)
 
 
+def test_a_moving_base_from_tf_lines_up_with_the_joint_states(bag_dir: tuple[Path, np.ndarray], run_cli) -> None:
+    """/tf's odom -> base on the header stamps of the JointStates' timeline; map -> odom in the bag is not taken."""
+    directory, q = bag_dir
+    config = _config([*MOUNT_EDGES, {"parent": "odom", "child": "base", "tf": "js"}])
+    config["frames"]["root"] = "odom"
+    result = run_cli("run", str(write_config(directory, "moving", config)))
+    assert result.code == 0, result.err
+    (directory / "rig.urdf").write_text(RIG_URDF, encoding="utf-8")
+    reference = PinocchioRobot(directory / "rig.urdf")
+    frames = read_frames(directory / "out" / "bag.rrd", "ros2_timestamp")
+    times = sorted(frames.temporal["arm"])
+    assert sorted(frames.temporal["base"]) == times  # one base pose per joint state, at the same stamps
+    assert "odom" not in frames.temporal and "odom" not in frames.static
+    poses = base_poses(len(q))
+    for row in (0, 21, 39):
+        links = reference.link_poses({"shoulder": float(q[row])})
+        base = matrix(*poses[row])
+        for child, parent, local in (("camera_optical", "cam", matrix(MOUNT[2], MOUNT[3])), ("arm", "arm", np.eye(4))):
+            expected = base @ links[parent] @ local
+            got = frames.world_pose(child, times[row], "odom")
+            assert np.allclose(got[:3, 3], expected[:3, 3], atol=1e-5), (child, row)
+            assert rotation_angle(got, expected) < 1e-5, (child, row)
+
+
 def test_the_origin_names_the_bag(bag_dir: tuple[Path, np.ndarray], run_cli) -> None:
     directory, _ = bag_dir
     result = run_cli("plan", "--format", "json", str(write_config(directory, "bag", _config(MOUNT_EDGES))))
@@ -108,12 +142,40 @@ def test_the_origin_names_the_bag(bag_dir: tuple[Path, np.ndarray], run_cli) -> 
         ([{"parent": "cam", "child": "x", "tf_static": "data/none.mcap"}], None, "MCAP file not found"),
         (
             [],
-            {"mcap": "data/robot.mcap", "topic": "/tf"},
-            "topic '/tf' not in robot.mcap; its std_msgs/msg/String topics: /robot_description",
+            {"mcap": "data/robot.mcap", "topic": "/robot_descr"},
+            "topic '/robot_descr' not in robot.mcap; its std_msgs/msg/String topics: /robot_description",
         ),
         ([], {"mcap": "s3://bucket/robot.mcap"}, "MCAP file s3://bucket/robot.mcap is a URL; it is read from a local path"),
+        (
+            [{"parent": "odom", "child": "base_lnk", "tf": "js"}],
+            None,
+            "'/tf' of robot.mcap has no transform for child frame 'base_lnk'; its child frames: base, odom",
+        ),
+        (
+            [{"parent": "map", "child": "base", "tf": "js"}],
+            None,
+            "'/tf' of robot.mcap places 'base' in 'odom', not in 'map'; write parent: odom",
+        ),
+        ([{"parent": "odom", "child": "base", "tf": "nope"}], None, "no source named 'nope'; sources are: js"),
+        (
+            [{"parent": "odom", "child": "base", "tf": "js", "topic": "/tf_moving"}],
+            None,
+            "topic '/tf_moving' not in robot.mcap; its tf2_msgs/msg/TFMessage topics: /tf, /tf_static",
+        ),
     ],
-    ids=["unknown_child", "wrong_parent", "duplicates_urdf_joint", "not_tf", "no_file", "urdf_topic_absent", "urdf_url"],
+    ids=[
+        "unknown_child",
+        "wrong_parent",
+        "duplicates_urdf_joint",
+        "not_tf",
+        "no_file",
+        "urdf_topic_absent",
+        "urdf_url",
+        "tf_unknown_child",
+        "tf_wrong_parent",
+        "tf_unknown_source",
+        "tf_topic_absent",
+    ],
 )
 def test_validate_refuses(bag_dir: tuple[Path, np.ndarray], run_cli, edges: list[dict[str, Any]], urdf: Any, expected: str) -> None:
     directory, _ = bag_dir

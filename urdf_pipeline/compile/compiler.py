@@ -132,6 +132,7 @@ def _compile_model(ctx: CompileContext, sources: SourceNames) -> _Model:
     edge_specs = expand_edge_specs(data.get("edges", []), ctx.document, problems)  # inline edges and sidecar files, in order
     used = {spec["joints"]["source"] for spec in data["robots"].values() if "joints" in spec}
     used |= {edge.spec["source"] for edge in edge_specs if "source" in edge.spec}  # temporal edges read sources too
+    used |= {edge.spec["tf"] for edge in edge_specs if "tf" in edge.spec}  # and a bag's /tf edges
     for name in data["sources"]:
         if name not in used:
             problems.add(

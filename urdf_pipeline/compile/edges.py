@@ -12,7 +12,7 @@ from ..config import EdgeSpec
 from ..errors import Hints, warn
 from ..plan import EdgePlan, FixedChain, RobotPlan, TemporalEdgePlan
 from ..urdf import NoFixedChain, UrdfModel, compose_chain, find_fixed_chain, normalized_quaternion, quaternion_from_rpy
-from .bag_edges import BagReads, compile_bag_edge
+from .bag_edges import BagReads, compile_bag_edge, compile_tf_edge
 from .context import CompileContext, SourceNames
 from .frame_graph import FrameEdge, check_assume_identity
 from .temporal_edges import TemporalEntities, compile_temporal_edge
@@ -53,8 +53,12 @@ def compile_edges(
             else:
                 edges.append(from_bag)
             continue
-        if "source" in spec:
-            compiled = compile_temporal_edge(ctx, edge, sources, entities)
+        if "source" in spec or "tf" in spec:
+            compiled = (
+                compile_temporal_edge(ctx, edge, sources, entities)
+                if "source" in spec
+                else compile_tf_edge(ctx, edge, sources, entities, bags)
+            )
             if compiled is not None:
                 temporal.append(compiled)
             else:

@@ -14,10 +14,15 @@ import json
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+import pyarrow as pa
 
 from ..errors import UserError, Where, listing, shown
 from .mcap_probe import in_child, topic_entity, topic_messages
+
+if TYPE_CHECKING:
+    from rerun.chunk import LazyChunkStream
 
 STRING = "std_msgs/msg/String"
 TF_MESSAGE = "tf2_msgs/msg/TFMessage"
@@ -25,6 +30,8 @@ DESCRIPTION_CAP = 16 * 2**20  # bytes of a robot description; real URDFs are at 
 TF_STATIC_CAP = 64 * 2**20  # bytes of the chunks holding a /tf_static topic
 MAX_FRAMES = 10_000  # distinct child frames a /tf_static topic may hold
 MAX_FRAME_NAME = 512  # characters of one frame name
+MAX_TF_ROWS = 100_000  # transforms of a /tf topic read at compile for its frames
+TF_COMPONENT = "tf2_msgs.msg.TFMessage:message"
 CHILD_MODULE = "urdf_pipeline.sources.bag_contents"  # run as the child that decodes the topic
 
 
@@ -67,7 +74,22 @@ def static_transforms(path: Path, topic: str, where: Where) -> dict[str, BagTran
     }
 
 
-def _checked_channels(path: Path, topic: str, schema: str, cap: int, where: Where) -> None:
+def tf_pairs(path: Path, topic: str, where: Where) -> tuple[dict[str, str], bool]:
+    """Each child frame of a /tf topic's first MAX_TF_ROWS transforms, with its parent, and whether that was the
+    whole topic: a compile-time look, bounded whatever the bag's length."""
+    _checked_channels(path, topic, TF_MESSAGE, None, where)
+    result = in_child(path, topic, "pairs", where, module=CHILD_MODULE)
+    return dict(result.get("pairs", {})), bool(result.get("complete"))
+
+
+def tf_messages(path: Path, topic: str, where: Where, shown_as: str) -> LazyChunkStream:
+    """The topic's TFMessages, one struct per row, after the whole topic decoded cleanly in a child (as a joint-state
+    topic is before `run` reads it)."""
+    in_child(path, topic, "all", where, shown_as)
+    return topic_messages(path, topic, TF_COMPONENT)
+
+
+def _checked_channels(path: Path, topic: str, schema: str, cap: int | None, where: Where) -> None:
     """From the summary: the topic exists, carries `schema` in CDR, holds messages, and the chunks that hold it are
     within `cap` bytes uncompressed (so no message beyond the cap is ever decoded)."""
     from rerun.chunk import McapReader
@@ -93,8 +115,8 @@ def _checked_channels(path: Path, topic: str, schema: str, cap: int, where: Wher
             )
     if all(c.message_count is not None for c in channels) and sum(c.message_count or 0 for c in channels) == 0:
         raise UserError(f"topic '{shown(topic)}' of {path.name} has no messages", where)
-    size = _topic_bytes(path, {c.id for c in channels})
-    if size > cap:
+    size = _topic_bytes(path, {c.id for c in channels}) if cap is not None else 0
+    if cap is not None and size > cap:
         raise UserError(
             f"topic '{shown(topic)}' of {path.name} is held in {size:,} bytes of chunks, over the cap of {cap:,} for it; "
             "is it the right topic?",
@@ -123,6 +145,8 @@ def child_read(path: Path, topic: str, mode: str) -> dict[str, Any]:
     """`text`: the last String's data (its size only, beyond the cap); `tf`: the last transform per child frame."""
     if mode == "text":
         return _last_text(path, topic)
+    if mode == "pairs":
+        return _pairs(path, topic)
     return _transforms(path, topic)
 
 
@@ -145,9 +169,9 @@ def _transforms(path: Path, topic: str) -> dict[str, Any]:
     import pyarrow.compute as pc
 
     found: dict[str, tuple[str, list[float], list[float]]] = {}
-    for chunk in topic_messages(path, topic, "tf2_msgs.msg.TFMessage:message"):
+    for chunk in topic_messages(path, topic, TF_COMPONENT):
         batch = chunk.to_record_batch()
-        messages = batch.column(batch.schema.get_field_index("tf2_msgs.msg.TFMessage:message")).flatten()
+        messages = batch.column(batch.schema.get_field_index(TF_COMPONENT)).flatten()
         transforms = pc.list_flatten(pc.struct_field(messages, "transforms"))
         if not len(transforms):
             continue
@@ -161,6 +185,24 @@ def _transforms(path: Path, topic: str) -> dict[str, Any]:
             if len(found) > MAX_FRAMES:
                 return {"too_many": True}
     return {"transforms": found}
+
+
+def _pairs(path: Path, topic: str) -> dict[str, Any]:
+    """child -> parent over the first MAX_TF_ROWS transforms (names cut to MAX_FRAME_NAME), and whether that was all."""
+    import pyarrow.compute as pc
+
+    pairs: dict[str, str] = {}
+    rows = 0
+    for chunk in topic_messages(path, topic, TF_COMPONENT):
+        batch = chunk.to_record_batch()
+        transforms = pc.list_flatten(pc.struct_field(batch.column(batch.schema.get_field_index(TF_COMPONENT)).flatten(), "transforms"))
+        rows += len(transforms)
+        table = pa.table({"child": pc.struct_field(transforms, "child_frame_id"), "parent": pc.struct_field(transforms, [0, 1])})
+        for pair in table.group_by(["child", "parent"]).aggregate([]).to_pylist():  # distinct pairs only
+            pairs.setdefault(pair["child"][:MAX_FRAME_NAME], pair["parent"][:MAX_FRAME_NAME])
+        if rows >= MAX_TF_ROWS or len(pairs) > MAX_FRAMES:
+            return {"pairs": pairs, "complete": False}
+    return {"pairs": pairs, "complete": True}
 
 
 if __name__ == "__main__":
