@@ -207,3 +207,27 @@ def test_frame_names_from_the_bag_are_shown_escaped(tmp_path: Path, run_cli) -> 
     assert "\x1b" not in result.err
     assert "\nerror: forged" not in result.err
     assert len(result.err) < 2000
+
+
+def test_live_refuses_a_tf_edge(bag_dir: tuple[Path, np.ndarray]) -> None:
+    from urdf_pipeline.compile.live_plan import check_live_config
+
+    directory, _ = bag_dir
+    config = _config([*MOUNT_EDGES, {"parent": "odom", "child": "base", "tf": "js"}])
+    config["frames"]["root"] = "odom"
+    check = check_live_config(write_config(directory, "live", config))
+    assert [e.message for e in check.errors] == [
+        "edge odom -> base reads /tf of source 'js''s bag, which run reads and a live view does not; drop the edge for live use"
+    ]
+
+
+def test_a_child_only_the_data_can_check_is_refused_after_the_pass(bag_dir: tuple[Path, np.ndarray], run_cli) -> None:
+    """A globbed bag's frames are checked in the data pass: a child never on /tf is zero rows, and nothing is written."""
+    directory, _ = bag_dir
+    config = _config([*MOUNT_EDGES, {"parent": "arm", "child": "wheel", "tf": "js"}])
+    config["sources"]["js"]["mcap"] = "data/robot*.mcap"
+    config["output"]["segment"] = "{stem}"
+    result = run_cli("run", str(write_config(directory, "glob", config)))
+    assert result.code == 1
+    assert "temporal edge arm -> wheel (edges[2], source 'js', /tf of its bag): source 'js' yielded zero rows" in result.err
+    assert not (directory / "out" / "robot.rrd").exists()
