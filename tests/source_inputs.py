@@ -33,4 +33,6 @@ def write_source_inputs(data: Path, raw: np.ndarray) -> None:
     write_wide_inputs(data, raw)
     camera = ("panda_hand", "camera_link", (0.05, 0.0, 0.04), (0.0, 0.0, 0.0, 1.0))
     hand = ("panda_link8", "panda_hand", (0.0, 0.0, 0.0), (0.0, 0.0, -0.3826834, 0.9238795))  # what the URDF's joint places
-    write_robot_bag(data / "robot_bag.mcap", ["<robot name='x'><link name='a'/></robot>"], [[camera, hand]])
+    base = [[("world", "panda_link0", (0.01 * row, 0.0, 0.5), (0.0, 0.0, 0.0, 1.0))] for row in range(20)]
+    bag_values = np.zeros((20, 1))
+    write_robot_bag(data / "robot_bag.mcap", ["<robot name='x'><link name='a'/></robot>"], [[camera, hand]], ["j"], bag_values, base)
