@@ -76,9 +76,11 @@ def write_robot_bag(
     joint_names: Sequence[str] = (),
     joint_values: np.ndarray | None = None,
     moving: Sequence[Sequence[Transform]] = (),
+    tf_stamps_ns: Sequence[int] | None = None,
 ) -> list[int]:
     """`descriptions` in order on /robot_description (the last is the robot), each list of `static` one /tf_static
-    message, `joint_values` [N, K] one JointState per row, `moving` one /tf message per row. Returns the stamps."""
+    message, `joint_values` [N, K] one JointState per row, `moving` one /tf message per row (stamped as the row,
+    or `tf_stamps_ns`). Returns the stamps."""
     rows = len(joint_values) if joint_values is not None else len(moving)
     stamps = [T0_NS + i * STEP_NS for i in range(rows)]
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -103,6 +105,7 @@ def write_robot_bag(
                 }
                 writer.write_message("/joint_states", joint_state, message, log_time=log_time, publish_time=log_time)
             if row < len(moving):
-                writer.write_message("/tf", tf, _tf_message(stamp, moving[row]), log_time=log_time, publish_time=log_time)
+                tf_stamp = tf_stamps_ns[row] if tf_stamps_ns is not None else stamp
+                writer.write_message("/tf", tf, _tf_message(tf_stamp, moving[row]), log_time=log_time, publish_time=log_time)
         writer.finish()
     return stamps

@@ -231,3 +231,36 @@ def test_a_child_only_the_data_can_check_is_refused_after_the_pass(bag_dir: tupl
     assert result.code == 1
     assert "temporal edge arm -> wheel (edges[2], source 'js', /tf of its bag): source 'js' yielded zero rows" in result.err
     assert not (directory / "out" / "robot.rrd").exists()
+
+
+def test_tf_follows_the_sources_log_time_timeline(bag_dir: tuple[Path, np.ndarray], run_cli) -> None:
+    directory, q = bag_dir
+    config = _config([*MOUNT_EDGES, {"parent": "odom", "child": "base", "tf": "js"}])
+    config["frames"]["root"] = "odom"
+    config["sources"]["js"]["timeline"] = "log_time"
+    result = run_cli("run", str(write_config(directory, "log_time", config)))
+    assert result.code == 0, result.err
+    frames = read_frames(directory / "out" / "bag.rrd", "message_log_time")
+    assert sorted(frames.temporal["base"]) == sorted(frames.temporal["arm"])
+    assert len(frames.temporal["base"]) == len(q)
+
+
+def test_zero_header_stamps_on_tf_are_refused(tmp_path: Path, run_cli) -> None:
+    moving = [[("odom", "base", (0.0, 0.0, 0.0), (0, 0, 0, 1))]] * 3
+    path = tmp_path / "data" / "robot.mcap"
+    write_robot_bag(path, [RIG_URDF], [[MOUNT]], ["shoulder"], np.zeros((3, 1)), moving, tf_stamps_ns=[0, 0, 0])
+    config = _config([{"parent": "odom", "child": "base", "tf": "js"}])
+    config["frames"]["root"] = "odom"
+    result = run_cli("run", str(write_config(tmp_path, "zero", config)))
+    assert result.code == 1
+    assert "transforms of base on /tf of source 'js''s bag have a zero header stamp (3 of 3 in one batch)" in result.err
+
+
+def test_plan_says_where_a_tf_edge_comes_from(bag_dir: tuple[Path, np.ndarray], run_cli) -> None:
+    directory, _ = bag_dir
+    config = _config([{"parent": "odom", "child": "base", "tf": "js"}])
+    config["frames"]["root"] = "odom"
+    result = run_cli("plan", str(write_config(directory, "plan", config)))
+    assert result.code == 0, result.err
+    assert "temporal edge odom -> base on /calibration/temporal/base (edges[0], line" in result.out
+    assert "its transforms on /tf of source 'js''s bag, on the source's timeline" in result.out

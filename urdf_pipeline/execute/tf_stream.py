@@ -67,6 +67,13 @@ def _edge_chunks(source: McapSourcePlan, values: list[TfEdgeValues], chunk: Chun
         rows = int(picked.sum())
         if not rows:
             continue
+        if source.timeline == HEADER_TIMELINE and not times[picked].all():
+            raise UserError(
+                f"transforms of {edge.child} on {edge.tf_topic} of source '{source.name}''s bag have a zero header stamp "
+                f"({int((times[picked] == 0).sum())} of {rows} in one batch), so they would all sit at time 0; set "
+                f"sources.{source.name}.timeline: log_time to use the time the messages were recorded",
+                edge.where,
+            )
         t, q = translation[picked], quaternion[picked]
         finite = np.isfinite(t).all(axis=1) & np.isfinite(q).all(axis=1)
         norms = np.linalg.norm(np.where(np.isfinite(q), q, 0.0), axis=1)
