@@ -264,3 +264,15 @@ def test_plan_says_where_a_tf_edge_comes_from(bag_dir: tuple[Path, np.ndarray], 
     assert result.code == 0, result.err
     assert "temporal edge odom -> base on /calibration/temporal/base (edges[0], line" in result.out
     assert "its transforms on /tf of source 'js''s bag, on the source's timeline" in result.out
+
+
+def test_validate_no_data_leaves_tf_frames_to_the_data(bag_dir: tuple[Path, np.ndarray], run_cli) -> None:
+    """--no-data opens no source file: a /tf child the bag lacks is found by validate, not by validate --no-data."""
+    directory, _ = bag_dir
+    config = _config([{"parent": "arm", "child": "wheel", "tf": "js"}])
+    config["sources"]["js"]["names"] = ["shoulder"]
+    path = write_config(directory, "nodata", config)
+    assert run_cli("validate", "--no-data", str(path)).code == 0
+    refused = run_cli("validate", str(path))
+    assert refused.code == 1
+    assert "has no transform for child frame 'wheel'" in refused.err

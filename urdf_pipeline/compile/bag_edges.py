@@ -127,7 +127,7 @@ def compile_tf_edge(
 
 def _frames_match(ctx: CompileContext, edge: EdgeSpec, file: str, topic: str, reads: BagReads) -> bool:
     """The bag's first transforms give `child` with `parent`; True when they do, or when only the data can tell."""
-    if GLOB.search(file) or "{" in file or "://" in file:
+    if GLOB.search(file) or "{" in file or "://" in file or not ctx.opens_sources:
         return True
     path = Path(os.path.abspath(ctx.config_dir / file))
     key = (path, topic)

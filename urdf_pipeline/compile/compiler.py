@@ -5,7 +5,7 @@ for a repository that keeps its configs in git and its datasets elsewhere."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from ..config import Document, expand_edge_specs, load_document, require_schema_valid
@@ -74,7 +74,7 @@ def check_config_without_data(config_path: Path) -> DatalessCheck:
         require_schema_valid(document)
     except UserError as exc:
         return DatalessCheck(tuple(exc.errors if isinstance(exc, UserErrors) else [exc]), ())
-    ctx = CompileContext.for_document(document)
+    ctx = replace(CompileContext.for_document(document), opens_sources=False)
     names: dict[str, tuple[str, ...] | None] = {}
     notes: list[DataNote] = []
     for name, spec in ctx.data["sources"].items():
