@@ -276,3 +276,12 @@ def test_validate_no_data_leaves_tf_frames_to_the_data(bag_dir: tuple[Path, np.n
     refused = run_cli("validate", str(path))
     assert refused.code == 1
     assert "has no transform for child frame 'wheel'" in refused.err
+
+
+def test_diff_says_a_tf_edge_was_added(bag_dir: tuple[Path, np.ndarray], run_cli) -> None:
+    directory, _ = bag_dir
+    old = write_config(directory, "old", _config(MOUNT_EDGES))
+    config = _config([*MOUNT_EDGES, {"parent": "odom", "child": "base", "tf": "js"}])
+    config["frames"]["root"] = "odom"
+    result = run_cli("diff", str(old), str(write_config(directory, "new", config)))
+    assert "temporal edge odom -> base: added (source js, /tf of its bag)" in result.out, result.out + result.err
