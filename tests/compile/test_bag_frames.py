@@ -285,3 +285,19 @@ def test_diff_says_a_tf_edge_was_added(bag_dir: tuple[Path, np.ndarray], run_cli
     config["frames"]["root"] = "odom"
     result = run_cli("diff", str(old), str(write_config(directory, "new", config)))
     assert "temporal edge odom -> base: added (source js, /tf of its bag)" in result.out, result.out + result.err
+
+
+def test_a_frame_the_bag_reparents_is_refused(tmp_path: Path, run_cli) -> None:
+    """odom -> base, then map -> base: refused by validate; in a globbed bag (frames checked in the data pass), by run."""
+    moving = [[("odom", "base", (0.0, 0.0, 0.0), (0, 0, 0, 1))]] * 3 + [[("map", "base", (0.0, 0.0, 0.0), (0, 0, 0, 1))]]
+    write_robot_bag(tmp_path / "data" / "robot.mcap", [RIG_URDF], [[MOUNT]], ["shoulder"], np.zeros((4, 1)), moving)
+    config = _config([{"parent": "odom", "child": "base", "tf": "js"}])
+    config["frames"]["root"] = "odom"
+    refused = run_cli("validate", str(write_config(tmp_path, "reparent", config)))
+    assert "'/tf' of robot.mcap places 'base' in 'map', not in 'odom'; a frame has one parent; fix the bag's publishers" in refused.err
+    config["sources"]["js"]["mcap"] = "data/robot*.mcap"
+    config["output"]["segment"] = "{stem}"
+    result = run_cli("run", str(write_config(tmp_path, "reparent", config)))
+    assert result.code == 1
+    assert "/tf of source 'js''s bag places 'base' in 'map' in 1 transforms of one batch, not in 'odom'" in result.err
+    assert not (tmp_path / "out" / "robot.rrd").exists()

@@ -26,7 +26,7 @@ class BagReads:
 
     def __init__(self) -> None:
         self.read: dict[tuple[Path, str], dict[str, BagTransform] | UserError] = {}
-        self.pairs: dict[tuple[Path, str], tuple[dict[str, str], bool] | UserError] = {}
+        self.pairs: dict[tuple[Path, str], tuple[dict[str, list[str]], bool] | UserError] = {}
 
 
 def compile_bag_edge(ctx: CompileContext, edge: EdgeSpec, reads: BagReads) -> EdgePlan | None:
@@ -154,10 +154,11 @@ def _frames_match(ctx: CompileContext, edge: EdgeSpec, file: str, topic: str, re
             edge.where("child"),
         )
         return False
-    if pairs[child] != parent:
+    others = [other for other in pairs[child] if other != parent]
+    if others:
+        fix = f"write parent: {shown(others[0])}" if len(pairs[child]) == 1 else "a frame has one parent; fix the bag's publishers"
         ctx.problems.add(
-            f"{quoted(topic)} of {path.name} places {quoted(child)} in {quoted(pairs[child])}, not in {quoted(parent)}; "
-            f"write parent: {shown(pairs[child])}",
+            f"{quoted(topic)} of {path.name} places {quoted(child)} in {quoted(others[0])}, not in {quoted(parent)}; {fix}",
             edge.where("parent"),
         )
         return False

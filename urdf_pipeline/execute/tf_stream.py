@@ -12,7 +12,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 
-from ..errors import UserError
+from ..errors import UserError, quoted
 from ..plan import McapSourcePlan, RecordingPlan, TemporalEdgePlan
 from ..sources import tf_messages
 from .temporal_stream import TemporalEdgeStats
@@ -63,7 +63,15 @@ def _edge_chunks(source: McapSourcePlan, values: list[TfEdgeValues], chunk: Chun
     result = []
     for edge_values in values:
         edge = edge_values.edge
-        picked = pc.and_(pc.equal(children, edge.child), pc.equal(parents, edge.parent)).to_numpy(zero_copy_only=False)
+        named = pc.equal(children, edge.child).to_numpy(zero_copy_only=False)
+        picked = named & pc.equal(parents, edge.parent).to_numpy(zero_copy_only=False)
+        if (named & ~picked).any():  # tf2 keeps one parent per frame: a bag that moves it is refused, not half-drawn
+            other = parents.filter(pa.array(named & ~picked))[0].as_py()
+            raise UserError(
+                f"{edge.tf_topic} of source '{source.name}''s bag places {quoted(edge.child)} in {quoted(other)} in "
+                f"{int((named & ~picked).sum())} transforms of one batch, not in {quoted(edge.parent)}; a frame has one parent",
+                edge.where,
+            )
         rows = int(picked.sum())
         if not rows:
             continue

@@ -74,8 +74,8 @@ def static_transforms(path: Path, topic: str, where: Where) -> dict[str, BagTran
     }
 
 
-def tf_pairs(path: Path, topic: str, where: Where) -> tuple[dict[str, str], bool]:
-    """Each child frame of a /tf topic's first MAX_TF_ROWS transforms, with its parent, and whether that was the
+def tf_pairs(path: Path, topic: str, where: Where) -> tuple[dict[str, list[str]], bool]:
+    """Each child frame of a /tf topic's first MAX_TF_ROWS transforms, with its parents, and whether that was the
     whole topic: a compile-time look, bounded whatever the bag's length."""
     _checked_channels(path, topic, TF_MESSAGE, None, where)
     result = in_child(path, topic, "pairs", where, module=CHILD_MODULE)
@@ -188,10 +188,10 @@ def _transforms(path: Path, topic: str) -> dict[str, Any]:
 
 
 def _pairs(path: Path, topic: str) -> dict[str, Any]:
-    """child -> parent over the first MAX_TF_ROWS transforms (names cut to MAX_FRAME_NAME), and whether that was all."""
+    """child -> its parents over the first MAX_TF_ROWS transforms (names cut to MAX_FRAME_NAME), and whether that was all."""
     import pyarrow.compute as pc
 
-    pairs: dict[str, str] = {}
+    pairs: dict[str, list[str]] = {}
     rows = 0
     for chunk in topic_messages(path, topic, TF_COMPONENT):
         batch = chunk.to_record_batch()
@@ -199,7 +199,9 @@ def _pairs(path: Path, topic: str) -> dict[str, Any]:
         rows += len(transforms)
         table = pa.table({"child": pc.struct_field(transforms, "child_frame_id"), "parent": pc.struct_field(transforms, [0, 1])})
         for pair in table.group_by(["child", "parent"]).aggregate([]).to_pylist():  # distinct pairs only
-            pairs.setdefault(pair["child"][:MAX_FRAME_NAME], pair["parent"][:MAX_FRAME_NAME])
+            parents = pairs.setdefault(pair["child"][:MAX_FRAME_NAME], [])
+            if pair["parent"][:MAX_FRAME_NAME] not in parents:
+                parents.append(pair["parent"][:MAX_FRAME_NAME])
         if rows >= MAX_TF_ROWS or len(pairs) > MAX_FRAMES:
             return {"pairs": pairs, "complete": False}
     return {"pairs": pairs, "complete": True}
