@@ -85,7 +85,7 @@ def _run_segments(args: argparse.Namespace, plan: Plan, many: bool) -> DatasetRu
 def _say_results(run: DatasetRun, many: bool, joint_series: bool) -> None:
     """The blueprint, the summary (a dataset's table, or one recording's lines), the usable outputs' paths on stdout,
     and the traceback of every bug on stderr."""
-    from ..dataset import summary_table, totals_line
+    from ..dataset import differences_lines, summary_table, totals_line
     from ..progress import LOGGER, say
 
     if run.blueprint is not None:
@@ -96,6 +96,8 @@ def _say_results(run: DatasetRun, many: bool, joint_series: bool) -> None:
         say(totals_line(run.results, run.seconds) + f"; manifest {run.manifest}")
     else:
         _print_single(run.results[0])
+    for line in differences_lines(run.results):
+        say(line)
     for output in run.locations:
         print(neutral_line(output))
     for result in run.bugs:

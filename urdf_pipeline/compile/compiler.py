@@ -13,6 +13,7 @@ from ..errors import UserError, UserErrors, Where, warn
 from ..plan import EdgePlan, Plan, RobotPlan, SourcePlan, TemporalEdgePlan
 from ..sources import kind_of
 from ..urdf import UrdfModel
+from .comparisons import with_comparisons
 from .context import CompileContext, SourceNames
 from .edges import assumed_identity_edges, compile_edges, frame_edges, urdf_frames
 from .frame_graph import check_frame_graph
@@ -126,6 +127,7 @@ def _compile_model(ctx: CompileContext, sources: SourceNames) -> _Model:
         if compiled is not None:
             robots.append(compiled.plan)
             models[key] = compiled.model
+    robots = with_comparisons(ctx, robots, models)
     if data["output"].get("joint_series") and len(robots) == len(data["robots"]) and not any(r.channels for r in robots):
         warn("no robot of this config is driven by a source: joint_series plots nothing", ctx.where("output", "joint_series"))
 

@@ -26,6 +26,7 @@ from ..urdf import (
     rewrite_mesh_uris,
     text_for_rerun,
 )
+from .comparisons import appearance_of
 from .context import CompileContext, SourceNames
 from .joint_mapping import JointMapping, compile_joints
 
@@ -80,7 +81,7 @@ def load_urdf(ctx: CompileContext, key: str, spec: dict[str, Any], package_paths
     else:
         loaded = load_urdf_source(spec["urdf"], package_paths, ctx.config_dir, ctx.confinement, where, ctx.xacro_budget)
     try:
-        is_file = isinstance(spec["urdf"], str) or not ({"xacro", "mcap"} & set(spec["urdf"]))  # an expansion has no lines
+        is_file = isinstance(spec["urdf"], str) or "robot_descriptions" in spec["urdf"]  # an expanded xacro or MJCF has no lines
         model, root = parse_urdf(loaded.text, str(loaded.path), source_lines=is_file)
         text, notes = text_for_rerun(loaded.text, str(loaded.path), root)
         if text is not loaded.text:  # repaired: the model is read from what Rerun will draw
@@ -161,6 +162,7 @@ def compile_robot(ctx: CompileContext, key: str, spec: dict[str, Any], sources: 
         on_violation=joints.on_violation,
         where=ctx.where("robots", key),
         nan_policy=(spec.get("joints") or {}).get("nan", "error"),
+        appearance=appearance_of(spec),
     )
     return CompiledRobot(plan, model)
 

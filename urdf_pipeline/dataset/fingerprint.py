@@ -127,5 +127,11 @@ def model_hash(plan: Plan) -> str:
             "application_id": plan.application_id,
             "robots": [[r.key, r.urdf_text, r.entity_path_prefix, r.frame_prefix, r.keep_collisions] for r in plan.robots],
             "meshes": [file_sha256(p) for p in _mesh_files(plan)],
+            # only when set: the models of robots drawn in their URDF's colours keep the hashes they had
+            **(
+                {"appearance": {r.key: list(r.appearance) for r in plan.robots if r.appearance}}
+                if any(r.appearance for r in plan.robots)
+                else {}
+            ),
         }
     )

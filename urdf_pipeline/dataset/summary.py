@@ -40,6 +40,26 @@ def summary_table(results: tuple[SegmentResult, ...]) -> str:
     return "\n".join(lines)
 
 
+def differences_lines(results: tuple[SegmentResult, ...]) -> list[str]:
+    """`compare:`: one line per segment and compared pair, naming the joints beyond the threshold (largest difference
+    in the threshold's unit, and the rows beyond), or saying the copy kept within it."""
+    lines = []
+    for result in results:
+        for d in result.summary.differences if result.summary is not None else ():
+            head = f"{shown(result.label)}: '{d.copy}' against '{d.measured}' over {d.rows:,} rows"
+            unmatched = f"; {d.unmatched:,} rows of one robot had no row of the other" if d.unmatched else ""
+            if not d.rows_beyond:
+                lines.append(neutral_line(f"{head}: within {d.threshold}{unmatched}"))
+                continue
+            joints = ", ".join(
+                f"{shown(joint)} (max {d.largest_text(i)}, {rows:,} rows)"
+                for i, (joint, rows) in enumerate(zip(d.joints, d.beyond, strict=True))
+                if rows
+            )
+            lines.append(neutral_line(f"{head}: {d.rows_beyond:,} rows beyond {d.threshold}: {joints}{unmatched}"))
+    return lines
+
+
 def totals_line(results: tuple[SegmentResult, ...], seconds: float) -> str:
     counts = Counter(r.status for r in results)
     frames = sum(r.frames for r in results)

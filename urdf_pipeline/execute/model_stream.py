@@ -11,7 +11,9 @@ from typing import TYPE_CHECKING
 from ..plan import RobotPlan
 
 if TYPE_CHECKING:
-    from rerun.chunk import LazyChunkStream
+    from collections.abc import Callable
+
+    from rerun.chunk import Chunk, LazyChunkStream
     from rerun.urdf import UrdfTree
 
 
@@ -53,10 +55,45 @@ def _tree_directory() -> Path:
 def robot_model_stream(robot: RobotPlan, tree: UrdfTree) -> LazyChunkStream:
     # include_joint_transforms=True: with False, Rerun logs no fixed-joint edges at all.
     stream = tree.stream(include_joint_transforms=True)
-    if robot.keep_collisions:
-        return stream
-    _assert_filter_matches(robot, tree)
-    return stream.drop(content=robot.collision_filter)
+    if not robot.keep_collisions:
+        _assert_filter_matches(robot, tree)
+        stream = stream.drop(content=robot.collision_filter)
+    if robot.appearance is not None:
+        stream = stream.flat_map(recolor(robot.appearance))
+    return stream
+
+
+# The colour component of each geometry archetype UrdfTree emits, by a component its chunks always carry.
+_COLOR_OF = {
+    "Asset3D:blob": ("Asset3D", "albedo_factor"),
+    "Mesh3D:vertex_positions": ("Mesh3D", "albedo_factor"),
+    "Boxes3D:half_sizes": ("Boxes3D", "colors"),
+    "Cylinders3D:lengths": ("Cylinders3D", "colors"),
+    "Ellipsoids3D:half_sizes": ("Ellipsoids3D", "colors"),
+    "Capsules3D:lengths": ("Capsules3D", "colors"),
+}
+
+
+def recolor(rgba: tuple[float, float, float, float]) -> Callable[[Chunk], list[Chunk]]:
+    """`appearance:`: each static geometry chunk followed by one static chunk of its colour (RGBA, alpha < 1 drawn
+    translucent) on the same entity. Static data keeps the latest row per component, so the colour replaces the URDF's
+    material; a chunk per visual (links, not rows), never a row loop, and the geometry itself is passed through."""
+    import rerun as rr
+    from rerun.chunk import Chunk
+
+    packed = [round(channel * 255) for channel in rgba]
+
+    def with_color(chunk: Chunk) -> list[Chunk]:
+        if not chunk.is_static:
+            return [chunk]
+        names = set(chunk.to_record_batch().schema.names)
+        for component, (archetype, field) in _COLOR_OF.items():
+            if component in names:
+                columns = getattr(rr, archetype).columns(**{field: [packed]})
+                return [chunk, Chunk.from_columns(chunk.entity_path, [], columns)]
+        return [chunk]
+
+    return with_color
 
 
 def _assert_filter_matches(robot: RobotPlan, tree: UrdfTree) -> None:

@@ -14,6 +14,7 @@ from ..plan import RecordingPlan, RobotPlan
 from ..progress import note as log_note
 from ..progress import say
 from ..sources import CallbackErrors, JointValueMapper, module_for, with_sorting_retry
+from .differences import PairDifferences, pair_differences
 from .edges_stream import calibration_stream
 from .fk_stream import JointTransformBatches, fk_stream
 from .joint_series import series_names_stream
@@ -84,6 +85,7 @@ class _Pass:
     meters: list[RowMeter]  # one per source read, cleared when the pass ends (a terminal's redrawn line)
     times: TimeRanges  # the summary's time ranges and value previews, gathered as the values pass
     previews: list[ValuePreview]
+    pairs: tuple[PairDifferences, ...] = ()  # compare: each copy against its measured robot
 
     def drain(self, sink: Callable[[LazyChunkStream], None]) -> None:
         """The streams into `sink`; the meters are finished however the pass ends (written, failed, interrupted)."""
@@ -107,7 +109,9 @@ class _Pass:
         return {m.robot.key: m.stats.rows for m in self.mappers}
 
     def summary(self, plan: RecordingPlan, parts: Parts, notes: tuple[str, ...]) -> SegmentSummary | None:
-        return None if parts == "model" else segment_summary(tuple(r.key for r in plan.robots), self.times, self.previews, notes)
+        return (
+            None if parts == "model" else segment_summary(tuple(r.key for r in plan.robots), self.times, self.previews, notes, self.pairs)
+        )
 
 
 def _open(plan: RecordingPlan, parts: Parts, provenance: dict[str, str] | None, quiet: bool, rows_expected: int | None) -> _Pass:
@@ -118,6 +122,7 @@ def _open(plan: RecordingPlan, parts: Parts, provenance: dict[str, str] | None, 
     meters: list[RowMeter] = []
     times = TimeRanges()
     previews: list[ValuePreview] = []
+    pairs = tuple(pair_differences(plan.robots)) if parts != "model" else ()
     streams = []
     trees = {robot.key: cached_tree(robot) for robot in plan.robots}
     if parts != "layer":
@@ -131,7 +136,7 @@ def _open(plan: RecordingPlan, parts: Parts, provenance: dict[str, str] | None, 
             for robot in plan.robots_for(source.name):
                 mapper = JointValueMapper(robot, source)
                 mappers.append(mapper)
-                previews.append(ValuePreview(robot.key, robot.channels))
+                previews.append(ValuePreview(robot.key, robot.channels, tuple(p for p in pairs if robot.key in (p.copy, p.measured))))
                 series = plan.output.joint_series and bool(robot.channels)
                 batches = JointTransformBatches(mapper, trees[robot.key], None if driven else meter, series, previews[-1])
                 driven.append((robot, batches))
@@ -145,7 +150,7 @@ def _open(plan: RecordingPlan, parts: Parts, provenance: dict[str, str] | None, 
     # Temporal edges (a mobile base, a floating pelvis): their sources are opened again, see temporal_edges.py.
     temporal_streams, temporal_values = temporal_edge_streams(plan, errors) if parts != "model" else ([], [])
     bag_streams, bag_values = bag_edge_streams(plan) if parts != "model" else ([], [])  # a bag's /tf edges
-    return _Pass(streams + temporal_streams + bag_streams, errors, mappers, [*temporal_values, *bag_values], meters, times, previews)
+    return _Pass(streams + temporal_streams + bag_streams, errors, mappers, [*temporal_values, *bag_values], meters, times, previews, pairs)
 
 
 def _write(

@@ -29,6 +29,7 @@ if TYPE_CHECKING:
 
     from ..plan import JointChannel
     from ..sources import SourceStream
+    from .differences import PairDifferences
 
 FINE_BUCKETS = 1024  # buckets kept while the values stream by (per robot: 1024 x joints x 2 float64)
 UNLIMITED_SPAN = 2 * math.pi  # what a joint without limits moves against, for choosing the preview's joints
@@ -113,9 +114,10 @@ class ValuePreview:
     """One robot's driven joint values folded into at most `FINE_BUCKETS` (min, max) buckets of `width` rows each, batch
     by batch in row order (see the module); `result` reduces them to the stored preview."""
 
-    def __init__(self, robot: str, channels: tuple[JointChannel, ...]) -> None:
+    def __init__(self, robot: str, channels: tuple[JointChannel, ...], pairs: tuple[PairDifferences, ...] = ()) -> None:
         self.robot = robot
         self.channels = channels
+        self.pairs = pairs  # the compared pairs this robot is a side of (compare:): they see the same values
         count = len(channels)
         self.width = 1
         self.rows = 0
@@ -129,6 +131,8 @@ class ValuePreview:
         rows = len(driven)
         if not rows:
             return
+        for pair in self.pairs:
+            pair.add(self.robot, driven, left_out)
         # Rows left out count as +inf for the minima and -inf for the maxima: np.minimum and np.maximum (4x faster
         # than fmin and fmax) then need no NaN, which only a run that fails after its pass holds (NaN: its bucket empty).
         lows = driven if left_out is None else np.where(left_out[:, None], np.inf, driven)
@@ -224,7 +228,13 @@ def quantised(minima: np.ndarray, maxima: np.ndarray, low: np.ndarray, high: np.
     return np.stack([lows.T, highs.T], axis=1)
 
 
-def segment_summary(robots: tuple[str, ...], times: TimeRanges, previews: list[ValuePreview], notes: tuple[str, ...]) -> SegmentSummary:
+def segment_summary(
+    robots: tuple[str, ...],
+    times: TimeRanges,
+    previews: list[ValuePreview],
+    notes: tuple[str, ...],
+    pairs: tuple[PairDifferences, ...] = (),
+) -> SegmentSummary:
     """The summary of one written segment, from what its pass gathered and the notes the run made of it."""
     made = (preview.result() for preview in previews)
     return SegmentSummary(
@@ -233,6 +243,7 @@ def segment_summary(robots: tuple[str, ...], times: TimeRanges, previews: list[V
         notes=tuple(shown(note, NOTE_LIMIT) for note in notes[:NOTES]),
         notes_left_out=max(len(notes) - NOTES, 0),
         previews=tuple(p for p in made if p is not None),
+        differences=tuple(pair.result() for pair in pairs),
     )
 
 

@@ -90,6 +90,78 @@ class JointPreview:
 
 
 @dataclass(frozen=True)
+class JointDifferences:
+    """`compare:`: a commanded copy against its measured robot over the segment's rows (URDF units: rad, m)."""
+
+    copy: str
+    measured: str
+    threshold: str  # as the config wrote it: "{angle: 2 deg, length: 5 mm}"
+    rows: int  # rows compared (both robots had values)
+    rows_beyond: int  # rows where any joint differs beyond its threshold
+    unmatched: int  # rows one side had beyond the other's (0 when the sources' rows match)
+    joints: tuple[str, ...]
+    largest: tuple[float, ...]  # per joint: the largest absolute difference
+    beyond: tuple[int, ...]  # per joint: rows beyond its threshold
+    units: tuple[str, ...] = ()  # per joint: its threshold's unit as written ("deg", "mm"); () shows URDF units
+
+    @property
+    def joints_beyond(self) -> tuple[str, ...]:
+        return tuple(joint for joint, rows in zip(self.joints, self.beyond, strict=True) if rows)
+
+    def largest_text(self, joint: int) -> str:
+        """A joint's largest difference in its threshold's unit: "3.5 deg" (URDF units, bare, for an entry without)."""
+        from ..compile import FACTORS
+
+        value = self.largest[joint]
+        unit = self.units[joint] if len(self.units) == len(self.joints) else ""
+        return f"{value / FACTORS[unit]:.3g} {unit}" if unit in FACTORS else f"{value:.4g}"
+
+    def as_json(self) -> dict[str, Any]:
+        return {
+            "copy": self.copy,
+            "measured": self.measured,
+            "threshold": self.threshold,
+            "rows": self.rows,
+            "rows_beyond": self.rows_beyond,
+            "unmatched": self.unmatched,
+            "joints": list(self.joints),
+            "largest": list(self.largest),
+            "beyond": list(self.beyond),
+            "units": list(self.units),
+        }
+
+    @classmethod
+    def from_json(cls, data: Any) -> JointDifferences | None:
+        """Read back tolerating hand edits: any part of the wrong type or size drops the whole entry."""
+        if not isinstance(data, dict) or not all(isinstance(data.get(k), str) for k in ("copy", "measured", "threshold")):
+            return None
+        counts = [_int_in(data.get(k), 0, INT64_MAX) for k in ("rows", "rows_beyond", "unmatched")]
+        joints = data.get("joints")
+        if None in counts or not isinstance(joints, list) or not 0 < len(joints) <= 4 * PREVIEW_JOINTS:
+            return None
+        names, largest, beyond = (
+            _items(joints, str, len(joints)),
+            _finite(data.get("largest"), len(joints)),
+            _items(data.get("beyond"), int, len(joints)),
+        )
+        if names is None or largest is None or beyond is None or any(b < 0 for b in beyond):
+            return None
+        rows, rows_beyond, unmatched = (c or 0 for c in counts)
+        return cls(
+            shown(data["copy"], NAME_LIMIT),
+            shown(data["measured"], NAME_LIMIT),
+            shown(data["threshold"], NAME_LIMIT),
+            rows,
+            rows_beyond,
+            unmatched,
+            tuple(shown(n, NAME_LIMIT) for n in names),
+            tuple(largest),
+            tuple(beyond),
+            tuple(_items(data.get("units"), str, len(joints)) or ()),  # a unit not in FACTORS is shown as no unit
+        )
+
+
+@dataclass(frozen=True)
 class SegmentSummary:
     """What a browser lists of one segment (see the module)."""
 
@@ -98,6 +170,7 @@ class SegmentSummary:
     notes: tuple[str, ...]
     notes_left_out: int
     previews: tuple[JointPreview, ...]
+    differences: tuple[JointDifferences, ...] = ()  # one per compared pair (compare:)
 
     def as_json(self) -> dict[str, Any]:
         """The manifest's form: plain JSON values, the codes as base64."""
@@ -107,6 +180,7 @@ class SegmentSummary:
             "notes": list(self.notes),
             "notes_left_out": self.notes_left_out,
             "preview": [_preview_json(p) for p in self.previews],
+            **({"differences": [d.as_json() for d in self.differences]} if self.differences else {}),
         }
 
     @classmethod
@@ -124,6 +198,7 @@ class SegmentSummary:
             notes=_strings(data.get("notes"), NOTES, NOTE_LIMIT),
             notes_left_out=_int_in(left_out, 0, INT64_MAX) or 0,
             previews=previews,
+            differences=tuple(d for d in map(JointDifferences.from_json, _list(data.get("differences"))[:64]) if d is not None),
         )
 
 

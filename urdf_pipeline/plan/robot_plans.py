@@ -94,6 +94,19 @@ class HeldJoint:
 
 
 @dataclass(frozen=True)
+class Comparison:
+    """`compare:` a commanded copy of a measured robot (same URDF text, same driven joints): rows of the two whose
+    joint values differ beyond the threshold (URDF units, by joint kind) are counted per segment."""
+
+    robot: str  # key of the measured robot
+    angle: float  # rad: the threshold of revolute and continuous joints
+    length: float  # m: the threshold of prismatic joints
+    written: str  # the threshold as the config wrote it, for messages: "{angle: 2 deg, length: 5 mm}"
+    thresholds: tuple[float, ...] = ()  # per channel of the copy, in its order: angle or length by the joint's kind
+    units: tuple[str, ...] = ()  # per channel: the unit its threshold was written in ("deg", "mm"), for messages
+
+
+@dataclass(frozen=True)
 class RobotPlan:
     """One robot of the config: its URDF text and where it hangs in the scene, and how one source's values drive its
     joints (channels, holds, mimics) and what is done with values out of limits or NaN."""
@@ -117,6 +130,8 @@ class RobotPlan:
     on_violation: OnViolation
     where: Where
     nan_policy: NanPolicy = "error"
+    appearance: tuple[float, float, float, float] | None = None  # RGBA in 0..1 replacing every visual's colour
+    compare: Comparison | None = None
 
     @property
     def fk_entity(self) -> str:

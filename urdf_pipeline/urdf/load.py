@@ -1,4 +1,5 @@
-"""Where a robot's URDF text comes from: a plain file, xacro with arguments, or a `robot_descriptions` package.
+"""Where a robot's URDF text comes from: a plain file, xacro with arguments, a `robot_descriptions` package, or a MuJoCo
+model (MJCF, turned into URDF text by mjcf.py).
 
 Every form yields the same thing: the URDF text, the folder relative mesh paths start from, extra package
 roots for `package://` URIs, and an origin string; the text's sha256 goes into the recording so runs compare.
@@ -19,6 +20,7 @@ from typing import Any
 
 from ..confine import Confinement, refuse_url
 from ..errors import UserError, Where
+from .mjcf import load_mjcf
 from .xacro_guard import XacroBudget, XacroRequest, expand_xacro
 
 
@@ -49,6 +51,9 @@ def load_urdf_source(
         return _plain(spec, config_dir, confinement, where)
     if "xacro" in spec:
         return _xacro(spec, package_paths, config_dir, confinement, where, budget)
+    if "mjcf" in spec:
+        text, path = load_mjcf(spec, config_dir, confinement, where)
+        return LoadedUrdf(text, path, f"mjcf {spec['mjcf']}")
     return _robot_descriptions(spec["robot_descriptions"], where)
 
 

@@ -81,6 +81,11 @@ def _row(row: BrowseSegment, href: str | None, names: NameTable) -> dict[str, An
     spark = sparkline(summary.previews, names)
     if spark is not None:
         entry["spark"] = spark
+    if summary.differences:  # compare: each copy against its measured robot; the names as read back, bounded
+        entry["diff"] = [
+            {"copy": d.copy, "measured": d.measured, "rows": d.rows, "beyond": d.rows_beyond, "joints": list(d.joints_beyond)}
+            for d in summary.differences
+        ]
     return entry
 
 

@@ -40,6 +40,8 @@ def _robot_changes(report: _Report, subject: str, old_plan: Plan, old: RobotPlan
     report.field(group, subject, "frame_prefix", old.frame_prefix, new.frame_prefix)
     report.field(group, subject, "collision_geometries", _collisions(old), _collisions(new))
     report.field(group, subject, "joints source", old.source, new.source)
+    report.field(group, subject, "appearance", _appearance(old), _appearance(new))
+    report.field(group, subject, "compare", _compare(old), _compare(new))
     if old.source is None or new.source is None:
         return
     report.field(group, subject, "NaN policy", old.nan_policy, new.nan_policy)
@@ -111,6 +113,14 @@ def _hold_changes(report: _Report, subject: str, old: RobotPlan, new: RobotPlan)
             report.add(group, subject, f"hold {joint} = {_text(new_holds[joint])}: added", None, new_holds[joint])
         else:
             report.field(group, subject, f"hold {joint}", old_holds[joint], new_holds[joint])
+
+
+def _appearance(robot: RobotPlan) -> str | None:
+    return None if robot.appearance is None else "[" + ", ".join(f"{c:g}" for c in robot.appearance) + "]"  # r, g, b, opacity
+
+
+def _compare(robot: RobotPlan) -> str | None:
+    return None if robot.compare is None else f"{robot.compare.robot} {robot.compare.written}"
 
 
 def _collisions(robot: RobotPlan) -> str:

@@ -197,6 +197,8 @@ def _robot(plan: Plan, robot: RobotPlan, model: UrdfModel, observed: dict[tuple[
         joint_counts=counts,
         joints=_joint_rows(robot, model, observed),
         ignored_source_values=tuple(name for name in source.names if name not in mapped) if source is not None else (),
+        appearance=robot.appearance,
+        compare=(robot.compare.robot, robot.compare.written) if robot.compare is not None else None,
     )
 
 

@@ -151,6 +151,7 @@ def _robot(robot: RobotEntry, sample: SampleEntry | None) -> list[str]:
         f"entity path {code(robot.entity_path_prefix)}, frame prefix {prefix}, root frame {code(robot.root_frame)}, "
         f"collision geometries {'kept' if robot.collision_geometries == 'keep' else 'dropped'}",
         "URDF joints: " + ", ".join(f"{counts[kind]:,} {kind}" for kind in JOINT_TYPES) + f"; {counts['mimic']:,} mimic",
+        *([code(robot.copy_text)] if robot.copy_text else []),
     ]
     lines = [f"<h3>Robot {code(robot.key)}: URDF {code(robot.robot_name)}</h3>"]
     if robot.source is None:

@@ -76,6 +76,8 @@ def _robot(robot: RobotEntry) -> dict[str, Any]:
         "joint_counts": dict(robot.joint_counts),
         "joints": [_row(row) for row in robot.joints],
         "ignored_source_values": list(robot.ignored_source_values),
+        **({"appearance": {"color": list(robot.appearance[:3]), "opacity": robot.appearance[3]}} if robot.appearance else {}),
+        **({"compare": {"robot": robot.compare[0], "threshold": robot.compare[1]}} if robot.compare else {}),
     }
 
 

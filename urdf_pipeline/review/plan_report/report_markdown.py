@@ -79,6 +79,7 @@ def _robot_markdown(robot: RobotEntry, sample: SampleEntry | None) -> list[str]:
         f"- entity path {_code(robot.entity_path_prefix)}, frame prefix {prefix}, root frame {_code(robot.root_frame)}, "
         f"collision geometries {'kept' if robot.collision_geometries == 'keep' else 'dropped'}",
         "- URDF joints: " + ", ".join(f"{counts[kind]} {kind}" for kind in JOINT_TYPES) + f"; {counts['mimic']} mimic",
+        *([f"- {_code(robot.copy_text)}"] if robot.copy_text else []),
     ]
     if robot.source is None:
         return [*lines, "- a scene: no moving joints, no joint source (static transforms only)", ""]

@@ -136,6 +136,19 @@ class RobotEntry:
     joint_counts: Mapping[str, int]  # per URDF joint type (JOINT_TYPES), and "mimic"
     joints: tuple[JointRow, ...]  # mapped (config order), held, mimic
     ignored_source_values: tuple[str, ...]
+    appearance: tuple[float, float, float, float] | None = None  # RGBA 0..1 (appearance:), None: the URDF's materials
+    compare: tuple[str, str] | None = None  # (measured robot, threshold as written) of a commanded copy (compare:)
+
+    @property
+    def copy_text(self) -> str:
+        """The appearance and comparison in one line ("" without either); made of numbers, a key and a checked threshold."""
+        parts = []
+        if self.appearance is not None:
+            *rgb, alpha = self.appearance
+            parts.append(f"drawn in colour [{', '.join(f'{c:g}' for c in rgb)}] at opacity {alpha:g}")
+        if self.compare is not None:
+            parts.append(f"a copy compared with robot '{self.compare[0]}', threshold {self.compare[1]}")
+        return "; ".join(parts)
 
 
 @dataclass(frozen=True)

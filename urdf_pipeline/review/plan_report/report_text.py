@@ -43,6 +43,7 @@ def _robot_lines(robot: RobotEntry) -> list[str]:
         f"robot {robot.key}: URDF '{robot.robot_name}' from {robot.urdf_path}",
         f"  entity {robot.entity_path_prefix}, frame prefix '{robot.frame_prefix}', root link {robot.root_frame}, "
         f"collisions {'kept' if robot.collision_geometries == 'keep' else 'dropped'}",
+        *([f"  {robot.copy_text}"] if robot.copy_text else []),
     ]
     if robot.source is None:
         return [*lines, "  a scene: no moving joints, no joint source (static transforms only)"]

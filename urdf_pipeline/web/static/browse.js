@@ -110,6 +110,12 @@
     for (const row of body.rows) row.classList.toggle("selected", row.dataset.id === selected);
   }
 
+  function diffText(d) {
+    // compare: a commanded copy against its measured robot (names as data, shown with textContent)
+    if (!d.beyond) return `${d.copy} vs ${d.measured}: within threshold over ${d.rows} rows`;
+    return `${d.copy} vs ${d.measured}: ${d.beyond} of ${d.rows} rows beyond threshold: ${(d.joints || []).join(", ")}`;
+  }
+
   function row(segment) {
     const tr = document.createElement("tr");
     tr.dataset.id = segment.id;
@@ -142,6 +148,7 @@
     const notes = element("td", null, "small");
     for (const note of segment.notes || []) notes.appendChild(element("div", note));
     if (segment.left) notes.appendChild(element("div", `and ${segment.left} more`, "muted"));
+    for (const d of segment.diff || []) notes.appendChild(element("div", diffText(d), d.beyond ? "bad" : "muted"));
     tr.appendChild(notes);
     return tr;
   }
@@ -190,7 +197,7 @@
       segments = Array.isArray(data.segments) ? data.segments : [];
       names = Array.isArray(data.names) ? data.names : [];
       haystacks = segments.map(function (s) {
-        return [s.id, (s.robots || []).join(" "), (s.notes || []).join(" "), s.missing || ""].join("\n").toLowerCase();
+        return [s.id, (s.robots || []).join(" "), (s.notes || []).join(" "), (s.diff || []).map(diffText).join(" "), s.missing || ""].join("\n").toLowerCase();
       });
       const wanted = state();
       search.value = wanted.query;

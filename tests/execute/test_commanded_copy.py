@@ -1,0 +1,235 @@
+"""`compare:` and `appearance:`: a commanded SO-101 (LeRobot `action`) beside the measured one (`observation.state`),
+both against pinocchio, its meshes in the configured colour, and the per-episode differences against numpy's."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import yaml
+from rerun.chunk import RrdReader
+
+from urdf_pipeline.compile import compile_config
+from urdf_pipeline.dataset.fingerprint import model_hash, segment_hashes
+from urdf_pipeline.examples import write_lerobot_dataset
+from urdf_pipeline.execute.differences import PairDifferences
+from urdf_pipeline.execute.summary_record import JointDifferences
+from urdf_pipeline.plan import Comparison, JointChannel, RobotPlan
+
+from ..reference_fk import PinocchioRobot
+from ..rrd_frames import read_frames
+from .test_fk_against_pinocchio import SO101_JOINTS, check_robot, random_within_limits
+
+FRAMES = 50
+COLOR = [1.0, 0.5, 0.0]
+OPACITY = 0.4
+
+
+def write_commanded_dataset(root: Path, measured: list[np.ndarray], commanded: list[np.ndarray]) -> None:
+    """A LeRobot v2.1 dataset whose rows hold `observation.state` (measured) and `action` (commanded), degrees."""
+    write_lerobot_dataset(root, measured, SO101_JOINTS)
+    for episode, values in enumerate(commanded):
+        path = root / "data" / "chunk-000" / f"episode_{episode:06d}.parquet"
+        table = pq.read_table(path)
+        action = pa.FixedSizeListArray.from_arrays(pa.array(values.astype(np.float32).reshape(-1)), values.shape[1])
+        pq.write_table(table.append_column("action", action), path)
+    info_path = root / "meta" / "info.json"
+    info = json.loads(info_path.read_text())
+    info["features"]["action"] = dict(info["features"]["observation.state"])
+    info_path.write_text(json.dumps(info, indent=2))
+
+
+def commanded_config(examples_dir: Path, name: str, dataset: str, robot_extra: dict | None = None) -> Path:
+    """Two SO-101s from one dataset: `arm` (observation.state) and `cmd` (action), a copy with its own prefixes."""
+    data = yaml.safe_load((examples_dir / "so101_dataset.yaml").read_text())
+    arm = data["robots"]["so101"]
+    data["sources"] = {
+        "state": {"lerobot": dataset, "feature": "observation.state"},
+        "action": {"lerobot": dataset, "feature": "action"},
+    }
+    arm["joints"]["source"] = "state"
+    cmd = json.loads(json.dumps(arm))
+    cmd["joints"]["source"] = "action"
+    cmd.update(
+        {
+            "frame_prefix": "cmd_",
+            "appearance": {"color": COLOR, "opacity": OPACITY},
+            "compare": {"robot": "arm", "threshold": {"angle": "2 deg", "length": "5 mm"}},
+            **(robot_extra or {}),
+        }
+    )
+    data["robots"] = {"arm": arm, "cmd": cmd}
+    data["frames"] = {"root": "world"}
+    data["edges"] = [
+        {"parent": "world", "child": "base_link", "translation": [0, 0, 0], "rpy": [0, 0, 0]},
+        {"parent": "world", "child": "cmd_base_link", "translation": [0, 0, 0], "rpy": [0, 0, 0]},
+    ]
+    data["output"].update(model=f"out/{name}/model.rrd", path=f"out/{name}/{{segment}}.rrd", application_id=name, episodes="all")
+    path = examples_dir / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def episodes(reference: PinocchioRobot) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Two episodes of measured q (rad) and commanded q: episode 0 off by 3 deg on elbow_flex in rows 10..19, episode
+    1 off by 1 deg everywhere (within the 2 deg threshold) but by 3.5 deg on the gripper at row 5 (within 90% of the limits)."""
+    measured = [0.9 * random_within_limits(reference, SO101_JOINTS, frames=FRAMES, seed=seed) for seed in (21, 22)]
+    commanded = [q.copy() for q in measured]
+    commanded[0][10:20, 2] += np.radians(3.0)
+    commanded[1] += np.radians(1.0)
+    commanded[1][5, 5] += np.radians(2.5)
+    return measured, commanded
+
+
+def _colours(path: Path) -> dict[str, list[int]]:
+    """entity -> the static colour components it holds (albedo_factor or colors), packed RGBA, last one logged."""
+    found: dict[str, list[int]] = {}
+    for chunk in RrdReader(path).stream().to_chunks():
+        batch = chunk.to_record_batch()
+        for name in batch.schema.names:
+            if name.endswith(":albedo_factor") or name.endswith(":colors"):
+                found[chunk.entity_path] = batch.column(name).flatten().to_pylist()
+    return found
+
+
+def test_commanded_copy_is_drawn_apart_and_its_differences_are_listed(examples_dir: Path, run_cli, erd_share: Path) -> None:
+    reference = PinocchioRobot(erd_share / "robots" / "so_arm_description" / "urdf" / "so101.urdf")
+    measured, commanded = episodes(reference)
+    write_commanded_dataset(examples_dir / "data" / "cmd_so101", [np.degrees(q) for q in measured], [np.degrees(q) for q in commanded])
+    config = commanded_config(examples_dir, "cmd_so101", "data/cmd_so101")
+    result = run_cli("run", str(config))
+    assert result.code == 0, result.err
+    # run lists each episode's joints beyond the threshold, or says the copy kept within it
+    lines = [line for line in result.err.splitlines() if "'cmd' against 'arm'" in line]
+    assert len(lines) == 2, result.err
+    assert "episode_000000: 'cmd' against 'arm' over 50 rows: 10 rows beyond {angle: 2 deg, length: 5 mm}: elbow_flex" in lines[0]
+    assert "elbow_flex (max 3 deg, 10 rows)" in lines[0]
+    assert "1 rows beyond" in lines[1] and "gripper (max 3.5 deg, 1 rows)" in lines[1] and "elbow_flex" not in lines[1]
+
+    out = examples_dir / "out" / "cmd_so101"
+    # both copies' poses equal pinocchio's
+    for episode, (q_arm, q_cmd) in enumerate(zip(measured, commanded, strict=True)):
+        frames = read_frames([out / "model.rrd", out / f"episode_{episode:06d}.rrd"], "frame_index")
+        for prefix, q in (("", q_arm), ("cmd_", q_cmd)):
+            values = [dict(zip(SO101_JOINTS, row, strict=True)) for row in q]
+            assert check_robot(frames, list(range(FRAMES)), reference, values, prefix, np.eye(4), "world", [0, 12, 49]) > 0
+
+    # the copy's meshes carry the configured colour and alpha; the measured robot's keep the URDF's
+    packed = int.from_bytes(bytes([round(c * 255) for c in [*COLOR, OPACITY]]), "big")
+    colours = _colours(out / "model.rrd")
+    cmd_visuals = {e: c for e, c in colours.items() if e.startswith("/cmd/")}
+    assert cmd_visuals and all(c == [packed] for c in cmd_visuals.values()), cmd_visuals
+    assert not any(c == [packed] for e, c in colours.items() if e.startswith("/arm/"))
+
+    # the manifest's summaries hold the differences, equal to numpy's on the written (float32, degrees) values
+    manifest = json.loads((out / "cmd_so101.manifest.json").read_text())
+    summaries = {entry["segment"]: entry["summary"] for entry in manifest["segments"]}
+    for episode, (q_arm, q_cmd) in enumerate(zip(measured, commanded, strict=True)):
+        written = [np.radians(np.degrees(q).astype(np.float32).astype(np.float64)) for q in (q_arm, q_cmd)]
+        difference = np.abs(written[1] - written[0])
+        stored = summaries[f"episode_{episode:06d}"]["differences"][0]
+        assert stored["joints"] == SO101_JOINTS
+        np.testing.assert_allclose(stored["largest"], difference.max(axis=0), rtol=1e-9, atol=1e-12)
+        assert stored["beyond"] == (difference > np.radians(2.0)).sum(axis=0).tolist()
+        assert stored["rows_beyond"] == int((difference > np.radians(2.0)).any(axis=1).sum())
+        assert stored["rows"] == FRAMES and stored["unmatched"] == 0
+
+    # browse's segments.json row carries them
+    site = examples_dir / "out" / "cmd_site"
+    browsed = run_cli("browse", str(config), "-o", str(site))
+    assert browsed.code == 0, browsed.err
+    rows = {row["id"]: row for row in json.loads((site / "segments.json").read_text())["segments"]}
+    assert rows["episode_000000"]["diff"] == [{"copy": "cmd", "measured": "arm", "rows": FRAMES, "beyond": 10, "joints": ["elbow_flex"]}]
+    assert rows["episode_000001"]["diff"] == [{"copy": "cmd", "measured": "arm", "rows": FRAMES, "beyond": 1, "joints": ["gripper"]}]
+
+
+def _pair() -> PairDifferences:
+    """A copy `cmd` of `arm` over three revolute joints and one prismatic one, the measured robot's map in another order."""
+    channel = dict(source_index=0, source_unit="rad", factor=1.0, sign=1.0, offset=0.0, lower=None, upper=None, slack=0.0, where=None)
+    joints = ["a", "b", "c", "slide"]
+    plan = dict(
+        urdf_path=Path("x.urdf"), urdf_text="", urdf_origin="", urdf_sha256="", robot_name="x", root_link="base", links=(),
+        joint_links=(), entity_path_prefix="/x", frame_prefix="", keep_collisions=False, source="s", holds=(), mimics=(),
+        on_violation="error", where=None,
+    )  # fmt: skip
+    copy = RobotPlan(key="cmd", channels=tuple(JointChannel(joint=j, source_name=j, **channel) for j in joints), **plan)
+    arm = RobotPlan(key="arm", channels=tuple(JointChannel(joint=j, source_name=j, **channel) for j in reversed(joints)), **plan)
+    thresholds = (np.radians(2.0),) * 3 + (0.005,)
+    comparison = Comparison("arm", np.radians(2.0), 0.005, "{angle: 2 deg, length: 5 mm}", thresholds, ("deg",) * 3 + ("mm",))
+    return PairDifferences(copy, arm, comparison)
+
+
+def test_differences_match_rows_across_uneven_batches_and_skip_rows_left_out() -> None:
+    rng = np.random.default_rng(5)
+    measured = rng.uniform(-1, 1, size=(1000, 4))
+    commanded = measured + rng.normal(0, 0.03, size=measured.shape)
+    left_out = np.zeros(1000, dtype=bool)
+    left_out[[3, 500, 999]] = True
+    commanded[500] += 10.0  # a row the copy left out: never compared
+    pair = _pair()
+    for start, stop in ((0, 700), (700, 1000)):  # the copy's batches
+        pair.add("cmd", commanded[start:stop], left_out[start:stop])
+    for start, stop in ((0, 128), (128, 129), (129, 1000)):  # the measured robot's, its columns in its own order
+        pair.add("arm", measured[start:stop, ::-1], None)
+    result = pair.result()
+    kept = ~left_out
+    difference = np.abs(commanded - measured)[kept]
+    limits = np.array([np.radians(2.0)] * 3 + [0.005])
+    assert result.rows == kept.sum() and result.unmatched == 0
+    np.testing.assert_array_equal(result.largest, difference.max(axis=0))
+    assert result.beyond == tuple((difference > limits).sum(axis=0).tolist())
+    assert result.rows_beyond == int((difference > limits).any(axis=1).sum())
+    assert not pair.pending["cmd"][0].size and not pair.pending["arm"][0].size, "everything matched: nothing kept"
+
+
+def test_differences_survive_the_manifest_and_hand_edits_drop_them() -> None:
+    pair = _pair()
+    pair.add("cmd", np.zeros((4, 4)), None)
+    pair.add("arm", np.full((3, 4), 0.1), None)
+    result = pair.result()
+    assert result.unmatched == 1 and result.rows == 3 and result.joints_beyond == ("a", "b", "c", "slide")
+    assert JointDifferences.from_json(json.loads(json.dumps(result.as_json()))) == result
+    assert (result.largest_text(0), result.largest_text(3)) == ("5.73 deg", "100 mm")
+    assert JointDifferences.from_json({**result.as_json(), "units": ["deg"]}).largest_text(0) == "0.1"  # type: ignore[union-attr]
+    for edit in ({"beyond": [1, 2]}, {"largest": ["x", 0, 0, 0]}, {"rows": -1}, {"copy": 3}, {"joints": []}, {"beyond": [True, 0, 0, 0]}):
+        assert JointDifferences.from_json({**result.as_json(), **edit}) is None, edit
+    assert JointDifferences.from_json({**result.as_json(), "copy": "a\nb" + "x" * 500}).copy.startswith("a")
+
+
+def test_appearance_changes_the_models_hash_and_compare_the_segments(examples_dir: Path) -> None:
+    """A colour changed rewrites the split layout's model; a threshold changed rewrites the layers (their summaries);
+    a config without either keeps the model hash it had."""
+    plan = compile_config(examples_dir / "so101_dataset.yaml")
+    robot = plan.robots[0]
+    coloured = replace(plan, robots=(replace(robot, appearance=(1.0, 0.5, 0.0, 0.4)),))
+    assert model_hash(coloured) != model_hash(plan)
+    assert model_hash(replace(plan, robots=(replace(robot, appearance=None),))) == model_hash(plan)
+    compared = replace(plan, robots=(replace(robot, compare=Comparison("other", 0.1, 0.01, "{angle: 0.1 rad, length: 1 cm}")),))
+    assert segment_hashes(compared, False) != segment_hashes(plan, False)
+
+
+def test_plan_shows_the_copy_and_diff_its_changes(examples_dir: Path, erd_share: Path, run_cli) -> None:
+    reference = PinocchioRobot(erd_share / "robots" / "so_arm_description" / "urdf" / "so101.urdf")
+    measured, commanded = episodes(reference)
+    write_commanded_dataset(examples_dir / "data" / "cmd_plan", [np.degrees(q) for q in measured], [np.degrees(q) for q in commanded])
+    old = commanded_config(examples_dir, "cmd_plan_old", "data/cmd_plan")
+    new = commanded_config(
+        examples_dir, "cmd_plan_old_edit", "data/cmd_plan", {"appearance": {"color": COLOR}, "compare": {"robot": "arm"}}
+    )
+    text = run_cli("plan", str(old))
+    assert text.code == 0, text.err
+    assert (
+        "  drawn in colour [1, 0.5, 0] at opacity 0.4; a copy compared with robot 'arm', threshold {angle: 2 deg, length: 5 mm}" in text.out
+    )
+    report = json.loads(run_cli("plan", "--format", "json", str(old)).out)
+    robots = {robot["key"]: robot for robot in report["robots"]}
+    assert robots["cmd"]["appearance"] == {"color": COLOR, "opacity": OPACITY}
+    assert robots["cmd"]["compare"] == {"robot": "arm", "threshold": "{angle: 2 deg, length: 5 mm}"}
+    assert "appearance" not in robots["arm"] and "compare" not in robots["arm"]
+    diff = run_cli("diff", str(old), str(new))
+    assert "robot cmd: appearance [1, 0.5, 0, 0.4] -> [1, 0.5, 0, 1]" in diff.out
+    assert "robot cmd: compare arm {angle: 2 deg, length: 5 mm} -> arm {angle: 1 deg, length: 1 mm}" in diff.out  # the defaults

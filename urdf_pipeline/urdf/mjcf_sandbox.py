@@ -1,0 +1,77 @@
+"""The child process that compiles one MJCF model with MuJoCo and answers its URDF text (see mjcf.py, which spawns it).
+
+MuJoCo parses a stranger's XML and meshes here, bounded by rlimits (address space, CPU seconds, output size, no
+children); mjcf.py kills it at the wall-clock bound and has checked every file the model names before it starts.
+
+Protocol: one JSON request on stdin ({"file", "shown", "name", "limits"}), one JSON answer on stdout: {"text": URDF,
+"notes": [geoms left undrawn]} or {"error": message}.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import sys
+from collections.abc import Mapping
+from typing import Any
+
+
+def _limit(limits: Mapping[str, int]) -> None:
+    """Bound this process: address space, CPU seconds, size of any file written (stdout is one), no children."""
+    import resource
+    import signal
+
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # an oversized write fails (EFBIG) instead of killing silently
+    for kind, value in (
+        (resource.RLIMIT_AS, limits["memory_bytes"]),
+        (resource.RLIMIT_CPU, limits["cpu_seconds"]),
+        (resource.RLIMIT_FSIZE, limits["output_bytes"]),
+        (resource.RLIMIT_CORE, 0),
+        (resource.RLIMIT_NPROC, 0),
+    ):
+        with contextlib.suppress(ValueError, OSError):  # a limit the platform lacks or refuses stays as it was
+            resource.setrlimit(kind, (value, value))
+
+
+def compile_answer(request: Mapping[str, Any]) -> dict[str, Any]:
+    """The answer for one request (also called in-process by tests)."""
+    try:
+        import mujoco
+    except ImportError:
+        return {"error": "MJCF robots need the mujoco package: pip install 'urdf-pipeline[mjcf]'"}
+    from .mjcf_urdf import NotRepresentable, urdf_from_model
+
+    try:
+        model = mujoco.MjModel.from_xml_path(request["file"])
+    except ValueError as exc:  # MuJoCo's compile errors: the message names the element and the line
+        text = " ".join(str(exc).split())
+        if "Could not allocate memory" in text:
+            megabytes = request["limits"]["memory_bytes"] >> 20
+            return {
+                "error": f"compiling {request['shown']} with MuJoCo needs more than {megabytes} MB of memory ({text[:300]}); the person running the tool can raise the bound with URDF_PIPELINE_MJCF_MEMORY_MB"
+            }
+        return {"error": f"MuJoCo cannot compile {request['shown']}: {text[:2000]}"}
+    except RuntimeError as exc:  # a C++ exception MuJoCo's binding does not name: std::bad_alloc under the memory bound
+        megabytes = request["limits"]["memory_bytes"] >> 20
+        return {
+            "error": f"compiling {request['shown']} with MuJoCo failed ({exc}): it may need more than {megabytes} MB of memory; the person running the tool can raise the bound with URDF_PIPELINE_MJCF_MEMORY_MB"
+        }
+    try:
+        text, notes = urdf_from_model(model, mujoco, request["name"], os.path.dirname(request["file"]))
+    except NotRepresentable as exc:
+        return {"error": f"{request['shown']} cannot be drawn as a URDF robot: {exc}"}
+    return {"text": text, "notes": notes}
+
+
+def main() -> None:
+    """Entry point of the child process."""
+    request = json.load(sys.stdin)
+    _limit(request["limits"])
+    try:
+        with contextlib.redirect_stdout(sys.stderr):  # MuJoCo's own prints are not the answer
+            answer = compile_answer(request)
+    except MemoryError:
+        answer = {"error": f"compiling {request['shown']} needs more than {request['limits']['memory_bytes'] >> 20} MB of memory"}
+    json.dump(answer, sys.stdout)
+    sys.stdout.flush()
