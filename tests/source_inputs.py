@@ -8,6 +8,7 @@ import numpy as np
 
 from urdf_pipeline.examples import PANDA_NAMES
 
+from .bag_inputs import write_robot_bag
 from .sources.test_sources_hdf5 import write_aloha_episode
 from .sources.test_sources_mcap import write_joint_states
 from .sources.test_sources_rrd import write_state_rrd
@@ -30,3 +31,8 @@ def write_source_inputs(data: Path, raw: np.ndarray) -> None:
     write_aloha_episode(data / "aloha_26.hdf5", np.concatenate([raw, np.zeros((len(raw), 18))], axis=1))
     write_state_rrd(data / "named_state.rrd", raw, PANDA_NAMES)
     write_wide_inputs(data, raw)
+    camera = ("panda_hand", "camera_link", (0.05, 0.0, 0.04), (0.0, 0.0, 0.0, 1.0))
+    hand = ("panda_link8", "panda_hand", (0.0, 0.0, 0.0), (0.0, 0.0, -0.3826834, 0.9238795))  # what the URDF's joint places
+    base = [[("world", "panda_link0", (0.01 * row, 0.0, 0.5), (0.0, 0.0, 0.0, 1.0))] for row in range(20)]
+    bag_values = np.zeros((20, 1))
+    write_robot_bag(data / "robot_bag.mcap", ["<robot name='x'><link name='a'/></robot>"], [[camera, hand]], ["j"], bag_values, base)

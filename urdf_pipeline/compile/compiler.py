@@ -5,7 +5,7 @@ for a repository that keeps its configs in git and its datasets elsewhere."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from ..config import Document, expand_edge_specs, load_document, require_schema_valid
@@ -79,7 +79,7 @@ def check_config_without_data(config_path: Path) -> DatalessCheck:
         require_schema_valid(document)
     except UserError as exc:
         return DatalessCheck(tuple(exc.errors if isinstance(exc, UserErrors) else [exc]), ())
-    ctx = CompileContext.for_document(document)
+    ctx = replace(CompileContext.for_document(document), opens_sources=False)
     names: dict[str, tuple[str, ...] | None] = {}
     notes: list[DataNote] = []
     for name, spec in ctx.data["sources"].items():
@@ -141,6 +141,7 @@ def _compile_model(ctx: CompileContext, sources: SourceNames) -> _Model:
     edge_specs = expand_edge_specs(data.get("edges", []), ctx.document, problems)  # inline edges and sidecar files, in order
     used = {spec["joints"]["source"] for spec in data["robots"].values() if "joints" in spec}
     used |= {edge.spec["source"] for edge in edge_specs if "source" in edge.spec}  # temporal edges read sources too
+    used |= {edge.spec["tf"] for edge in edge_specs if "tf" in edge.spec}  # and a bag's /tf edges
     for name in data["sources"]:
         if name not in used:
             problems.add(

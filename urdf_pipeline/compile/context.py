@@ -27,6 +27,7 @@ class CompileContext:
     config_dir: Path  # the config file's folder as named (not resolved): relative paths in the config start here
     confinement: Confinement
     xacro_budget: XacroBudget = field(default_factory=XacroBudget)  # the seconds every xacro expansion of this config shares
+    opens_sources: bool = True  # False for `validate --no-data`: no source file is opened (a bag's /tf frames wait for the data)
 
     @classmethod
     def for_document(cls, document: Document) -> CompileContext:

@@ -1,4 +1,4 @@
-"""Compile calibration edges (static, fixed_chain, temporal, assumed identity) and the frame graph's edge list."""
+"""Compile calibration edges (static, fixed_chain, a bag's /tf_static, temporal, assumed identity) and the frame graph's edge list."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ from ..config import EdgeSpec
 from ..errors import Hints, warn
 from ..plan import EdgePlan, FixedChain, RobotPlan, TemporalEdgePlan
 from ..urdf import NoFixedChain, UrdfModel, compose_chain, find_fixed_chain, normalized_quaternion, quaternion_from_rpy
+from .bag_edges import BagReads, compile_bag_edge, compile_tf_edge
 from .context import CompileContext, SourceNames
 from .frame_graph import FrameEdge, check_assume_identity
 from .temporal_edges import TemporalEntities, compile_temporal_edge
@@ -42,10 +43,22 @@ def compile_edges(
     broken: list[EdgeSpec] = []
     entities = TemporalEntities()
     owners = _Owners(robots or [])
+    bags = BagReads()
     for edge in specs:
         spec = edge.spec
-        if "source" in spec:
-            compiled = compile_temporal_edge(ctx, edge, sources, entities)
+        if "tf_static" in spec:
+            from_bag = compile_bag_edge(ctx, edge, bags)
+            if from_bag is None:
+                broken.append(edge)
+            else:
+                edges.append(from_bag)
+            continue
+        if "source" in spec or "tf" in spec:
+            compiled = (
+                compile_temporal_edge(ctx, edge, sources, entities)
+                if "source" in spec
+                else compile_tf_edge(ctx, edge, sources, entities, bags)
+            )
             if compiled is not None:
                 temporal.append(compiled)
             else:

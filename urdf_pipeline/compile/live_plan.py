@@ -15,7 +15,7 @@ from typing import Any
 
 from ..config import expand_edge_specs, load_document, require_schema_valid
 from ..errors import Problems, UserError, UserErrors, Where
-from ..plan import ScenePlan
+from ..plan import ScenePlan, TemporalEdgePlan
 from ..sources import KINDS, kind_of
 from .compiler import DataNote, _compile_model
 from .context import CompileContext
@@ -113,7 +113,7 @@ def check_live_config(config_path: Path, stream_only: bool = False) -> LiveCheck
         return LiveCheck(tuple(exc.errors if isinstance(exc, UserErrors) else [exc]), (), ())
     ctx = CompileContext.for_document(document)
     specs = _specs(ctx)
-    _compile_model(ctx, {name: spec.names for name, spec in specs.items()})
+    _refuse_bag_edges(ctx, _compile_model(ctx, {name: spec.names for name, spec in specs.items()}).temporal)
     read = sorted(_read_sources(ctx) & set(specs))
     notes = [
         DataNote(f"source '{name}': names unknown without data; {_names_from(specs[name], stream_only)}", specs[name].where)
@@ -130,6 +130,17 @@ def check_live_config(config_path: Path, stream_only: bool = False) -> LiveCheck
                     specs[name].where,
                 )
     return LiveCheck(tuple(ctx.problems.errors), tuple(notes), tuple(specs[name] for name in read))
+
+
+def _refuse_bag_edges(ctx: CompileContext, temporal: tuple[TemporalEdgePlan, ...]) -> None:
+    """A bag's /tf edges are read from the bag's file by `run`; a live view reads joint values only."""
+    for edge in temporal:
+        if edge.tf_topic is not None:
+            ctx.problems.add(
+                f"edge {edge.parent} -> {edge.child} reads {edge.tf_topic} of source '{edge.source}''s bag, which run reads and a live "
+                "view does not; drop the edge for live use",
+                edge.where,
+            )
 
 
 def _names_from(spec: LiveSourceSpec, stream_only: bool) -> str:
@@ -154,6 +165,7 @@ def compile_live(config_path: Path, stream_names: Mapping[str, tuple[str, ...]] 
             if names[name] is None and not names_from_data:
                 ctx.problems.add(f"source '{name}': its names are unknown; give names: [...]", spec.where)
     model = _compile_model(ctx, names)
+    _refuse_bag_edges(ctx, model.temporal)
     ctx.problems.raise_if_any()
     assert model.root is not None
     sources = tuple(specs[name].with_names(found) for name, found in names.items() if found is not None and name in read)

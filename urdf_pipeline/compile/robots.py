@@ -7,9 +7,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..confine import Confinement, Unresolvable, resolved
-from ..errors import UserError, UserErrors, Where, listing, warn
+from ..confine import Confinement, Unresolvable, refuse_url, resolved
+from ..errors import UserError, UserErrors, Where, listing, shown, warn
 from ..plan import RobotPlan
+from ..sources import robot_description
 from ..urdf import (
     LoadedUrdf,
     UrdfModel,
@@ -51,6 +52,8 @@ def _xacro_refusal(exc: XacroContent, urdf: Any, loaded: LoadedUrdf) -> str:
     """A xacro text given as URDF, with the fix of the form that gave it."""
     if isinstance(urdf, str):
         return exc.advice(f"expand it as xacro: urdf: {{xacro: {urdf}}} (with args: {{NAME: VALUE}} for its arguments)")
+    if "mcap" in urdf:
+        return exc.advice("expand it as xacro, and give the URDF as a file", what=f"the robot description in {shown(urdf['mcap'])}")
     if "xacro" in urdf:
         return f"the expansion of {urdf['xacro']} still holds xacro ({exc.found}, line {exc.line} of the expanded text): xacro left it unexpanded"
     return exc.advice(
@@ -72,7 +75,11 @@ def load_urdf(ctx: CompileContext, key: str, spec: dict[str, Any], package_paths
     """The loaded URDF, its model and the text for Rerun's loader (axes normalised, what Rerun refuses repaired, with a
     warning saying what); the model is read from that text, so a visual dropped there needs no mesh."""
     where = ctx.where("robots", key, "urdf")
-    loaded = load_urdf_source(spec["urdf"], package_paths, ctx.config_dir, ctx.confinement, where, ctx.xacro_budget)
+    from_bag = isinstance(spec["urdf"], dict) and "mcap" in spec["urdf"]
+    if from_bag:
+        loaded = _bag_urdf(ctx, key, spec["urdf"])
+    else:
+        loaded = load_urdf_source(spec["urdf"], package_paths, ctx.config_dir, ctx.confinement, where, ctx.xacro_budget)
     try:
         is_file = isinstance(spec["urdf"], str) or "robot_descriptions" in spec["urdf"]  # an expanded xacro or MJCF has no lines
         model, root = parse_urdf(loaded.text, str(loaded.path), source_lines=is_file)
@@ -90,6 +97,19 @@ def load_urdf(ctx: CompileContext, key: str, spec: dict[str, Any], package_paths
     if notes:
         warn(f"Rerun's URDF loader refuses parts of {loaded.path.name} that ROS tolerates; drawn without: {'; '.join(notes)}", where)
     return RobotUrdf(loaded, model, text)
+
+
+def _bag_urdf(ctx: CompileContext, key: str, urdf: dict[str, Any]) -> LoadedUrdf:
+    """`urdf: {mcap: FILE, topic: /robot_description}`: the last std_msgs/msg/String on the topic (capped in size, read
+    at compile); relative mesh paths start from the bag's folder, `package://` from the robot's package_paths."""
+    where = ctx.where("robots", key, "urdf", "mcap")
+    refuse_url(str(urdf["mcap"]), "MCAP file", where)
+    path = ctx.confinement.check_read(Path(os.path.abspath(ctx.config_dir / urdf["mcap"])), "MCAP file", where)
+    if not path.is_file():
+        raise UserError(f"MCAP file not found: {path} (paths are relative to the config file)", where)
+    topic = urdf.get("topic", "/robot_description")
+    text = robot_description(path, topic, ctx.where("robots", key, "urdf", "topic") if "topic" in urdf else where)
+    return LoadedUrdf(text, path, f"mcap {urdf['mcap']} topic {topic}")
 
 
 def _refused_by_the_os(confinement: Confinement, path: Path) -> bool:

@@ -18,7 +18,8 @@ TEMPORAL_ENTITY = "/calibration/temporal"
 
 
 def describe_temporal_edge(edge: TemporalEdgePlan) -> str:
-    return f"temporal edge {edge.parent} -> {edge.child} ({edge.label}, source '{edge.source}')"
+    topic = f", {edge.tf_topic} of its bag" if edge.tf_topic is not None else ""
+    return f"temporal edge {edge.parent} -> {edge.child} ({edge.label}, source '{edge.source}'{topic})"
 
 
 # --- compile ---------------------------------------------------------------------------------------------------

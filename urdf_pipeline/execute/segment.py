@@ -4,7 +4,7 @@ before the file is renamed into place."""
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
@@ -26,7 +26,8 @@ from .remote_inputs import local_inputs
 from .segment_summary import TimeRanges, ValuePreview, observed, segment_summary
 from .stream_writer import drain_streams
 from .summary_record import SegmentSummary
-from .temporal_stream import TemporalEdgeValues, check_temporal_edges, temporal_edge_streams
+from .temporal_stream import EdgeRows, check_temporal_edges, temporal_edge_streams
+from .tf_stream import bag_edge_streams
 from .trail_stream import TrailPositions, trail_statics_stream
 from .writer import write_file_atomically
 
@@ -81,7 +82,7 @@ class _Pass:
     streams: list[LazyChunkStream]
     errors: CallbackErrors
     mappers: list[JointValueMapper]
-    temporal_values: list[TemporalEdgeValues]
+    temporal_values: Sequence[EdgeRows]
     meters: list[RowMeter]  # one per source read, cleared when the pass ends (a terminal's redrawn line)
     times: TimeRanges  # the summary's time ranges and value previews, gathered as the values pass
     previews: list[ValuePreview]
@@ -152,7 +153,8 @@ def _open(plan: RecordingPlan, parts: Parts, provenance: dict[str, str] | None, 
         streams.append(provenance_stream(plan, parts, provenance))
     # Temporal edges (a mobile base, a floating pelvis): their sources are opened again, see temporal_edges.py.
     temporal_streams, temporal_values = temporal_edge_streams(plan, errors) if parts != "model" else ([], [])
-    return _Pass(streams + temporal_streams, errors, mappers, temporal_values, meters, times, previews, pairs)
+    bag_streams, bag_values = bag_edge_streams(plan) if parts != "model" else ([], [])  # a bag's /tf edges
+    return _Pass(streams + temporal_streams + bag_streams, errors, mappers, [*temporal_values, *bag_values], meters, times, previews, pairs)
 
 
 def _write(

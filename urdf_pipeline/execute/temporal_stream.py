@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import threading
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 import pyarrow as pa
@@ -39,6 +40,13 @@ class TemporalEdgeStats:
     nonfinite_rows: int = 0
     nonfinite_by_value: dict[str, int] = field(default_factory=dict)
     zero_quaternion_rows: int = 0
+
+
+class EdgeRows(Protocol):
+    """What the checks after the pass read of a temporal edge: the edge and its statistics (named values or a bag's /tf)."""
+
+    edge: TemporalEdgePlan
+    stats: TemporalEdgeStats
 
 
 class TemporalEdgeValues:
@@ -109,7 +117,7 @@ def temporal_edge_streams(plan: RecordingPlan, errors: CallbackErrors) -> tuple[
     streams: list[LazyChunkStream] = []
     all_values: list[TemporalEdgeValues] = []
     for source in plan.sources:
-        edges = [edge for edge in plan.temporal_edges if edge.source == source.name]
+        edges = [edge for edge in plan.temporal_edges if edge.source == source.name and edge.tf_topic is None]  # /tf: tf_stream.py
         if not edges:
             continue
         values = [TemporalEdgeValues(edge, source) for edge in edges]
@@ -118,7 +126,7 @@ def temporal_edge_streams(plan: RecordingPlan, errors: CallbackErrors) -> tuple[
     return streams, all_values
 
 
-def check_temporal_edges(values: list[TemporalEdgeValues], problems: Problems) -> None:
+def check_temporal_edges(values: Sequence[EdgeRows], problems: Problems) -> None:
     """After the data pass: every temporal edge had rows, all finite, with non-zero quaternions."""
     for edge_values in values:
         edge, stats = edge_values.edge, edge_values.stats

@@ -186,7 +186,8 @@ class EdgePlan:
 
 @dataclass(frozen=True)
 class TemporalEdgePlan:
-    """An edge read from a source row by row: named values give the translation and the quaternion."""
+    """An edge read from a source row by row: named values give the translation and the quaternion, or (`tf_topic`) the
+    child's transforms on a tf2_msgs/msg/TFMessage topic of the source's bag."""
 
     parent: str
     child: str
@@ -198,3 +199,4 @@ class TemporalEdgePlan:
     entity: str  # "/calibration/temporal/<child>"
     label: str
     where: Where
+    tf_topic: str | None = None  # a bag's /tf: the child's transforms on this topic of the source's MCAP file, no named values

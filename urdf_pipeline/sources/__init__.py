@@ -16,6 +16,7 @@ from ..plan import SourcePlan
 from . import csv, hdf5, lerobot, mcap, parquet, rrd
 
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it), with the names defined below
+    from .bag_contents import BagTransform, robot_description, static_transforms, tf_messages, tf_pairs
     from .base import GLOB, EntryField, SourceDescription, SourceKind, refuse_control_characters, resolve_input
     from .callbacks import CallbackErrors
     from .joint_values import ChannelStats, JointValueMapper, RobotStats, raw_matrix, wrapped

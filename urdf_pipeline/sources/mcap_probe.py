@@ -17,7 +17,7 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from ..errors import UserError, Where
 
@@ -37,13 +37,13 @@ def topic_entity(topic: str) -> str:
     return topic if topic.startswith("/") else f"/{topic}"
 
 
-def topic_messages(path: Path, topic: str) -> LazyChunkStream:
+def topic_messages(path: Path, topic: str, component: str = MESSAGE_COMPONENT) -> LazyChunkStream:
     """The topic's messages, one struct per row; nothing else of the file is decoded."""
     from rerun.chunk import McapReader
 
     entity = topic_entity(topic)
     reader = McapReader(path, decoders=["ros2_reflection"], include_topic_regex=[f"^{re.escape(entity)}$"])
-    return reader.stream().filter(content=entity, is_static=False, components=MESSAGE_COMPONENT)
+    return reader.stream().filter(content=entity, is_static=False, components=component)
 
 
 def _watch(stream: object, errors: list[str], others: list[str], failed: threading.Event) -> None:
@@ -59,9 +59,18 @@ def _watch(stream: object, errors: list[str], others: list[str], failed: threadi
 def probe(path: Path, topic: str, first_only: bool, where: Where | None, shown: str | None = None) -> tuple[str, ...] | None:
     """Read `topic` in a child: the first message's names (`first_only`), else None once every message decoded.
     `shown` names the file in messages (a remote file's URL; its path by default)."""
+    names = in_child(path, topic, "first" if first_only else "all", where, shown).get("names")
+    return tuple(names) if names is not None else None
+
+
+def in_child(
+    path: Path, topic: str, mode: str, where: Where | None, shown: str | None = None, module: str = "urdf_pipeline.sources.mcap_probe"
+) -> dict[str, Any]:
+    """Read `topic` in a child process (`python -m MODULE PATH TOPIC MODE`) and return the JSON it printed: this
+    module's modes are "first" and "all" (JointState names); `bag_contents` has its own."""
     shown = shown or str(path)
     budget = BASE_SECONDS + path.stat().st_size * SECONDS_PER_BYTE
-    command = [sys.executable, "-m", "urdf_pipeline.sources.mcap_probe", str(path), topic, "first" if first_only else "all"]
+    command = [sys.executable, "-m", module, str(path), topic, mode]
     env = {**os.environ, "RUST_LOG": "warn"}  # the read errors are what the parent watches for
     child = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
     errors: list[str] = []
@@ -93,9 +102,8 @@ def probe(path: Path, topic: str, first_only: bool, where: Where | None, shown: 
     if child.returncode != 0:
         reason = others[-1] if others else f"exit status {child.returncode}"
         raise UserError(f"cannot read MCAP file {shown} (topic '{topic}'): {reason}", where)
-    result = json.loads(output.strip().splitlines()[-1]) if output.strip() else {}
-    names = result.get("names")
-    return tuple(names) if names is not None else None
+    result: dict[str, Any] = json.loads(output.strip().splitlines()[-1]) if output.strip() else {}
+    return result
 
 
 def _child(path: str, topic: str, mode: str) -> None:

@@ -60,6 +60,7 @@ def _edge_changes(report: _Report, old: Plan, new: Plan) -> None:
         else:
             o, n = old_temporal[key], new_temporal[key]
             report.field("edges", subject, "source", o.source, n.source)
+            report.field("edges", subject, "tf topic", o.tf_topic or "none", n.tf_topic or "none")  # a bag's /tf edge
             report.field("edges", subject, "translation", o.translation_names, n.translation_names)
             report.field("edges", subject, "quaternion_xyzw", o.quaternion_names, n.quaternion_names)
 
@@ -73,6 +74,8 @@ def _edge_summary(edge: EdgePlan) -> str:
 
 
 def _temporal_summary(edge: TemporalEdgePlan) -> str:
+    if edge.tf_topic is not None:
+        return f"source {edge.source}, {edge.tf_topic} of its bag"
     return f"source {edge.source}, translation {_text(edge.translation_names)}, quaternion_xyzw {_text(edge.quaternion_names)}"
 
 

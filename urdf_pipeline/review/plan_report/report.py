@@ -303,6 +303,7 @@ def _edges(plan: Plan, models: dict[str, UrdfModel], paths: _Paths) -> tuple[lis
             temporal.translation_indices,
             temporal.quaternion_names,
             temporal.quaternion_indices,
+            temporal.tf_topic,
         )
         configured.append(EdgeEntry(temporal.parent, temporal.child, origin, None, None, temporal=values))
     return urdf_edges, configured

@@ -97,6 +97,7 @@ def _edge(edge: EdgeEntry) -> dict[str, Any]:
             "translation_indices": list(temporal.translation_indices),
             "quaternion_xyzw_names": list(temporal.quaternion_names),
             "quaternion_xyzw_indices": list(temporal.quaternion_indices),
+            "tf_topic": temporal.tf_topic,
         },
         "origin": {
             "kind": o.kind,

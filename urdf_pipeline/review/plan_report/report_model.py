@@ -175,6 +175,7 @@ class TemporalValues:
     translation_indices: tuple[int, ...]
     quaternion_names: tuple[str, ...]  # x, y, z, w
     quaternion_indices: tuple[int, ...]
+    tf_topic: str | None = None  # a bag's /tf edge: the child's transforms on this topic, not named values
 
 
 @dataclass(frozen=True)

@@ -63,6 +63,11 @@ def _named(names: tuple[str, ...], indices: tuple[int, ...]) -> str:
 
 def _edge_lines(edge: EdgeEntry) -> list[str]:
     origin, temporal = edge.origin, edge.temporal
+    if temporal is not None and temporal.tf_topic is not None:
+        return [
+            f"temporal edge {edge.parent} -> {edge.child} on {temporal.entity} ({origin.label}, line {origin.line}): "
+            f"its transforms on {temporal.tf_topic} of source '{temporal.source}''s bag, on the source's timeline"
+        ]
     if temporal is not None:
         return [
             f"temporal edge {edge.parent} -> {edge.child} on {temporal.entity} ({origin.label}, "
