@@ -4,6 +4,7 @@ each trail's window; the recording's FK is what it was without trails."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -234,3 +235,23 @@ def test_a_new_window_rewrites_the_blueprint_only(examples_dir: Path, run_cli) -
     config.write_text(config.read_text().replace("link: panda_hand", "link: panda_link7"))
     third = run_cli("run", str(config))
     assert third.code == 0 and "is up to date" not in third.err
+
+
+def test_plan_and_diff_show_the_trails(examples_dir: Path, run_cli) -> None:
+    """A reviewer sees what a pull request's trails draw: plan in every format, and diff when one changes."""
+    reference = PinocchioRobot(examples_dir / "robots" / "panda.urdf")
+    q = random_within_limits(reference, [*PANDA_ARM, "panda_finger_joint1"], frames=10, seed=31)
+    write_joint_parquet(examples_dir / "data" / "random_trails.parquet", panda_contract_raw(q))
+    config = _with_trails(examples_dir, "trails_review", [{"link": "panda_hand", "window": "5 rows", "style": "points"}])
+    text = run_cli("plan", str(config))
+    assert text.code == 0, text.err
+    assert "trail of arm's panda_hand in world: points, window 5 rows (trails)" in text.out
+    markdown = run_cli("plan", str(config), "--format", "markdown")
+    assert "trail of `arm`'s `panda_hand` in `world`: points, window 5 rows (`trails`)" in markdown.out
+    data = json.loads(run_cli("plan", str(config), "--format", "json").out)
+    assert data["output"]["trails"] == [{"robot": "arm", "link": "panda_hand", "frame": "world", "style": "points", "window": "5 rows"}]
+    assert "trails" not in json.loads(run_cli("plan", str(examples_dir / "demo.yaml"), "--format", "json").out)["output"]
+    changed = config.with_name("trails_review_new.yaml")
+    changed.write_text(config.read_text().replace("link: panda_hand", "link: panda_link7"))
+    diff = run_cli("diff", str(config), str(changed))
+    assert "trails trail of arm's panda_hand in world" in diff.out and "-> trail of arm's panda_link7 in world" in diff.out, diff.out

@@ -186,6 +186,7 @@ def _output_changes(report: _Report, old: Plan, new: Plan) -> None:
     report.field("output", subject, "application_id", old.application_id, new.application_id)
     report.field("output", subject, "layout", old.dataset.layout, new.dataset.layout)
     report.field("output", subject, "joint_series", old.dataset.joint_series, new.dataset.joint_series)
+    report.field("output", subject, "trails", _trails(old), _trails(new))
     old_model = report.old_path(old.dataset.model) if old.dataset.model else None
     new_model = report.new_path(new.dataset.model) if new.dataset.model else None
     report.field("output", subject, "model", old_model, new_model)
@@ -222,6 +223,14 @@ def _output_changes(report: _Report, old: Plan, new: Plan) -> None:
             [str(o) for o, _ in moved],
             [str(n) for _, n in moved],
         )
+
+
+def _trails(plan: Plan) -> str:
+    """The trails as one comparable text: which link, in which frame, how drawn, over which window."""
+    return (
+        "; ".join(f"{t.label} ({t.style}, window {t.window if t.window is not None else 'all'} {t.window_unit})" for t in plan.trails)
+        or "none"
+    )
 
 
 def _manifest_key(path_value: Callable[[Path], PathValue], plan: Plan) -> tuple[PathValue, str | None]:

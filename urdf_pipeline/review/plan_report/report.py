@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
 from ...errors import ConfigWarning, collect_warnings, show_warning, shown
-from ...plan import IndexPlan, Plan, RobotPlan, SourcePlan
+from ...plan import IndexPlan, Plan, RobotPlan, SourcePlan, TrailPlan
 from ...urdf import Joint, UrdfModel, parse_urdf_text
 from ..picture_entries import plan_pictures
 from .report_json import render_json
@@ -38,8 +38,10 @@ from .report_model import (
     ShownPath,
     SourceEntry,
     TemporalValues,
+    TrailEntry,
     WarningEntry,
     Wrap,
+    number,
     rounded,
 )
 from .report_text import render_text
@@ -359,7 +361,13 @@ def _output(plan: Plan, paths: _Paths) -> OutputEntry:
         model=paths(dataset.model) if dataset.model is not None else None,
         manifest=paths(dataset.manifest),
         joint_series=dataset.joint_series,
+        trails=tuple(_trail(trail) for trail in plan.trails),
     )
+
+
+def _trail(trail: TrailPlan) -> TrailEntry:
+    window = "the whole recording" if trail.window is None else f"{number(trail.window)} {trail.window_unit}"
+    return TrailEntry(trail.robot, trail.link, trail.frame, trail.style, window)
 
 
 def _warnings(warnings: Sequence[ConfigWarning], paths: _Paths) -> tuple[WarningEntry, ...]:

@@ -94,6 +94,9 @@ def output_items(output: OutputEntry, markup: Markup) -> list[str]:
     items.append(f"manifest: {markup.path(output.manifest.relative)}")
     if output.joint_series:
         items.append(f"{SERIES_TEXT} ({markup.code('output.joint_series')})")
+    for trail in output.trails:
+        where = f"{markup.code(trail.robot)}'s {markup.code(trail.link)} in {markup.code(trail.frame)}"
+        items.append(f"trail of {where}: {trail.style}, window {trail.window} ({markup.code('trails')})")
     what = "layer (forward kinematics, calibration edges)" if output.layout == "split" else "recording"
     count = output.segment_count
     items.append(f"{markup.count(count)} segment{'' if count == 1 else 's'}, each a {what} whose recording_id is the segment id:")

@@ -125,6 +125,11 @@ def _output(output: OutputEntry) -> dict[str, Any]:
         "model": output.model.relative if output.model is not None else None,
         "manifest": output.manifest.relative,
         **({"joint_series": True} if output.joint_series else {}),  # only when set: the golden reports stay as they are
+        **(
+            {"trails": [{"robot": t.robot, "link": t.link, "frame": t.frame, "style": t.style, "window": t.window} for t in output.trails]}
+            if output.trails
+            else {}
+        ),
     }
 
 

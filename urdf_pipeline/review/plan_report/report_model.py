@@ -201,6 +201,17 @@ class SegmentEntry:
 
 
 @dataclass(frozen=True)
+class TrailEntry:
+    """A trail every segment's recording draws: a link's path in a frame."""
+
+    robot: str
+    link: str
+    frame: str
+    style: str  # line | points
+    window: str  # "2 s", "200 rows", "the whole recording"
+
+
+@dataclass(frozen=True)
 class OutputEntry:
     layout: str
     application_id: str
@@ -210,6 +221,7 @@ class OutputEntry:
     model: ShownPath | None
     manifest: ShownPath
     joint_series: bool = False  # output.joint_series: every format shows it only when set
+    trails: tuple[TrailEntry, ...] = ()  # `trails:`: every format shows them only when there are some
 
     @property
     def segment_count(self) -> int:

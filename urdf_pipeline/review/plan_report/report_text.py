@@ -92,6 +92,7 @@ def _edge_lines(edge: EdgeEntry) -> list[str]:
 
 def _output_lines(output: OutputEntry) -> list[str]:
     series = [f"  {SERIES_TEXT} (output.joint_series)"] if output.joint_series else []
+    series += [f"  trail of {t.robot}'s {t.link} in {t.frame}: {t.style}, window {t.window} (trails)" for t in output.trails]
     if output.single:
         return [f"output {output.path.planned} (application_id {output.application_id}, recording_id {output.recording_id})", *series]
     segments = output.segments
