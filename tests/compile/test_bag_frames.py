@@ -264,6 +264,9 @@ def test_plan_says_where_a_tf_edge_comes_from(bag_dir: tuple[Path, np.ndarray], 
     assert result.code == 0, result.err
     assert "temporal edge odom -> base on /calibration/temporal/base (edges[0], line" in result.out
     assert "its transforms on /tf of source 'js''s bag, on the source's timeline" in result.out
+    markdown = run_cli("plan", str(directory / "plan.yaml"), "--format", "markdown")
+    assert "per message: the bag's `/tf` of source `js`" in markdown.out, markdown.out
+    assert "translation.x" not in markdown.out
 
 
 def test_validate_no_data_leaves_tf_frames_to_the_data(bag_dir: tuple[Path, np.ndarray], run_cli) -> None:

@@ -32,7 +32,10 @@ def edge_cells(edge: EdgeEntry, markup: Markup, origin: Callable[[object], str])
     """An edge's row: parent, child, translation, rotation (a temporal edge: the columns it reads), and `origin` (its
     description, free text from the config) as the renderer writes such text."""
     temporal = edge.temporal
-    if temporal is not None:
+    if temporal is not None and temporal.tf_topic is not None:  # a bag's /tf edge: the child's transforms, no named values
+        translation = f"per message: the bag's {markup.code(temporal.tf_topic)} of source {markup.code(temporal.source or '')}"
+        rotation = "per message: the same transforms"
+    elif temporal is not None:
         translation = "per row: " + ", ".join(markup.code(n) for n in temporal.translation_names)
         rotation = "per row: quaternion_xyzw " + ", ".join(markup.code(n) for n in temporal.quaternion_names)
     else:
