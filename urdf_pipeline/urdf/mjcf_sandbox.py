@@ -16,22 +16,7 @@ import sys
 from collections.abc import Mapping
 from typing import Any
 
-
-def _limit(limits: Mapping[str, int]) -> None:
-    """Bound this process: address space, CPU seconds, size of any file written (stdout is one), no children."""
-    import resource
-    import signal
-
-    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # an oversized write fails (EFBIG) instead of killing silently
-    for kind, value in (
-        (resource.RLIMIT_AS, limits["memory_bytes"]),
-        (resource.RLIMIT_CPU, limits["cpu_seconds"]),
-        (resource.RLIMIT_FSIZE, limits["output_bytes"]),
-        (resource.RLIMIT_CORE, 0),
-        (resource.RLIMIT_NPROC, 0),
-    ):
-        with contextlib.suppress(ValueError, OSError):  # a limit the platform lacks or refuses stays as it was
-            resource.setrlimit(kind, (value, value))
+from .child_limits import limit_this_process
 
 
 def compile_answer(request: Mapping[str, Any]) -> dict[str, Any]:
@@ -67,7 +52,7 @@ def compile_answer(request: Mapping[str, Any]) -> dict[str, Any]:
 def main() -> None:
     """Entry point of the child process."""
     request = json.load(sys.stdin)
-    _limit(request["limits"])
+    limit_this_process(request["limits"])
     try:
         with contextlib.redirect_stdout(sys.stderr):  # MuJoCo's own prints are not the answer
             answer = compile_answer(request)

@@ -29,6 +29,7 @@ from typing import Any
 
 from ..confine import Confinement
 from ..errors import UserError
+from .child_limits import limit_this_process
 
 # Names and attributes that lead to Python's internals: dunders and privates, frame/generator/coroutine/traceback/code
 # objects (`gen.gi_frame.f_back.f_globals` reaches a module's globals), and str.format, whose fields read attributes.
@@ -282,27 +283,10 @@ def describe(exc: BaseException, sandbox: Sandbox) -> str:
     return f"xacro failed on {sandbox.current()}: {text if len(text) < 2000 else text[:2000] + '...'}"
 
 
-def _limit(limits: Mapping[str, int]) -> None:
-    """Bound this process: address space, CPU seconds, size of any file written (stdout is one), no children."""
-    import resource
-    import signal
-
-    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # an oversized write fails (EFBIG) instead of killing silently
-    for kind, value in (
-        (resource.RLIMIT_AS, limits["memory_bytes"]),
-        (resource.RLIMIT_CPU, limits["cpu_seconds"]),
-        (resource.RLIMIT_FSIZE, limits["output_bytes"]),
-        (resource.RLIMIT_CORE, 0),
-        (resource.RLIMIT_NPROC, 0),
-    ):
-        with contextlib.suppress(ValueError, OSError):  # a limit the platform lacks or refuses stays as it was
-            resource.setrlimit(kind, (value, value))
-
-
 def main() -> None:
     """Entry point of the child process (see xacro_guard)."""
     request = json.load(sys.stdin)
-    _limit(request["limits"])
+    limit_this_process(request["limits"])
     import xacro
 
     sandbox = Sandbox(request)
