@@ -9,11 +9,12 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Iterable
 from pathlib import Path
 
 from ..config import EdgeSpec
 from ..confine import refuse_url
-from ..errors import UserError, closest, listing, quoted, shown
+from ..errors import UserError, Where, did_you_mean, listing, quoted, shown
 from ..plan import EdgePlan, TemporalEdgePlan
 from ..sources import GLOB, BagTransform, static_transforms, tf_pairs
 from ..urdf import normalized_quaternion
@@ -44,13 +45,7 @@ def compile_bag_edge(ctx: CompileContext, edge: EdgeSpec, reads: BagReads) -> Ed
     found = transforms.get(child)
     file_name = Path(spec["tf_static"]).name
     if found is None:
-        close = closest(child, transforms)
-        hint = f" (did you mean {quoted(close)}?)" if close is not None else ""
-        ctx.problems.add(
-            f"{quoted(topic)} of {file_name} has no transform for child frame {quoted(child)}{hint}; its child frames: "
-            f"{listing(sorted(transforms), empty='none')}",
-            edge.where("child"),
-        )
+        _no_child_frame(ctx, topic, file_name, child, transforms, edge.where("child"))
         return None
     if found.parent != parent:
         ctx.problems.add(
@@ -146,13 +141,7 @@ def _frames_match(ctx: CompileContext, edge: EdgeSpec, file: str, topic: str, re
     if child not in pairs:
         if not complete:
             return True  # not among the first transforms: the data pass says if it never comes
-        close = closest(child, pairs)
-        hint = f" (did you mean {quoted(close)}?)" if close is not None else ""
-        ctx.problems.add(
-            f"{quoted(topic)} of {path.name} has no transform for child frame {quoted(child)}{hint}; its child frames: "
-            f"{listing(sorted(pairs), empty='none')}",
-            edge.where("child"),
-        )
+        _no_child_frame(ctx, topic, path.name, child, pairs, edge.where("child"))
         return False
     others = [other for other in pairs[child] if other != parent]
     if others:
@@ -163,3 +152,12 @@ def _frames_match(ctx: CompileContext, edge: EdgeSpec, file: str, topic: str, re
         )
         return False
     return True
+
+
+def _no_child_frame(ctx: CompileContext, topic: str, file_name: str, child: str, frames: Iterable[str], where: Where) -> None:
+    """A /tf or /tf_static edge's child the bag has no transform for: the bag's child frames, and the closest one."""
+    ctx.problems.add(
+        f"{quoted(topic)} of {file_name} has no transform for child frame {quoted(child)}{did_you_mean(child, frames)}; its child "
+        f"frames: {listing(sorted(frames), empty='none')}",
+        where,
+    )
