@@ -62,6 +62,11 @@ class TemporalEdgeValues:
         self._lock = threading.Lock()
 
     def __call__(self, vectors: pa.Array) -> pa.Array:
+        return self.placed(vectors)[0]
+
+    def placed(self, vectors: pa.Array) -> tuple[pa.Array, np.ndarray]:
+        """The list<struct> batch, and which rows it places (the others, NaN or an all-zero quaternion, hold an
+        identity and are counted: a run refuses them after its pass, a live view leaves them out)."""
         picked = raw_matrix(self.source, vectors, self.columns, f"temporal edge {self.edge.parent} -> {self.edge.child}")[:, self.columns]
         rows = len(picked)
         finite = np.isfinite(picked)
@@ -83,7 +88,7 @@ class TemporalEdgeValues:
             fields=list(_EDGE_STRUCT),
         )
         offsets = pa.array(np.arange(rows + 1, dtype=np.int32))
-        return pa.ListArray.from_arrays(offsets, structs, type=pa.list_(pa.field("item", _EDGE_STRUCT, nullable=False)))
+        return pa.ListArray.from_arrays(offsets, structs, type=pa.list_(pa.field("item", _EDGE_STRUCT, nullable=False))), ~unusable
 
     def _record(self, rows: int, finite: np.ndarray, bad_rows: np.ndarray, zero: np.ndarray) -> None:
         per_value = (~finite).sum(axis=0)

@@ -230,9 +230,8 @@ class LiveView:
     def _send_edge(self, edge: TemporalEdgeValues, raw: np.ndarray, times: np.ndarray) -> None:
         """A temporal edge's rows through the run's own function (its checks and statistics); rows it cannot place
         (NaN, a zero quaternion) are counted for the window's report and left out."""
-        picked = raw[:, edge.columns]
-        usable = np.isfinite(picked).all(axis=1) & (np.linalg.norm(np.nan_to_num(picked[:, 3:]), axis=1) >= 1e-9)
-        structs = edge(pa.FixedSizeListArray.from_arrays(pa.array(raw.reshape(-1)), raw.shape[1])).values
+        batch, usable = edge.placed(pa.FixedSizeListArray.from_arrays(pa.array(raw.reshape(-1)), raw.shape[1]))
+        structs = batch.values
         if usable.all():
             self._send_transforms(edge.edge.entity, structs, times)
         elif usable.any():
