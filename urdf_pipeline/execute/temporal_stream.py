@@ -71,13 +71,8 @@ class TemporalEdgeValues:
         rows = len(picked)
         finite = np.isfinite(picked)
         bad_rows = ~finite.all(axis=1)
-        norms = np.linalg.norm(np.where(finite[:, 3:], picked[:, 3:], 0.0), axis=1)
-        zero = ~bad_rows & (norms < 1e-9)
-        self._record(rows, finite, bad_rows, zero)
-        # Bad rows stop the run after the data pass; give them a harmless identity so the batch stays valid.
-        unusable = bad_rows | zero
-        translation = np.where(unusable[:, None], 0.0, picked[:, :3])
-        quaternion = np.where(unusable[:, None], [0.0, 0.0, 0.0, 1.0], picked[:, 3:] / np.where(unusable, 1.0, norms)[:, None])
+        translation, quaternion, usable = placed_poses(picked[:, :3], picked[:, 3:])
+        self._record(rows, finite, bad_rows, ~bad_rows & ~usable)
         structs = pa.StructArray.from_arrays(
             [
                 pa.FixedSizeListArray.from_arrays(pa.array(translation.astype(np.float32).reshape(-1)), 3).cast(_FLOAT3),
@@ -88,7 +83,7 @@ class TemporalEdgeValues:
             fields=list(_EDGE_STRUCT),
         )
         offsets = pa.array(np.arange(rows + 1, dtype=np.int32))
-        return pa.ListArray.from_arrays(offsets, structs, type=pa.list_(pa.field("item", _EDGE_STRUCT, nullable=False))), ~unusable
+        return pa.ListArray.from_arrays(offsets, structs, type=pa.list_(pa.field("item", _EDGE_STRUCT, nullable=False))), usable
 
     def _record(self, rows: int, finite: np.ndarray, bad_rows: np.ndarray, zero: np.ndarray) -> None:
         per_value = (~finite).sum(axis=0)
@@ -99,6 +94,18 @@ class TemporalEdgeValues:
             for name, count in zip(self.value_names, per_value, strict=True):
                 if count:
                     self.stats.nonfinite_by_value[name] = self.stats.nonfinite_by_value.get(name, 0) + int(count)
+
+
+def placed_poses(translation: np.ndarray, quaternion: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(translation, unit quaternion, usable rows) of rows x 3 and rows x 4 values. A row with a NaN or infinite
+    value or an all-zero quaternion is not usable: it stops a run after the data pass (a live view leaves it out), and
+    holds a harmless identity meanwhile so the batch stays valid."""
+    finite = np.isfinite(translation).all(axis=1) & np.isfinite(quaternion).all(axis=1)
+    norms = np.linalg.norm(np.where(np.isfinite(quaternion), quaternion, 0.0), axis=1)
+    usable = finite & (norms >= 1e-9)
+    placed_translation = np.where(usable[:, None], translation, 0.0)
+    placed_quaternion = np.where(usable[:, None], quaternion / np.where(usable, norms, 1.0)[:, None], [0.0, 0.0, 0.0, 1.0])
+    return placed_translation, placed_quaternion, usable
 
 
 def _component(edge: TemporalEdgePlan) -> str:

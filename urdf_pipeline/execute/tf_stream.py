@@ -15,7 +15,7 @@ import pyarrow.compute as pc
 from ..errors import UserError, quoted
 from ..plan import McapSourcePlan, RecordingPlan, TemporalEdgePlan
 from ..sources import tf_messages
-from .temporal_stream import TemporalEdgeStats
+from .temporal_stream import TemporalEdgeStats, placed_poses
 
 if TYPE_CHECKING:
     from rerun.chunk import Chunk, LazyChunkStream
@@ -82,19 +82,15 @@ def _edge_chunks(source: McapSourcePlan, values: list[TfEdgeValues], chunk: Chun
                 f"sources.{source.name}.timeline: log_time to use the time the messages were recorded",
                 edge.where,
             )
-        t, q = translation[picked], quaternion[picked]
-        finite = np.isfinite(t).all(axis=1) & np.isfinite(q).all(axis=1)
-        norms = np.linalg.norm(np.where(np.isfinite(q), q, 0.0), axis=1)
-        zero = finite & (norms < 1e-9)
+        t, q, usable = placed_poses(translation[picked], quaternion[picked])
+        finite = np.isfinite(translation[picked]).all(axis=1) & np.isfinite(quaternion[picked]).all(axis=1)
+        zero = finite & ~usable
         stats = edge_values.stats
         stats.rows += rows
         stats.nonfinite_rows += int((~finite).sum())
         stats.zero_quaternion_rows += int(zero.sum())
         if not finite.all():
             stats.nonfinite_by_value[edge.tf_topic or "/tf"] = stats.nonfinite_rows
-        unusable = ~finite | zero  # stop the run after the pass (check_temporal_edges); an identity keeps the chunk valid
-        t = np.where(unusable[:, None], 0.0, t)
-        q = np.where(unusable[:, None], [0.0, 0.0, 0.0, 1.0], q / np.where(unusable, 1.0, norms)[:, None])
         result.append(
             Chunk.from_columns(
                 edge.entity,
