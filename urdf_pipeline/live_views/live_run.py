@@ -24,6 +24,7 @@ from ..compile import LivePlan, LiveSourceSpec, check_live_config, compile_live
 from ..errors import UserError, UserErrors, Where, shown
 from ..execute import provenance_stream, write_file_atomically
 from ..progress import say
+from ..sources import checked_first_names
 from .joint_state import Feed, JointStateSample, same_topic
 from .latency import Latencies
 from .live_view import LiveView
@@ -177,7 +178,9 @@ class _Session:
         for sample in batch:
             for spec in self.specs:
                 if spec.topic is not None and same_topic(spec.topic, sample.topic) and spec.name not in self.stream_names:
-                    self.stream_names[spec.name] = spec.names or _first_names(sample, spec)
+                    self.stream_names[spec.name] = spec.names or checked_first_names(
+                        sample.names, sample.topic, self.options.source, spec.where
+                    )
         self.early += batch
         if len(self.early) > MAX_EARLY_SAMPLES:  # the topics with names wait for those without: bounded, and said
             over = len(self.early) - MAX_EARLY_SAMPLES
@@ -239,17 +242,6 @@ def _closing(step: Callable[[], Any], problems: list[BaseException]) -> None:
         step()
     except BaseException as exc:  # noqa: BLE001 - every view and the recording are closed; the first failure is raised
         problems.append(exc)
-
-
-def _first_names(sample: JointStateSample, spec: LiveSourceSpec) -> tuple[str, ...]:
-    """A topic's names from its first message, as `validate` reads a bag's: some, each once."""
-    if not sample.names:
-        raise UserError(f"the first message on '{shown(spec.topic)}' names no joints; give the names with names: [...]", spec.where)
-    if len(set(sample.names)) != len(sample.names):
-        raise UserError(
-            f"the first message on '{shown(spec.topic)}' names a joint twice: {', '.join(map(shown, sample.names))}", spec.where
-        )
-    return sample.names
 
 
 def _require_robots(plan: LivePlan) -> None:

@@ -18,7 +18,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 
 from ..config import Document
-from ..errors import UserError, Where, listing
+from ..errors import UserError, Where, listing, shown
 from ..plan import McapSourcePlan
 from ..remote import is_remote
 from .base import EntryField, SourceDescription, file_input, resolve_input, shown_file
@@ -42,17 +42,18 @@ ALL_TIMELINES = tuple(TIMELINES.values())
 
 def _first_message_names(path: Path, topic: str, where: Where) -> tuple[str, ...]:
     names = probe(path, topic, first_only=True, where=where)  # in a child: a corrupt file cannot hang this process
-    return _checked_names(names, topic, str(path), where)
+    return checked_first_names(names, topic, str(path), where)
 
 
-def _checked_names(names: tuple[str, ...] | None, topic: str, shown: str, where: Where) -> tuple[str, ...]:
-    """The first message's names: there is one, it names joints, each once."""
+def checked_first_names(names: tuple[str, ...] | None, topic: str, file: str, where: Where | None) -> tuple[str, ...]:
+    """The first message's names (of a bag's topic, or of a live stream's): there is one, it names joints, each once.
+    `file` names where the topic is, for the message without any."""
     if names is None:
-        raise UserError(f"topic '{topic}' of {shown} has no messages Rerun's MCAP reader can decode; a source with zero rows", where)
+        raise UserError(f"topic '{shown(topic)}' of {file} has no messages Rerun's MCAP reader can decode; a source with zero rows", where)
     if not names:
-        raise UserError(f"the first message on '{topic}' names no joints; give the names with names: [...]", where)
+        raise UserError(f"the first message on '{shown(topic)}' names no joints; give the names with names: [...]", where)
     if len(set(names)) != len(names):
-        raise UserError(f"the first message on '{topic}' names a joint twice: {', '.join(names)}", where)
+        raise UserError(f"the first message on '{shown(topic)}' names a joint twice: {', '.join(map(shown, names))}", where)
     return names
 
 
@@ -165,7 +166,7 @@ def _compile_remote(name: str, spec: dict[str, Any], document: Document) -> Mcap
             names = tuple(spec["names"])
         else:
             found = file.first_names(sorted({c.topic for c in channels}))
-            names = _checked_names(found, topic, remote.url, document.where(*here, "topic"))
+            names = checked_first_names(found, topic, remote.url, document.where(*here, "topic"))
     plan = McapSourcePlan(name, cached_path(remote), topic, timeline, names, document.where(*here), remote=remote)
     return with_duplicates(plan, spec)
 
