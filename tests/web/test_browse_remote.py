@@ -26,4 +26,4 @@ def test_browse_fetches_the_recordings_the_manifest_lists(
     assert len(data["segments"]) >= 2 and not [s for s in data["segments"] if s.get("missing")]
     assert (site / "recordings" / "shared" / "model.rrd").is_file() and (site / "recordings" / "shared" / "blueprint.rbl").is_file()
     first = data["segments"][0]
-    assert store_ids(site / "recordings" / f"{first['id']}.rrd") == ("so101_dataset", first["id"])
+    assert store_ids(site / "recordings" / "000000.rrd") == ("so101_dataset", first["id"])

@@ -53,10 +53,10 @@ def test_the_split_layout_opens_model_layer_and_blueprint(examples_dir: Path, vi
     assert [s["id"] for s in segments] == sorted(s["id"] for s in segments) and len(segments) >= 2
     first = segments[0]
     assert first["href"] == (  # the model is added to the layer's recording (boot.js), not opened as a recording of its own
-        f"viewer/index.html#url=../recordings/{first['id']}.rrd&url=../recordings/shared/blueprint.rbl"
+        "viewer/index.html#url=../recordings/000000.rrd&url=../recordings/shared/blueprint.rbl"
         f"&asset=../recordings/shared/model.rrd&into={first['id']}"
     )
-    for path in ("recordings/shared/model.rrd", "recordings/shared/blueprint.rbl", f"recordings/{first['id']}.rrd", "browse.js"):
+    for path in ("recordings/shared/model.rrd", "recordings/shared/blueprint.rbl", "recordings/000000.rrd", "browse.js"):
         assert (site / path).is_file(), path
     assert first["robots"] == ["so101"] and first["frames"] > 0 and "frame_index" in first["time"]
     spark = first["spark"]
@@ -139,9 +139,9 @@ def test_hostile_ids_notes_and_file_names_stay_inert(viewer_cache: ViewerAssets,
     assert "\x1b" not in json.dumps(data, ensure_ascii=False) and "\\x1b" in data["segments"][0]["id"]
     assert data["segments"][0]["notes"][0].startswith("<img src=x")
     names = sorted(p.name for p in (site / "recordings").iterdir())
-    assert names == ["same.rrd", "segment_000000.rrd", "segment_000002.rrd", 'x"<y>.rrd']
-    assert [s["href"].count("url=") for s in data["segments"]] == [1, 1, 1, 1]  # a fragment value of the quoted path:
-    assert "x%2522%253Cy%253E.rrd" in data["segments"][3]["href"]
+    assert names == ["000000.rrd", "000001.rrd", "000002.rrd", "000003.rrd"]  # the site's names, never the files'
+    assert [s["href"].count("url=") for s in data["segments"]] == [1, 1, 1, 1]
+    assert not [s for s in data["segments"] if "same" in s["href"] or "hidden" in s["href"] or "%253Cy" in s["href"]]
     script = (Path(__file__).parents[2] / "urdf_pipeline" / "web" / "static" / "browse.js").read_text(encoding="utf-8")
     assert "innerHTML" not in script and "insertAdjacentHTML" not in script and "document.write" not in script
 
@@ -194,7 +194,7 @@ def test_base_recordings_open_with_their_layer(examples_dir: Path, viewer_cache:
     first, second, last = rows[ids[0]], rows[ids[1]], rows[ids[-1]]
     assert first["base"] == ["recordings/shared/base_000000.rrd"] and "missing" not in first
     assert first["href"] == (
-        f"viewer/index.html#url=../recordings/shared/base_000000.rrd&url=../recordings/{ids[0]}.rrd"
+        "viewer/index.html#url=../recordings/shared/base_000000.rrd&url=../recordings/000000.rrd"
         f"&url=../recordings/shared/blueprint.rbl&asset=../recordings/shared/model.rrd&into={ids[0]}"
     )
     assert (tmp_path / "site" / "recordings" / "shared" / "base_000000.rrd").samefile(base / f"{ids[0]}.rrd")

@@ -17,17 +17,18 @@ import stat
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 from .. import __version__
-from ..confine import resolved_or_written
-from ..errors import Where
-from ..execute import SegmentSummary, require_ours, write_file_atomically
+from ..confine import Confinement, confinement_for, resolved_or_written
+from ..errors import UserError, Where, shown
+from ..execute import SegmentSummary, foreign_reason, require_ours, write_file_atomically
 
 if TYPE_CHECKING:
     from ..plan import Plan
 
 FORMAT = 1
+OutputKind = Literal["recording", "blueprint"]  # what a reader of a run's outputs publishes
 
 
 @dataclass
@@ -42,6 +43,7 @@ class Manifest:
     segments: dict[str, dict[str, Any]] = field(default_factory=dict)
     _next_write: float = 0.0  # time.monotonic() from which a throttled write is due
     _lines: dict[str, tuple[dict[str, Any], str]] = field(default_factory=dict)  # segment id -> (entry, its JSON line)
+    places: dict[str, int] = field(default_factory=dict)  # segment id -> its index in the file's `segments` (for messages)
 
     @classmethod
     def load(cls, path: Path, application_id: str, layout: str, config: Path, where: Where | None = None) -> Manifest:
@@ -64,7 +66,12 @@ class Manifest:
         segments = data.get("segments")
         entries = segments if isinstance(segments, list) else []
         manifest.segments = {e["segment"]: e for e in entries if _is_entry(e) and isinstance(e.get("segment"), str)}
+        manifest.places = {e["segment"]: i for i, e in enumerate(entries) if _is_entry(e) and isinstance(e.get("segment"), str)}
         return manifest
+
+    def where(self, label: str, key: str = "path") -> Where:
+        """The place of a segment's entry in the file, for a message naming it (`segments[3].path`)."""
+        return Where(self.path, 0, f"segments[{self.places.get(label, '?')}].{key}")
 
     def entry(self, label: str) -> dict[str, Any] | None:
         return self.model if label == "model" else self.segments.get(label)
@@ -156,8 +163,9 @@ class Manifest:
 @dataclass(frozen=True)
 class SegmentEntry:
     """One written segment as the manifest lists it, for a dataset browser: every value checked for its type (a hand-
-    edited manifest gives None, never an exception). `segment` and `path` are as the manifest says: show the id
-    through `errors.shown`, and confine the path before linking it; the summary's names are already shown, bounded."""
+    edited manifest gives None, never an exception). `path` passed the read rule and is a recording the tool wrote
+    (`segment_summaries`); `segment` is as the manifest says: show it through `errors.shown`; the summary's names are
+    already shown, bounded."""
 
     segment: str
     path: Path  # resolved against the manifest's folder
@@ -168,21 +176,52 @@ class SegmentEntry:
     summary: SegmentSummary | None  # None for an entry written before summaries, or adopted from its file
     url: str | None = None  # an output in S3: its URL and the ETag the run recorded (`path` is then its staged path)
     etag: str | None = None
+    where: Where | None = None  # the entry in the manifest, for a message naming it
 
 
 def segment_summaries(plan: Plan) -> list[SegmentEntry]:
     """The segments the config's manifest lists whose files exist, in the manifest's order (by segment id); empty when
-    there is no manifest yet. A UserError when the file at the manifest's path is not a manifest of ours."""
+    there is no manifest yet. A UserError when the file at the manifest's path is not a manifest of ours, and (a
+    manifest is data from whoever wrote the folder: a pull request) when an entry names a file the read rule refuses or
+    a file that is not a recording the tool wrote (`run_output`). Outputs in S3 keep their URL and ETag; their key is
+    checked where they are fetched (`remote_outputs.local_outputs`)."""
     manifest = Manifest.load(plan.dataset.manifest, plan.application_id, plan.dataset.layout, plan.config_path, plan.output_where)
-    resolved = ((label, manifest.resolve(entry["path"]), entry) for label, entry in sorted(manifest.segments.items()))
-    return [
-        _segment_entry(label, path, entry)
-        for label, path, entry in resolved
-        if isinstance(entry.get("etag"), str) or _size(path) is not None
-    ]
+    confinement = confinement_for(plan.config_path)
+    found = []
+    for label, entry in sorted(manifest.segments.items()):
+        where = manifest.where(label)
+        if plan.dataset.remote is not None:  # the staged path is never read: the object is, by its URL
+            if isinstance(entry.get("etag"), str):
+                found.append(_segment_entry(label, manifest.resolve(entry["path"]), entry, where))
+            continue
+        path = run_output(manifest.path.parent / entry["path"], "recording", "the recording", where, confinement)
+        if path is not None:
+            found.append(_segment_entry(label, path, entry, where))
+    return found
 
 
-def _segment_entry(label: str, path: Path, entry: dict[str, Any]) -> SegmentEntry:
+def run_output(
+    path: Path, kind: OutputKind, what: str, where: Where | None, confinement: Confinement | None, named: str | None = None
+) -> Path | None:
+    """`path` resolved when it is a file a run of the tool wrote (a recording with our recording property, a blueprint),
+    None when nothing is there; a UserError naming `where` when the read rule (`confinement`) refuses it (outside every
+    root, a FIFO, a loop) or it is anything else (a symbolic link, a folder, a page, a script, another tool's
+    recording): what a reader publishes must be the run's own output, never a file a manifest merely names. `named`:
+    how the message names the file (default: `path`; an object's URL for its cached copy)."""
+    real = confinement.check_read(path, what, where) if confinement is not None else resolved_or_written(path)
+    if not os.path.lexists(path):
+        return None
+    reason = foreign_reason(path, kind)
+    if reason is not None:
+        raise UserError(
+            f"{what} {shown(named or str(path))} is not one of the run's outputs: {reason}; a manifest may name only the files the run "
+            "wrote (`urdf-pipeline run CONFIG --force` writes them again)",
+            where,
+        )
+    return real
+
+
+def _segment_entry(label: str, path: Path, entry: dict[str, Any], where: Where) -> SegmentEntry:
     def number(key: str) -> int | None:
         value = entry.get(key)
         return value if isinstance(value, int) and not isinstance(value, bool) and value >= 0 else None
@@ -190,10 +229,9 @@ def _segment_entry(label: str, path: Path, entry: dict[str, Any]) -> SegmentEntr
     sha = entry.get("content_sha256")
     summary = SegmentSummary.from_json(entry.get("summary"))
     url, etag = entry.get("url"), entry.get("etag")
-    remote = (url, etag) if isinstance(url, str) and isinstance(etag, str) else (None, None)
-    return SegmentEntry(
-        label, path, sha if isinstance(sha, str) else None, number("bytes"), number("frames"), number("episode"), summary, *remote
-    )
+    url, etag = (url, etag) if isinstance(url, str) and isinstance(etag, str) else (None, None)
+    sha = sha if isinstance(sha, str) else None
+    return SegmentEntry(label, path, sha, number("bytes"), number("frames"), number("episode"), summary, url, etag, where)
 
 
 def _exists(manifest: Manifest, entry: dict[str, Any]) -> bool:

@@ -22,7 +22,7 @@ from ..errors import Problems, UserError, Where, shown
 from ..execute import CONTENT_METADATA, SegmentJob
 from ..plan import Plan, RemoteDataset, RemoteObject, RemoteOutputs, Segment
 from ..remote import download, fetched, listing, metadata_of, parse_url, upload
-from .manifest import Manifest, SegmentEntry
+from .manifest import Manifest, OutputKind, SegmentEntry, run_output
 
 
 @dataclass(frozen=True)
@@ -30,6 +30,7 @@ class BucketState:
     """What the outputs' prefix holds now, by URL (one listing)."""
 
     objects: dict[str, RemoteObject]
+    prefix: str = ""  # the prefix listed: every output of the run is under it
 
 
 def bucket_state(plan: Plan, remote: RemoteOutputs) -> BucketState:
@@ -37,7 +38,7 @@ def bucket_state(plan: Plan, remote: RemoteOutputs) -> BucketState:
     the blueprint beside the manifest)."""
     paths = [s.output for s in plan.dataset.segments] + [p for p in (plan.dataset.model, plan.dataset.manifest) if p is not None]
     prefix = _common_prefix([remote.url_of(path) for path in paths])
-    return BucketState({o.url: o for o in listing(parse_url(prefix), plan.output_where)})
+    return BucketState({o.url: o for o in listing(parse_url(prefix), plan.output_where)}, prefix)
 
 
 def fetch_manifest(plan: Plan, remote: RemoteOutputs, state: BucketState) -> None:
@@ -118,19 +119,28 @@ def local_outputs(
     """For a reader of a run's outputs in S3 (`browse`): the entries with their recordings fetched into this machine's
     download cache (each the version the manifest recorded: a replaced object is an error naming it), the model and
     the blueprint likewise; held in the cache while the block runs. Entries of the manifest the bucket no longer
-    holds as recorded are left out, as local entries whose file is gone are."""
+    holds as recorded are left out, as local entries whose file is gone are. The manifest is data from whoever wrote
+    the bucket: an entry whose URL is not under the run's outputs prefix is refused before anything is fetched, and
+    every fetched file must be a recording (a blueprint) the tool wrote (`run_output`), as a local output must."""
     remote = plan.dataset.remote
     assert remote is not None
     objects = state.objects
+    manifest = Manifest.load(plan.dataset.manifest, plan.application_id, plan.dataset.layout, plan.config_path, plan.output_where)
+    model_entry = manifest.model or {}
+    model_where = Where(manifest.path, 0, "model.url")
+    for url, where in [(e.url, e.where) for e in entries] + ([(model_entry.get("url"), model_where)] if model_entry else []):
+        if not isinstance(url, str) or not url.startswith(state.prefix):
+            raise UserError(
+                f"names {shown(str(url))}, which is not under the run's outputs ({shown(state.prefix)}); a manifest may name "
+                "only the objects the run wrote (`urdf-pipeline run CONFIG --force` writes them again)",
+                where,
+            )
 
     def as_recorded(url: object, etag: object) -> RemoteObject | None:
         found = objects.get(str(url))
         return found if found is not None and found.version == etag else None
 
     wanted = [(e, found) for e in entries if (found := as_recorded(e.url, e.etag)) is not None]
-    model_entry = (
-        Manifest.load(plan.dataset.manifest, plan.application_id, plan.dataset.layout, plan.config_path, plan.output_where).model or {}
-    )
     model = as_recorded(model_entry.get("url"), model_entry.get("etag"))
     blueprint = objects.get(remote.url_of(plan.dataset.manifest.parent / f"{plan.config_path.stem}.rbl"))
     targets = [found for _, found in wanted] + [found for found in (model, blueprint) if found is not None]
@@ -143,13 +153,15 @@ def local_outputs(
         list(pool.map(download_one, targets))
     with ExitStack() as held:  # then each held in the cache (found there) while the caller links it
 
-        def local(found: RemoteObject) -> Path:
-            return held.enter_context(fetched(found, plan.output_where))
+        def local(found: RemoteObject, kind: OutputKind, where: Where | None) -> Path:
+            path = run_output(held.enter_context(fetched(found, plan.output_where)), kind, "the object", where, None, found.url)
+            assert path is not None  # held in the cache: it is there
+            return path
 
         yield (
-            [replace(e, path=local(found)) for e, found in wanted],
-            local(model) if model is not None else None,
-            local(blueprint) if blueprint is not None else None,
+            [replace(e, path=local(found, "recording", e.where)) for e, found in wanted],
+            local(model, "recording", model_where) if model is not None else None,
+            local(blueprint, "blueprint", plan.output_where) if blueprint is not None else None,
         )
 
 

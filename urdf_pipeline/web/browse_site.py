@@ -5,7 +5,9 @@ during the run), never a recording. `index.html` is a small page; the rows are `
 fetches, searches and pages, drawing only the current page's rows and sparklines (10,000 segments stay fast). A
 segment opens in the viewer pane beside the list: an iframe of the site's viewer whose address fragment changes,
 so the wasm is loaded once. The recordings are put into the site (hard links where the file system allows, else
-copies): a static host serves only what is inside the site.
+copies): a static host serves only what is inside the site. A manifest is data (a pull request can write one): every
+file it names passed the read rule and is a recording the tool wrote (`dataset.segment_summaries`, `run_output`), and
+goes into the site under a name of the site's choosing (`recordings/000123.rrd`), never the manifest's.
 
 With `--base DIR_OR_GLOB` (`dataset.base_files`, as `run --base` reads them), a segment whose id is a base recording's opens with the base files too:
 same recording id, so the viewer merges base and layer into one recording. A segment without one gets a row note,
@@ -21,6 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from ..confine import confinement_for
 from ..errors import UserError, shown
 from .browse_rows import BrowseSegment, segments_json
 from .page_html import html_text, viewer_href
@@ -58,7 +61,7 @@ class Shared:
 def browse_config(plan: Plan, target: Path, config_text: str, base: str | None = None) -> BrowseResult:
     """The browser of `plan`'s written outputs at `target`; a UserError naming the fix when the run never happened.
     `base`: `--base DIR_OR_GLOB`, the base recordings segments open with (read before anything is written)."""
-    from ..dataset import base_files, bucket_state, fetch_manifest, local_outputs, segment_summaries
+    from ..dataset import base_files, bucket_state, fetch_manifest, local_outputs, run_output, segment_summaries
     from ..execute import blueprint_path
 
     state = None
@@ -79,8 +82,11 @@ def browse_config(plan: Plan, target: Path, config_text: str, base: str | None =
             return build_browser(target, plan.application_id, rows, Shared(model, blueprint), bases)
     rows, bases = _rows(plan, entries, config_text, found)
     model = plan.dataset.model if plan.dataset.layout == "split" and plan.dataset.model is not None else None
-    written_blueprint = blueprint_path(plan)
-    shared = Shared(model if model is not None and model.is_file() else None, written_blueprint if written_blueprint.is_file() else None)
+    confinement = confinement_for(plan.config_path)  # the model and blueprint as the manifest's entries: the run's own files
+    shared = Shared(
+        run_output(model, "recording", "the model", plan.output_where, confinement) if model is not None else None,
+        run_output(blueprint_path(plan), "blueprint", "the blueprint", plan.output_where, confinement),
+    )
     return build_browser(target, plan.application_id, rows, shared, bases)
 
 
@@ -141,12 +147,13 @@ def build_browser(
         ]
         model = opened[0] if shared.model is not None else None
         rest = opened[1:] if model is not None else opened
-        names = _site_names([path for _, path in rows])
         placed_bases: dict[Path, str] = {}
         placed = []
-        for (row, path), name in zip(rows, names, strict=True):
+        for number, (row, path) in enumerate(rows):
             base = tuple(_placed_base(site, file, placed_bases) for file in (bases or {}).get(row.segment, ())) if path else ()
-            recordings = (*base, site.add_recording(path, name), *rest) if path else ()
+            # a name of the site's choosing, never the manifest's: a static host serves it as a recording, never as a
+            # page or a script of the site's origin
+            recordings = (*base, site.add_recording(path, f"{number:06d}.rrd"), *rest) if path else ()
             placed.append(BrowseSegment(row.segment, row.frames, row.summary, recordings, row.missing, base))
         hrefs = [viewer_href("index.html", row.recordings, model, row.segment) if row.recordings else None for row in placed]
         data = json.dumps(segments_json(title, placed, hrefs), ensure_ascii=False, separators=(",", ":"))
@@ -163,20 +170,6 @@ def _placed_base(site: SiteWriter, file: Path, placed: dict[Path, str]) -> str:
     if file not in placed:
         placed[file] = site.add_file(file, f"{ASSETS}/base_{len(placed):06d}.rrd")
     return placed[file]
-
-
-def _site_names(paths: Sequence[Path | None]) -> list[str]:
-    """A plain file name in `recordings/` per recording: its own when that is plain and not taken, else a made one
-    (a manifest may name `../x.rrd`, `.hidden.rrd` or the same name in two folders)."""
-    taken: set[str] = set()
-    names = []
-    for number, path in enumerate(paths):
-        name = path.name if path is not None else ""
-        if not name or name in taken or name.startswith(".") or "\\" in name or not name.isprintable():
-            name = f"segment_{number:06d}{path.suffix if path is not None and path.suffix.isalnum() else '.rrd'}"
-        taken.add(name)
-        names.append(name)
-    return names
 
 
 def _body(title: str, rows: Sequence[BrowseSegment]) -> str:
