@@ -189,12 +189,12 @@ def segment_summaries(plan: Plan) -> list[SegmentEntry]:
     confinement = confinement_for(plan.config_path)
     found = []
     for label, entry in sorted(manifest.segments.items()):
-        where = manifest.where(label)
+        where = manifest.where(label, "path" if plan.dataset.remote is None else "url")
         if plan.dataset.remote is not None:  # the staged path is never read: the object is, by its URL
             if isinstance(entry.get("etag"), str):
                 found.append(_segment_entry(label, manifest.resolve(entry["path"]), entry, where))
             continue
-        path = run_output(manifest.path.parent / entry["path"], "recording", "the recording", where, confinement)
+        path = run_output(manifest.path.parent / _home_expanded(entry["path"]), "recording", "the recording", where, confinement)
         if path is not None:
             found.append(_segment_entry(label, path, entry, where))
     return found
@@ -214,11 +214,20 @@ def run_output(
     reason = foreign_reason(path, kind)
     if reason is not None:
         raise UserError(
-            f"{what} {shown(named or str(path))} is not one of the run's outputs: {reason}; a manifest may name only the files the run "
-            "wrote (`urdf-pipeline run CONFIG --force` writes them again)",
+            f"{what} {shown(named or str(path))} is not one of the run's outputs: {reason}; only the files a run wrote are published "
+            "(`urdf-pipeline run CONFIG --force` writes them again)",
             where,
         )
     return real
+
+
+def _home_expanded(text: str) -> Path:
+    """An entry's path with `~` expanded: `~/.aws/credentials` in a manifest means that file, and is refused as such
+    (the run writes relative paths only); as written when no home is known for it."""
+    try:
+        return Path(text).expanduser()
+    except RuntimeError:
+        return Path(text)
 
 
 def _segment_entry(label: str, path: Path, entry: dict[str, Any], where: Where) -> SegmentEntry:
