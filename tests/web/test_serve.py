@@ -1,5 +1,6 @@
 """`urdf-pipeline serve DIR`: what it refuses, what it serves (inside DIR only, the wasm as application/wasm, to this
-machine only), and how it ends (Ctrl-C, SIGTERM)."""
+machine only), and how it ends (Ctrl-C, SIGTERM); what it answers to hostile requests built here on raw sockets (bad
+bytes, endless or half-sent heads, idle connections, a flood), and that a signal ends it whatever clients hold."""
 
 from __future__ import annotations
 
@@ -9,12 +10,15 @@ import signal
 import socket
 import subprocess
 import sys
-from collections.abc import Iterator
+import threading
+import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
 
 from urdf_pipeline.web import SiteServer, site_folder
+from urdf_pipeline.web.static_server import MAX_CONNECTIONS
 
 from ..conftest import REPO
 
@@ -143,3 +147,164 @@ def test_ctrl_c_and_sigterm_end_it(site: Path, sent: signal.Signals, status: int
             process.kill()
     assert process.returncode == status
     assert out == "" and "serving" in err and "a free port" in err and "Traceback" not in err
+
+
+def _exchange(port: int, data: bytes, then: Callable[[socket.socket], None] | None = None) -> bytes:
+    """`data` sent on a raw connection (`then` may go on sending), and everything the server answers until it closes."""
+    received = bytearray()
+    with socket.create_connection(("127.0.0.1", port), timeout=HANG_GUARD) as connection:
+        connection.sendall(data)
+        if then is not None:
+            then(connection)
+        try:
+            while chunk := connection.recv(65536):
+                received += chunk
+        except ConnectionResetError:
+            pass  # closed with our unread bytes in its buffer: what came before the reset is the answer
+    return bytes(received)
+
+
+def _status(answer: bytes) -> int:
+    """The answer's status, once it is a whole HTTP/1.0 answer carrying nosniff."""
+    head = answer.split(b"\r\n\r\n", 1)[0].decode("latin-1").lower()
+    assert head.startswith("http/1.0 ") and "\r\nx-content-type-options: nosniff" in head, answer[:300]
+    return int(head.split()[1])
+
+
+HANG_GUARD = 30  # seconds: only so that a hang fails the test; the server's own bounds are a few seconds
+
+
+@pytest.mark.parametrize(
+    ("request_line", "status"),
+    [
+        (b"GET /index\x00.html HTTP/1.1", 400),  # NUL in the path
+        (b"GET /%00 HTTP/1.1", 400),  # NUL, escaped
+        (b"GET /index.html%00.rrd HTTP/1.1", 400),
+        (b"GET /%zz HTTP/1.1", 400),  # not a percent-escape
+        (b"GET /%e2%82 HTTP/1.1", 400),  # a cut UTF-8 sequence
+        (b"GET /%ff%fe HTTP/1.1", 400),  # not UTF-8
+        (b"GET /\xc3\xa9 HTTP/1.1", 400),  # a raw byte over 0x7f
+        (b"GET /a\x01b HTTP/1.1", 400),
+        (b"GET /a\x7fb HTTP/1.1", 400),
+        (b"GET /%1b%5b31m HTTP/1.1", 400),  # an escape sequence, escaped
+        (b"GET  /index.html HTTP/1.1", 400),
+        (b"GET /index.html", 400),  # HTTP/0.9 (its answer would have no header at all)
+        (b"GET /index.html HTTP/x.y", 400),
+        (b"GET /index.html HTTP/2.0", 505),
+        (b"GET index.html HTTP/1.1", 400),
+        (b"POST /index.html HTTP/1.1", 501),
+        (b"GET /" + b"a" * 9000 + b" HTTP/1.1", 414),
+        (b"GET /%e2%82%ac HTTP/1.1", 404),  # well-formed UTF-8 that names no file
+        (b"GET /index.html HTTP/1.1", 200),
+    ],
+)
+def test_a_hostile_request_line_is_answered_never_a_traceback(
+    server: SiteServer, request_line: bytes, status: int, capfd: pytest.CaptureFixture[str]
+) -> None:
+    answer = _exchange(server.port, request_line + f"\r\nHost: 127.0.0.1:{server.port}\r\n\r\n".encode())
+    assert _status(answer) == status
+    assert b"<" not in answer.split(b"\r\n\r\n", 1)[1] or status == 200  # error bodies are plain text
+    assert "Traceback" not in capfd.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("headers", "status"),
+    [
+        (b"X-A: a\x00b\r\n", 400),
+        (b"X-A: a\rb\r\n", 400),
+        (b"X-A: \x1b[2J\r\n", 400),
+        (b"X-A: b\r\n" * 150, 431),  # more than HEADER_LINES
+        ((b"X-A: " + b"b" * 4000 + b"\r\n") * 10, 431),  # more than HEAD_LIMIT bytes
+        (b"X-A: caf\xc3\xa9\r\n", 200),  # obs-text in a field is allowed
+    ],
+)
+def test_hostile_headers_are_answered(server: SiteServer, headers: bytes, status: int, capfd: pytest.CaptureFixture[str]) -> None:
+    answer = _exchange(server.port, f"GET /index.html HTTP/1.1\r\nHost: 127.0.0.1:{server.port}\r\n".encode() + headers + b"\r\n")
+    assert _status(answer) == status
+    assert "Traceback" not in capfd.readouterr().err
+
+
+def test_a_half_sent_request_and_endless_trickled_headers_time_out(server: SiteServer) -> None:
+    """A request whose blank line never comes, sent at once or a header line at a time forever: a 408 within
+    HEAD_SECONDS of the connection's start, whatever the trickle."""
+    started = time.monotonic()
+    assert _status(_exchange(server.port, b"GET /index.html HTTP/1.1\r\nHost: 127.0.0.1\r\n")) == 408
+    half = time.monotonic() - started
+
+    def trickle(connection: socket.socket) -> None:
+        connection.settimeout(0.2)
+        for number in range(10 * HANG_GUARD):
+            try:
+                connection.sendall(f"X-{number}: b\r\n".encode())
+                if connection.recv(1, socket.MSG_PEEK):
+                    return  # answered
+            except TimeoutError:
+                continue
+            except OSError:
+                return  # closed
+        pytest.fail("the server kept reading trickled headers")
+
+    started = time.monotonic()
+    assert _status(_exchange(server.port, b"GET /index.html HTTP/1.1\r\n", trickle)) == 408
+    print(f"half-sent request answered 408 after {half:.1f} s, trickled headers after {time.monotonic() - started:.1f} s")
+
+
+def test_an_idle_connection_is_closed(server: SiteServer) -> None:
+    assert _exchange(server.port, b"") == b""  # nothing sent, nothing answered: closed after HEAD_SECONDS
+
+
+def test_a_flood_of_connections_is_bounded(server: SiteServer) -> None:
+    """500 connections at once, none sending: at most MAX_CONNECTIONS threads, one more connection answered 503 at
+    once (accepted after the flood: the flood was dealt with before it); once they are gone, the site is served."""
+    before = threading.active_count()
+    flood = [socket.create_connection(("127.0.0.1", server.port), timeout=HANG_GUARD) for _ in range(500)]
+    try:
+        assert _status(_exchange(server.port, f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{server.port}\r\n\r\n".encode())) == 503
+        threads = threading.active_count() - before
+        print(f"500 connections: {threads} serving threads")
+        assert threads <= MAX_CONNECTIONS
+    finally:
+        for connection in flood:
+            connection.close()
+    deadline = time.monotonic() + HANG_GUARD
+    while (status := _status(_exchange(server.port, f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{server.port}\r\n\r\n".encode()))) == 503:
+        assert time.monotonic() < deadline, "the slots of closed connections never came back"
+    assert status == 200
+
+
+@pytest.mark.parametrize("sent", [signal.SIGTERM, signal.SIGINT])
+def test_a_signal_ends_it_while_clients_hold_connections(site: Path, sent: signal.Signals) -> None:
+    """The command as a user runs it, with 500 connections open (idle, half-sent, trickling): the signal ends it
+    within a few seconds, without a traceback, and leaves no process behind."""
+    process = subprocess.Popen(
+        [sys.executable, "-m", "urdf_pipeline", "serve", str(site)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONPATH": str(REPO)},
+        start_new_session=True,  # its own process group: anything it started is found by it
+    )
+    held: list[socket.socket] = []
+    try:
+        assert process.stdout is not None
+        port = int(process.stdout.readline().strip().removeprefix("http://127.0.0.1:").rstrip("/"))
+        for number in range(500):
+            connection = socket.create_connection(("127.0.0.1", port), timeout=HANG_GUARD)
+            if number % 3 == 1:
+                connection.sendall(b"GET /index.html HTTP/1.1\r\nHost: 127.0.0.1\r\n")  # half-sent
+            elif number % 3 == 2:
+                connection.sendall(b"GET /index.html HTTP/1.1\r\nX-1: a")  # a header cut in its middle
+            held.append(connection)
+        started = time.monotonic()
+        process.send_signal(sent)
+        out, err = process.communicate(timeout=HANG_GUARD)
+        print(f"{sent.name} with 500 connections held: ended in {time.monotonic() - started:.2f} s")
+    finally:
+        for connection in held:
+            connection.close()
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    assert process.returncode == 128 + sent and "Traceback" not in err and out == "", err
+    with pytest.raises(ProcessLookupError):
+        os.killpg(process.pid, 0)  # nothing of its process group is left
