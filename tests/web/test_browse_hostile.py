@@ -228,3 +228,31 @@ def test_a_bucket_manifest_naming_other_objects_is_refused(
         lines = result.err.strip().splitlines()
         assert result.code == 1 and len(lines) == 1 and "segments[1]" in lines[0] and why in lines[0], (url, result.err)
         assert SECRET not in result.err and "Traceback" not in result.err and not site.exists()
+
+
+@pytest.mark.parametrize(
+    ("change", "words"),
+    [
+        (lambda data: data.update(pad="x" * (25 << 20)), ("is over 24 MiB",)),  # bytes, counted as read
+        (lambda data: data.update(pad=[{}] * 800_000), ("1,500,000 JSON values",)),  # 5 MB that would parse to 60 MB
+        (
+            lambda data: data["segments"].extend({"segment": f"s{i:06d}", "path": f"{i}.rrd"} for i in range(20_001)),
+            ("segments: lists 20,005 segments",),
+        ),
+        (
+            lambda data: data["segments"][1].update(path=data["segments"][0]["path"]),
+            ("segments[1].path", "names the file segments[0].path"),
+        ),
+    ],
+)
+def test_a_manifest_too_big_or_naming_one_file_twice_is_refused(
+    written: Path, manifest: Path, tmp_path: Path, change: Callable[[dict[str, Any]], None], words: tuple[str, ...], run_cli
+) -> None:
+    """What a reader of a stranger's manifest takes is bounded before it parses it, and each file is one segment's."""
+    edit(manifest, change)
+    site = tmp_path / "site"
+    result = run_cli("browse", str(written), "-o", str(site))
+    lines = result.err.strip().splitlines()
+    assert result.code == 1 and len(lines) == 1 and lines[0].startswith(f"error: {manifest}: "), result.err
+    assert all(word in lines[0] for word in words), lines[0]
+    assert not site.exists()

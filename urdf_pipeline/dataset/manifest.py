@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 from .. import __version__
-from ..confine import Confinement, confinement_for, resolved_or_written
+from ..confine import Confinement, confinement_for, file_state, os_cause, resolved_or_written
 from ..errors import UserError, Where, shown
 from ..execute import SegmentSummary, foreign_reason, require_ours, write_file_atomically
 
@@ -28,6 +28,9 @@ if TYPE_CHECKING:
     from ..plan import Plan
 
 FORMAT = 1
+MANIFEST_BYTES = 24 << 20  # what a reader of a manifest (browse) takes: about 20,000 segments with their summaries
+MANIFEST_SEGMENTS = 20_000  # entries a reader takes: each is checked against the read rule
+MANIFEST_VALUES = 1_500_000  # JSON values a reader parses (a segment with its summary holds about 52)
 OutputKind = Literal["recording", "blueprint"]  # what a reader of a run's outputs publishes
 
 
@@ -184,10 +187,19 @@ def segment_summaries(plan: Plan) -> list[SegmentEntry]:
     there is no manifest yet. A UserError when the file at the manifest's path is not a manifest of ours, and (a
     manifest is data from whoever wrote the folder: a pull request) when an entry names a file the read rule refuses or
     a file that is not a recording the tool wrote (`run_output`). Outputs in S3 keep their URL and ETag; their key is
-    checked where they are fetched (`remote_outputs.local_outputs`)."""
+    checked where they are fetched (`remote_outputs.local_outputs`). Bounded before it is parsed: at most MANIFEST_BYTES
+    and MANIFEST_VALUES (counted as read) and MANIFEST_SEGMENTS entries, no two naming the same file."""
+    _require_bounded(plan.dataset.manifest, Where(plan.dataset.manifest, 0))
     manifest = Manifest.load(plan.dataset.manifest, plan.application_id, plan.dataset.layout, plan.config_path, plan.output_where)
+    if len(manifest.segments) > MANIFEST_SEGMENTS:
+        raise UserError(
+            f"lists {len(manifest.segments):,} segments; a browser takes at most {MANIFEST_SEGMENTS:,}: browse a config that "
+            "selects fewer episodes (output.episodes)",
+            Where(manifest.path, 0, "segments"),
+        )
     confinement = confinement_for(plan.config_path)
-    found = []
+    found: list[SegmentEntry] = []
+    named: dict[Path, str] = {}  # each file once: a manifest naming one recording 20,000 times is no dataset
     for label, entry in sorted(manifest.segments.items()):
         where = manifest.where(label, "path" if plan.dataset.remote is None else "url")
         if plan.dataset.remote is not None:  # the staged path is never read: the object is, by its URL
@@ -195,9 +207,37 @@ def segment_summaries(plan: Plan) -> list[SegmentEntry]:
                 found.append(_segment_entry(label, manifest.resolve(entry["path"]), entry, where))
             continue
         path = run_output(manifest.path.parent / _home_expanded(entry["path"]), "recording", "the recording", where, confinement)
-        if path is not None:
-            found.append(_segment_entry(label, path, entry, where))
+        if path is None:
+            continue
+        if path in named:
+            raise UserError(f"names the file {named[path]} names ({shown(str(path))}): each segment has a recording of its own", where)
+        named[path] = where.path
+        found.append(_segment_entry(label, path, entry, where))
     return found
+
+
+def _require_bounded(path: Path, where: Where) -> None:
+    """The manifest at `path` holds at most MANIFEST_BYTES and MANIFEST_VALUES JSON values (counted on the bytes as
+    they are read: each value but the first follows a `,`, `[` or `{`), before anything is parsed: a parse takes up to
+    30 times its text in memory (a file of `{},{},...`), so both bound what a reader of a stranger's manifest takes. A
+    FIFO or device there is refused, not read."""
+    if file_state(path, "manifest", where) != "file":
+        return  # none yet (or a folder: Manifest.load refuses it)
+    read = values = 0
+    try:
+        with open(path, "rb") as file:
+            while chunk := file.read(1 << 20):
+                read += len(chunk)
+                values += chunk.count(b",") + chunk.count(b"[") + chunk.count(b"{")
+                if read > MANIFEST_BYTES or values > MANIFEST_VALUES:
+                    raise UserError(
+                        f"is over {MANIFEST_BYTES >> 20} MiB or {MANIFEST_VALUES:,} JSON values (about {MANIFEST_SEGMENTS:,} "
+                        "segments with their summaries); a browser reads no more: browse a config that selects fewer "
+                        "episodes (output.episodes)",
+                        where,
+                    )
+    except OSError as exc:
+        raise UserError(f"cannot be read: {os_cause(exc, path)}", where) from None
 
 
 def run_output(

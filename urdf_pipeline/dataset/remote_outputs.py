@@ -128,6 +128,7 @@ def local_outputs(
     manifest = Manifest.load(plan.dataset.manifest, plan.application_id, plan.dataset.layout, plan.config_path, plan.output_where)
     model_entry = manifest.model or {}
     model_where = Where(manifest.path, 0, "model.url")
+    named: set[str] = set()
     for url, where in [(e.url, e.where) for e in entries] + ([(model_entry.get("url"), model_where)] if model_entry else []):
         if not isinstance(url, str) or not url.startswith(state.prefix):
             raise UserError(
@@ -135,6 +136,9 @@ def local_outputs(
                 "only the objects the run wrote (`urdf-pipeline run CONFIG --force` writes them again)",
                 where,
             )
+        if url in named:
+            raise UserError(f"names {shown(url)} a second time: each segment has a recording of its own", where)
+        named.add(url)
 
     def as_recorded(url: object, etag: object) -> RemoteObject | None:
         found = objects.get(str(url))
