@@ -35,9 +35,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     run = _run_segments(args, plan, many)
     _say_results(run, many, plan.dataset.joint_series)
     if run.interrupted:
-        from ..dataset import signal_name
+        from ..dataset import stopped_line
 
-        print(f"interrupted ({signal_name(run.signal)}): only complete outputs were kept", file=sys.stderr)
+        print(stopped_line(run), file=sys.stderr)
         return run.exit_status
     _deliver(args, plan, run, viewer)
     if run.bugs:

@@ -16,7 +16,7 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
     from .manifest import SegmentEntry, segment_summaries
     from .remote_outputs import bucket_state, fetch_manifest, local_outputs
     from .run import DatasetRun, RunOptions, register_outputs, run_dataset
-    from .summary import differences_lines, report_target, summary_table, totals_line, write_report
+    from .summary import differences_lines, report_target, stopped_line, summary_table, totals_line, write_report
 
 if not TYPE_CHECKING:  # the names above, imported when first used
     __all__, __getattr__ = lazy_surface(__name__, __file__)

@@ -49,6 +49,7 @@ class DatasetRun:
     signal: int = 0  # what interrupted it: SIGINT (Ctrl-C) or SIGTERM
     blueprint: Path | None = None  # the run's blueprint, when some output was written or is up to date
     remote: RemoteOutputs | None = None  # outputs in S3: their staged paths' URLs
+    not_rewritten: int = 0  # of the up-to-date outputs, those `--force` asked for again that a stop left as they were
 
     @property
     def usable(self) -> tuple[SegmentResult, ...]:
@@ -127,7 +128,7 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
     if progress is not None:
         progress.start(len(jobs), sum(j.frames_expected or 0 for j in to_run), skipped=len(jobs) - len(to_run))
     to_run = _dispatched(to_run, options)
-    keeper = _Bookkeeper(results, manifest, progress)
+    keeper = _Bookkeeper(results, manifest, progress, {job.label: _identity(job.output) for job in to_run})
     interrupted = 0
     try:
         here, elsewhere = _where_jobs_run(plan, options, to_run)
@@ -150,7 +151,8 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
         blueprint = _blueprint(plan, manifest)
     if remote is not None and not interrupted:
         upload_run_files(plan, remote, blueprint)  # the manifest last
-    return DatasetRun(ordered, time.perf_counter() - started, manifest.path, bool(interrupted), interrupted, blueprint, remote)
+    seconds = time.perf_counter() - started
+    return DatasetRun(ordered, seconds, manifest.path, bool(interrupted), interrupted, blueprint, remote, keeper.not_rewritten)
 
 
 def _manifest(plan: Plan) -> Manifest:
@@ -212,6 +214,8 @@ class _Bookkeeper:
     results: dict[str, SegmentResult]
     manifest: Manifest
     progress: SegmentProgress | None
+    before: dict[str, tuple[int, int, int, int] | None]  # each job's output as the run found it (`_identity`)
+    not_rewritten: int = 0
 
     def done(self, job: SegmentJob, result: SegmentResult) -> None:
         self.results[job.label] = result
@@ -234,15 +238,43 @@ class _Bookkeeper:
         self.done(job, SegmentResult(job.label, job.output, "bug", job.content_hash, reason=reason))
 
     def stopped(self, jobs: list[SegmentJob], signum: int) -> None:
-        """After Ctrl-C or SIGTERM (partial files removed): a job without a result was written, or interrupted."""
+        """After Ctrl-C or SIGTERM (partial files removed), what became of each job without a result: written (a
+        worker renamed its file into place as the signal came), up to date (an earlier run's file, untouched, as the
+        manifest lists it: `--force` had asked for it again), or not done (an earlier file, out of date, left as it
+        was). Only a file this run put in place is "written"."""
+        stop = signal_name(signum)
         for job in jobs:
             if job.label in self.results:
                 continue
-            if _adopt_if_written(job, self.manifest):  # finished by a worker stopped before its result arrived
-                reason = f"finished as {signal_name(signum)} came"
-                self.results[job.label] = SegmentResult(job.label, job.output, "written", job.content_hash, reason=reason)
+            now = _identity(job.output)
+            if now is not None and now != self.before.get(job.label) and _adopt_if_written(job, self.manifest):
+                result = SegmentResult(
+                    job.label, job.output, "written", job.content_hash, frames=job.frames_expected or 0, reason=f"finished as {stop} came"
+                )
+            elif (
+                now is not None and now == self.before.get(job.label) and self.manifest.up_to_date(job.label, job.output, job.content_hash)
+            ):
+                result = SegmentResult(
+                    job.label,
+                    job.output,
+                    "skipped",
+                    job.content_hash,
+                    reason=f"up to date (an earlier run's); not rewritten: {stop} came first",
+                )
+                self.not_rewritten += 1
             else:
-                self.results[job.label] = SegmentResult(job.label, job.output, "interrupted", job.content_hash, reason=signal_name(signum))
+                kept = "; the earlier file, out of date, is left as it was" if now is not None else ""
+                result = SegmentResult(job.label, job.output, "interrupted", job.content_hash, reason=f"not done: {stop} came first{kept}")
+            self.results[job.label] = result
+
+
+def _identity(path: Path) -> tuple[int, int, int, int] | None:
+    """What tells a file renamed into place from the one that was there (device, inode, size, mtime), None if absent."""
+    try:
+        stat = path.stat()
+    except OSError:
+        return None
+    return (stat.st_dev, stat.st_ino, stat.st_size, stat.st_mtime_ns)
 
 
 def _blueprint(plan: Plan, manifest: Manifest) -> Path:
