@@ -68,11 +68,13 @@ def _run_segments(args: argparse.Namespace, plan: Plan, many: bool) -> DatasetRu
     from ..dataset import RunOptions, report_target, run_dataset, write_report
     from ..progress import LOGGER, SegmentProgress, detail, say
 
-    if many:
-        say(f"{len(plan.segments)} segment(s), layout {plan.dataset.layout}, {args.jobs} job(s) on the {args.executor} executor")
+    def ready() -> None:  # said once nothing refuses the run: a refused run claims no work
+        if many:
+            say(f"{len(plan.segments)} segment(s), layout {plan.dataset.layout}, {args.jobs} job(s) on the {args.executor} executor")
+
     report = report_target(args.report) if args.report else None  # a URL of the wrong form: refused before the run
     options = RunOptions(args.jobs, args.executor, args.ray_address, args.force, verbose=not many)
-    run = run_dataset(plan, options, SegmentProgress() if many and LOGGER.isEnabledFor(logging.INFO) else None)
+    run = run_dataset(plan, options, SegmentProgress() if many and LOGGER.isEnabledFor(logging.INFO) else None, ready)
     for result in run.results if many else ():
         detail(f"{result.label}: {result.status} by {result.worker or 'no worker'}, peak {result.peak_rss_mib:.0f} MiB")
         for text in result.notes:
@@ -128,7 +130,7 @@ def _print_single(result: SegmentResult) -> None:
     elif result.status == "skipped":
         say(f"{result.output} is up to date (same content hash); --force writes it again")
     elif result.status == "written":
-        say(f"{result.label}: {result.frames:,} rows in {result.seconds:.1f} s")
+        say(f"{result.label}: {result.frames:,} rows in {result.seconds:.1f} s, written to {result.output}")
 
 
 def cmd_validate(args: argparse.Namespace) -> int:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import time
 import traceback
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -106,8 +107,22 @@ def build_jobs(plan: Plan) -> list[SegmentJob]:
     return jobs
 
 
-def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | None = None) -> DatasetRun:
-    """Every recording of the plan that is not up to date, written on the executor `options` name; see the module."""
+def run_dataset(
+    plan: Plan, options: RunOptions, progress: SegmentProgress | None = None, ready: Callable[[], None] | None = None
+) -> DatasetRun:
+    """Every recording of the plan that is not up to date, written on the executor `options` name; see the module.
+    `ready` is called once every refusal before the work is behind (a refused run says nothing of work it never did).
+    An output folder the run made and wrote nothing into is removed (a refused or stopped run leaves none behind)."""
+    made = _missing_folders([*(segment.output.parent for segment in plan.dataset.segments), plan.dataset.manifest.parent])
+    if plan.dataset.model is not None:
+        made += _missing_folders([plan.dataset.model.parent])
+    try:
+        return _run(plan, options, progress, ready)
+    finally:
+        _remove_if_empty(made)
+
+
+def _run(plan: Plan, options: RunOptions, progress: SegmentProgress | None, ready: Callable[[], None] | None) -> DatasetRun:
     started = time.perf_counter()
     remote = plan.dataset.remote
     if remote is not None and options.executor == "ray" and plan.dataset.layout != "split":
@@ -125,6 +140,8 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
     in_bucket = fresh_in_bucket(jobs, manifest, state, plan.output_where) if state is not None else None
     results, to_run = _up_to_date(jobs, manifest, options.force, in_bucket)
     _prepare_outputs(plan, jobs, to_run, manifest)
+    if ready is not None:
+        ready()
     if progress is not None:
         progress.start(len(jobs), sum(j.frames_expected or 0 for j in to_run), skipped=len(jobs) - len(to_run))
     to_run = _dispatched(to_run, options)
@@ -323,6 +340,28 @@ def _adopt_if_written(job: SegmentJob, manifest: Manifest) -> bool:
         return False
     manifest.record(job.label, job.output, job.content_hash, job.frames_expected or 0, {})
     return True
+
+
+def _missing_folders(folders: list[Path]) -> list[Path]:
+    """The topmost folder missing on the way to each of `folders`: what the run will make."""
+    missing: dict[Path, None] = {}
+    for folder in dict.fromkeys(folders):
+        top = None
+        while not os.path.lexists(folder) and folder != folder.parent:
+            top, folder = folder, folder.parent
+        if top is not None:
+            missing[top] = None
+    return list(missing)
+
+
+def _remove_if_empty(folders: list[Path]) -> None:
+    """Each folder the run made, if it holds nothing but empty folders: a run that wrote nothing there leaves none."""
+    for folder in folders:
+        for inner, _, _ in sorted(os.walk(folder), key=lambda entry: -len(entry[0])):  # the deepest first
+            try:
+                os.rmdir(inner)
+            except OSError:  # not empty: something was written there
+                pass
 
 
 def _remove_partial_files(outputs: list[Path]) -> None:

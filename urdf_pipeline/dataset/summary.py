@@ -5,11 +5,13 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import tempfile
 from collections import Counter
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from ..confine import file_state
 from ..errors import UserError, neutral_line, shown
 from ..execute import SegmentResult
 from ..remote import is_remote, parse_url, upload
@@ -100,6 +102,12 @@ def report_target(text: str) -> str:
     config's: the allow rule for a config's URLs does not apply, its scheme and form do)."""
     if is_remote(text):
         parse_url(text, None, "--report")
+        return text
+    target = Path(text)
+    if file_state(target, "--report:", None, "written") == "folder":
+        raise UserError(f"--report: {text} is a folder; name a file such as {Path(text) / 'report.json'}")
+    if file_state(target.parent, "--report:", None, "written") != "folder" or not os.access(target.parent, os.W_OK | os.X_OK):
+        raise UserError(f"--report: cannot write {text}: {target.parent} is not a folder this process can write to")
     return text
 
 
