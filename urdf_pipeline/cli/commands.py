@@ -28,6 +28,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.catalog and not args.dataset:
         raise UserError("--catalog needs --dataset NAME: the catalog dataset to register the outputs in")
     viewer = require_viewer(args.connect) if args.connect else None  # a viewer listening there, before any work
+    if args.jobs is None:
+        from ..dataset import usable_cpus
+
+        args.jobs = usable_cpus()  # not the machine's count: the CPUs this process may use
     plan = _compiled_for_run(args)
     if args.spawn:  # a valid config: start the viewer (or find it running) before the run, so a failure costs nothing
         viewer = spawn_viewer()
