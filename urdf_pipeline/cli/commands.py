@@ -6,13 +6,14 @@ from __future__ import annotations
 import argparse
 import contextlib
 import logging
+import os
 import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..errors import ExitCode, UserError, neutral_line, neutral_text
+from ..errors import ExitCode, UserError, neutral_line, neutral_text, shown
 from .viewer_target import require_viewer, spawn_viewer
 
 if TYPE_CHECKING:
@@ -72,12 +73,16 @@ def _run_segments(args: argparse.Namespace, plan: Plan, many: bool) -> DatasetRu
     from ..dataset import RunOptions, report_target, run_dataset, write_report
     from ..progress import LOGGER, SegmentProgress, detail, say
 
+    address, origin = _ray_address(args)
+
     def ready() -> None:  # said once nothing refuses the run: a refused run claims no work
         if many:
             say(f"{len(plan.segments)} segment(s), layout {plan.dataset.layout}, {args.jobs} job(s) on the {args.executor} executor")
+        if args.executor == "ray":
+            say(f"Ray: the cluster at {shown(address)} ({origin})" if address else f"Ray: a local instance ({origin})")
 
     report = report_target(args.report) if args.report else None  # a URL of the wrong form: refused before the run
-    options = RunOptions(args.jobs, args.executor, args.ray_address, args.force, verbose=not many)
+    options = RunOptions(args.jobs, args.executor, address, args.force, verbose=not many)
     run = run_dataset(plan, options, SegmentProgress() if many and LOGGER.isEnabledFor(logging.INFO) else None, ready)
     for result in run.results if many else ():
         detail(f"{result.label}: {result.status} by {result.worker or 'no worker'}, peak {result.peak_rss_mib:.0f} MiB")
@@ -86,6 +91,16 @@ def _run_segments(args: argparse.Namespace, plan: Plan, many: bool) -> DatasetRu
     if report is not None:
         write_report(report, plan, run, options)
     return run
+
+
+def _ray_address(args: argparse.Namespace) -> tuple[str | None, str]:
+    """The Ray cluster `--executor ray` joins, and where that came from: `--ray-address`, else `RAY_ADDRESS` (as Ray's
+    own tools read it), else none (a local instance started for the run)."""
+    if args.ray_address:
+        return args.ray_address, "--ray-address"
+    if args.executor == "ray" and os.environ.get("RAY_ADDRESS", "").strip():
+        return os.environ["RAY_ADDRESS"].strip(), "from RAY_ADDRESS; --ray-address overrides it"
+    return None, "neither --ray-address nor RAY_ADDRESS is set"
 
 
 def _say_results(run: DatasetRun, many: bool, joint_series: bool) -> None:
