@@ -13,7 +13,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..errors import ExitCode, UserError, neutral_line, neutral_text, shown
+from ..errors import ExitCode, Stopped, UserError, neutral_line, neutral_text, shown
 from .viewer_target import require_viewer, spawn_viewer
 
 if TYPE_CHECKING:
@@ -43,7 +43,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         from ..dataset import stopped_line
 
         print(stopped_line(run), file=sys.stderr)
-        return run.exit_status
+        raise Stopped(run.signal, said=True)  # the exit point's status: 130 or 143
     _deliver(args, plan, run, viewer)
     if run.bugs:
         print("urdf-pipeline: internal error (a bug, not your config); please report it with the traceback above", file=sys.stderr)
@@ -178,7 +178,8 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 def cmd_live(args: argparse.Namespace) -> int:
     """A robot's stream into a viewer (--connect, --spawn: the default without --save) and/or a file (--save): the
-    config checked before anything is subscribed; Ctrl-C or SIGTERM end it, as the stream's end does (exit 0)."""
+    config checked before anything is subscribed; the stream's end exits 0, Ctrl-C or SIGTERM end it the same way
+    (its line said, --save kept) and exit 130 or 143, as they do every command."""
     from ..live_views import LiveOptions, live_command
     from ..progress import say
 
@@ -188,6 +189,8 @@ def cmd_live(args: argparse.Namespace) -> int:
     save = Path(args.save) if args.save else None
     summary = live_command(LiveOptions(Path(args.config), args.source, viewer, save, args.reconnects))
     say(summary.line())
+    if summary.signal:
+        raise Stopped(summary.signal, said=True)  # the exit point's status: 130 or 143
     return ExitCode.OK
 
 

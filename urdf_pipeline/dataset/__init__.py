@@ -13,7 +13,7 @@ from .. import lazy_surface
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
     from .base_check import BaseRecording, base_files, check_base
     from .cpus import usable_cpus
-    from .interrupts import exit_status, handle_sigterm, keep_sigterm_handler, restore_sigterm_handler, signal_name, signal_number
+    from .interrupts import handle_sigterm, keep_sigterm_handler, restore_sigterm_handler, signal_name
     from .manifest import SegmentEntry, segment_summaries
     from .remote_outputs import bucket_state, fetch_manifest, local_outputs
     from .run import DatasetRun, RunOptions, register_outputs, run_dataset

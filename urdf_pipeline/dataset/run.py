@@ -15,13 +15,13 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..errors import ExitCode, Problems, UserError
+from ..errors import ExitCode, Problems, UserError, stop_signal
 from ..execute import Parts, SegmentJob, SegmentResult, remove_stale_partials, require_ours, require_writable, run_segment
 from ..plan import Plan, RemoteOutputs
 from ..progress import LOGGER, SegmentProgress, process_identity
 from .executors import ExecutorName, executor_for
 from .fingerprint import file_hashes_used, model_hash, remember_file_hashes, segment_hashes
-from .interrupts import exit_status, signal_name, signal_number
+from .interrupts import signal_name
 from .manifest import Manifest
 from .remote_outputs import bucket_state, fetch_manifest, fresh_in_bucket, input_versions, upload_run_files
 
@@ -83,7 +83,7 @@ class DatasetRun:
         """The command's exit status: the signal's when interrupted, else a bug's, else a user error's if a segment
         failed, else OK."""
         if self.interrupted:
-            return exit_status(self.signal)
+            return ExitCode.for_signal(self.signal)
         if self.bugs:
             return ExitCode.BUG
         return ExitCode.USER_ERROR if self.failed else ExitCode.OK
@@ -152,8 +152,8 @@ def _run(plan: Plan, options: RunOptions, progress: SegmentProgress | None, read
         if here:  # the split layout's model on a cluster without the config's disk: its meshes are read here
             executor_for("local", 1, None, plan).run(run_segment, here, keeper.done, keeper.crashed)
         executor_for(options.executor, options.jobs, options.ray_address, plan).run(run_segment, elsewhere, keeper.done, keeper.crashed)
-    except KeyboardInterrupt as stop:  # Ctrl-C, or SIGTERM (interrupts.Terminated)
-        interrupted = signal_number(stop)
+    except KeyboardInterrupt as stop:  # Ctrl-C, or SIGTERM (errors.Stopped)
+        interrupted = stop_signal(stop)
         _remove_partial_files([job.output for job in to_run])
         keeper.stopped(to_run, interrupted)
     finally:
