@@ -69,3 +69,20 @@ def test_a_report_that_cannot_be_written_refuses_the_run_before_it(examples_dir:
         assert result.code == 1 and "error: --report: " in result.err and why in result.err, result.err
         assert not _claims_work(result.err), result.err
         assert not (config.parent / "out").exists(), "refused before the run"
+
+
+def test_a_dataset_whose_every_segment_fails_leaves_no_folder_and_names_no_manifest(examples_dir: Path, tmp_path: Path, run_cli) -> None:
+    config = isolated_examples(examples_dir, tmp_path / "run")
+
+    def every_segment_fails(data: dict) -> None:
+        data["output"]["layout"] = "single"
+        del data["output"]["model"]
+        joints = data["robots"]["so101"]["joints"]
+        joints["limits"] = {"slack": 0.0, "on_violation": "error"}
+        joints["map"]["shoulder_pan"] = {"joint": "shoulder_pan", "scale": 3.0}  # tripled: beyond the limits everywhere
+
+    edit_config(config, every_segment_fails)
+    result = run_cli("run", str(config), "--jobs", "1")
+    assert result.code == 1, result.err
+    assert "4 outputs: 4 failed; 0 frames written in" in result.err and "no manifest: nothing to list" in result.err
+    assert not (config.parent / "out").exists()

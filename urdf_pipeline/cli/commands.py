@@ -114,7 +114,8 @@ def _say_results(run: DatasetRun, many: bool, joint_series: bool) -> None:
         say(f"blueprint (a 3D view of the scene and one per robot{plots}): {run.blueprint}")
     if many or run.interrupted:
         LOGGER.info(summary_table(run.results))
-        say(totals_line(run.results, run.seconds) + f"; manifest {run.manifest}")
+        listed = f"manifest {run.manifest}" if run.manifest.is_file() else "no manifest: nothing to list"
+        say(f"{totals_line(run.results, run.seconds)}; {listed}")
     else:
         _print_single(run.results[0])
     for line in differences_lines(run.results):
