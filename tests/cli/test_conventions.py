@@ -140,3 +140,14 @@ def test_main_is_the_one_exit_point_for_help(capsys: pytest.CaptureFixture[str])
     with pytest.raises(SystemExit) as done:
         cli.main(["run", "--help"])
     assert done.value.code == 0 and "-q, --quiet" in capsys.readouterr().out
+
+
+def test_a_refused_html_command_leaves_no_folder_it_made(run_cli, demo: Path, tmp_path: Path) -> None:
+    """`plan --html` refused (a config that is not there): the site's new parent folders are gone, an existing one kept."""
+    missing = str(tmp_path / "missing.yaml")
+    result = run_cli("plan", missing, "--html", str(tmp_path / "new" / "deeper" / "site"))
+    assert result.code == 1 and "config file not found" in result.err, result.err
+    assert not (tmp_path / "new").exists()
+    (tmp_path / "kept").mkdir()
+    assert run_cli("plan", missing, "--html", str(tmp_path / "kept" / "site")).code == 1
+    assert (tmp_path / "kept").is_dir() and not list((tmp_path / "kept").iterdir())

@@ -229,9 +229,10 @@ def _site(folder: str | None) -> Iterator[SiteWriter | None]:
     if folder is None:
         yield None
         return
+    from ..execute import folders_removed_if_left_empty
     from ..web import write_site
 
-    with write_site(Path(folder)) as site:
+    with folders_removed_if_left_empty([Path(folder).parent]), write_site(Path(folder)) as site:
         yield site
 
 

@@ -16,7 +16,16 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..errors import ExitCode, Problems, UserError, stop_signal
-from ..execute import Parts, SegmentJob, SegmentResult, remove_stale_partials, require_ours, require_writable, run_segment
+from ..execute import (
+    Parts,
+    SegmentJob,
+    SegmentResult,
+    folders_removed_if_left_empty,
+    remove_stale_partials,
+    require_ours,
+    require_writable,
+    run_segment,
+)
 from ..plan import Plan, RemoteOutputs
 from ..progress import LOGGER, SegmentProgress, process_identity
 from .executors import ExecutorName, executor_for
@@ -113,13 +122,9 @@ def run_dataset(
     """Every recording of the plan that is not up to date, written on the executor `options` name; see the module.
     `ready` is called once every refusal before the work is behind (a refused run says nothing of work it never did).
     An output folder the run made and wrote nothing into is removed (a refused or stopped run leaves none behind)."""
-    made = _missing_folders([*(segment.output.parent for segment in plan.dataset.segments), plan.dataset.manifest.parent])
-    if plan.dataset.model is not None:
-        made += _missing_folders([plan.dataset.model.parent])
-    try:
+    folders = [*(segment.output.parent for segment in plan.dataset.segments), plan.dataset.manifest.parent]
+    with folders_removed_if_left_empty(folders + ([plan.dataset.model.parent] if plan.dataset.model is not None else [])):
         return _run(plan, options, progress, ready)
-    finally:
-        _remove_if_empty(made)
 
 
 def _run(plan: Plan, options: RunOptions, progress: SegmentProgress | None, ready: Callable[[], None] | None) -> DatasetRun:
@@ -340,28 +345,6 @@ def _adopt_if_written(job: SegmentJob, manifest: Manifest) -> bool:
         return False
     manifest.record(job.label, job.output, job.content_hash, job.frames_expected or 0, {})
     return True
-
-
-def _missing_folders(folders: list[Path]) -> list[Path]:
-    """The topmost folder missing on the way to each of `folders`: what the run will make."""
-    missing: dict[Path, None] = {}
-    for folder in dict.fromkeys(folders):
-        top = None
-        while not os.path.lexists(folder) and folder != folder.parent:
-            top, folder = folder, folder.parent
-        if top is not None:
-            missing[top] = None
-    return list(missing)
-
-
-def _remove_if_empty(folders: list[Path]) -> None:
-    """Each folder the run made, if it holds nothing but empty folders: a run that wrote nothing there leaves none."""
-    for folder in folders:
-        for inner, _, _ in sorted(os.walk(folder), key=lambda entry: -len(entry[0])):  # the deepest first
-            try:
-                os.rmdir(inner)
-            except OSError:  # not empty: something was written there
-                pass
 
 
 def _remove_partial_files(outputs: list[Path]) -> None:
