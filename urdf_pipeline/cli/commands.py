@@ -181,6 +181,7 @@ def cmd_live(args: argparse.Namespace) -> int:
     """A robot's stream into a viewer (--connect, --spawn: the default without --save) and/or a file (--save): the
     config checked before anything is subscribed; the stream's end exits 0, Ctrl-C or SIGTERM end it the same way
     (its line said, --save kept) and exit 130 or 143, as they do every command."""
+    from ..execute import folders_removed_if_left_empty
     from ..live_views import LiveOptions, live_command
     from ..progress import say
 
@@ -188,7 +189,8 @@ def cmd_live(args: argparse.Namespace) -> int:
     if args.spawn or (viewer is None and args.save is None):
         viewer = spawn_viewer()
     save = Path(args.save) if args.save else None
-    summary = live_command(LiveOptions(Path(args.config), args.source, viewer, save, args.reconnects))
+    with folders_removed_if_left_empty([save.parent] if save is not None else []):  # refused at the first message: none left
+        summary = live_command(LiveOptions(Path(args.config), args.source, viewer, save, args.reconnects))
     say(summary.line())
     if summary.signal:
         raise Stopped(summary.signal, said=True)  # the exit point's status: 130 or 143
@@ -309,11 +311,13 @@ def cmd_diff(args: argparse.Namespace) -> int:
 def cmd_browse(args: argparse.Namespace) -> int:
     """A dataset browser over the config's written outputs (from the run's manifest only); the site's folder on stdout."""
     from ..compile import compile_config
+    from ..execute import folders_removed_if_left_empty
     from ..progress import say
     from ..web import browse_config
 
     plan = compile_config(Path(args.config))
-    result = browse_config(plan, Path(args.output), args.config, args.base)
+    with folders_removed_if_left_empty([Path(args.output).parent]):
+        result = browse_config(plan, Path(args.output), args.config, args.base)
     missing = f", {result.missing} with something missing" if result.missing else ""
     say(
         f"browser of {result.segments} segment(s){missing} written in {result.seconds:.3f} s "
