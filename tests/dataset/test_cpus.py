@@ -63,6 +63,9 @@ def test_unreadable_or_hostile_files_mean_no_quota(tmp_path: Path) -> None:
     assert cgroup_cpu_quota(tmp_path, "0::/\n") is None
     _write(tmp_path / "cpu.max", "0 0\n")
     assert cgroup_cpu_quota(tmp_path, "0::/../../etc\n") is None  # a path leading out is not followed
+    _write(tmp_path / "cpu.max", "200000 100000\n")
+    deep = "0::/" + "/a" * 30_000 + "\n" * 100_000  # far deeper than any cgroup: the deepest levels and the root are read
+    assert cgroup_cpu_quota(tmp_path, deep) == 2
     (tmp_path / "cpu.max").unlink()
     (tmp_path / "cpu.max").mkdir()
     assert cgroup_cpu_quota(tmp_path, "0::/\n") is None

@@ -16,6 +16,8 @@ from pathlib import Path
 
 CGROUP_ROOT = Path("/sys/fs/cgroup")
 MEMBERSHIP = Path("/proc/self/cgroup")
+MEMBERSHIP_BYTES = 65_536  # /proc/self/cgroup is a few lines; what is read of it is bounded whatever it holds
+MAX_LEVELS = 32  # cgroups nested deeper than this: the deepest levels are read (a quota is set near the process)
 
 
 def usable_cpus(cgroup_root: Path = CGROUP_ROOT, membership: str | None = None) -> int:
@@ -33,12 +35,9 @@ def cgroup_cpu_quota(cgroup_root: Path = CGROUP_ROOT, membership: str | None = N
     """The smallest CPU quota on the way from this process's cgroup up to the root (each level may limit it), in CPUs
     rounded up; None when no level sets one or nothing can be read (no cgroups: no limit to respect)."""
     if membership is None:
-        try:
-            membership = MEMBERSHIP.read_text(encoding="ascii", errors="replace")
-        except OSError:
-            membership = ""
+        membership = _read(MEMBERSHIP, MEMBERSHIP_BYTES)
     quotas = []
-    for line in membership.splitlines():
+    for line in membership[:MEMBERSHIP_BYTES].splitlines()[:64]:
         number, _, rest = line.partition(":")
         controllers, _, path = rest.partition(":")
         if number == "0" and controllers == "":  # v2 (unified); under v1's hybrid mount, at unified/
@@ -56,7 +55,10 @@ def cgroup_cpu_quota(cgroup_root: Path = CGROUP_ROOT, membership: str | None = N
 def _levels(mount: Path, path: str) -> list[Path]:
     """The folders from the process's cgroup up to the mount (a container's namespace shows its own cgroup as `/`)."""
     parts = [part for part in path.strip().split("/") if part and part not in (".", "..")]
-    return [mount.joinpath(*parts[:depth]) for depth in range(len(parts), -1, -1)]
+    levels = [mount.joinpath(*parts)]
+    while len(levels) < min(len(parts), MAX_LEVELS):  # each a step up: the deepest MAX_LEVELS levels, in linear time
+        levels.append(levels[-1].parent)
+    return [*levels, mount] if parts else levels
 
 
 def _v2_quota(folder: Path) -> int | None:
@@ -80,9 +82,9 @@ def _cpus(quota: str, period: str) -> int | None:
     return max(1, math.ceil(q / p)) if q > 0 and p > 0 else None
 
 
-def _read(path: Path) -> str:
+def _read(path: Path, limit: int = 256) -> str:
     try:
         with path.open("rb") as file:
-            return file.read(256).decode("ascii", errors="replace")  # a line of numbers: bounded whatever is there
+            return file.read(limit).decode("ascii", errors="replace")  # a line of numbers: bounded whatever is there
     except OSError:
         return ""
