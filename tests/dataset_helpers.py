@@ -67,6 +67,6 @@ def status_lines(err: str) -> dict[str, str]:
     found = {}
     for line in err.splitlines():
         parts = line.split()
-        if len(parts) >= 4 and not line.startswith("urdf-pipeline") and parts[3] in ("written", "skipped", "failed", "bug", "interrupted"):
+        if len(parts) >= 4 and parts[1].replace(",", "").isdigit() and parts[3] in ("written", "skipped", "failed", "bug", "interrupted"):
             found[parts[0]] = parts[3]
     return found

@@ -15,6 +15,8 @@ import urdf_pipeline
 from urdf_pipeline import cli
 
 from ..conftest import CONFIGS
+from ..live_views.conftest import appender  # noqa: F401 - the fixture: an MCAP file being written
+from ..live_views.test_live_command import live_config
 
 
 def _beside_the_examples(name: str, examples_dir: Path, folder: Path) -> Path:
@@ -140,3 +142,26 @@ def test_main_is_the_one_exit_point_for_help(capsys: pytest.CaptureFixture[str])
     with pytest.raises(SystemExit) as done:
         cli.main(["run", "--help"])
     assert done.value.code == 0 and "-q, --quiet" in capsys.readouterr().out
+
+
+def test_a_refused_html_command_leaves_no_folder_it_made(run_cli, demo: Path, tmp_path: Path) -> None:
+    """`plan --html` refused (a config that is not there): the site's new parent folders are gone, an existing one kept."""
+    missing = str(tmp_path / "missing.yaml")
+    result = run_cli("plan", missing, "--html", str(tmp_path / "new" / "deeper" / "site"))
+    assert result.code == 1 and "config file not found" in result.err, result.err
+    assert not (tmp_path / "new").exists()
+    (tmp_path / "kept").mkdir()
+    assert run_cli("plan", missing, "--html", str(tmp_path / "kept" / "site")).code == 1
+    assert (tmp_path / "kept").is_dir() and not list((tmp_path / "kept").iterdir())
+
+
+def test_live_refused_at_the_first_message_leaves_no_save_folder(examples_dir: Path, run_cli, tmp_path: Path, appender) -> None:  # noqa: F811
+    """`live --save NEW/FOLDERS/take.rrd` refused at the stream's first message (a joint the map names is missing):
+    nothing saved, and the folders it would have saved into are gone."""
+    config = live_config(examples_dir, "live_refused_save")
+    config.write_text(config.read_text().replace("gripper:", "wrist_3:"))
+    bag = tmp_path / "short.mcap"
+    appender(bag, "--count", "20")
+    result = run_cli("live", str(config), "--from", str(bag), "--save", str(tmp_path / "takes" / "today" / "take.rrd"))
+    assert result.code == 1 and "wrist_3" in result.err, result.err
+    assert {p.name for p in tmp_path.iterdir()} == {"short.mcap"}

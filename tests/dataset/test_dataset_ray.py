@@ -48,3 +48,30 @@ def test_unreachable_ray_address_is_a_user_error(examples_dir: Path, tmp_path: P
     config = isolated_examples(examples_dir, tmp_path / "ray_address")
     result = run_cli("run", str(config), "--executor", "ray", "--ray-address", "127.0.0.1:1", "--episodes", "0")
     assert result.code == 1 and "could not connect to the Ray cluster at 127.0.0.1:1" in result.err
+
+
+def test_ray_address_comes_from_the_environment_as_ray_tools_read_it(
+    examples_dir: Path, tmp_path: Path, run_cli, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Without --ray-address, RAY_ADDRESS names the cluster (and the run says so); --ray-address overrides it."""
+    config = isolated_examples(examples_dir, tmp_path / "ray_env")
+    monkeypatch.setenv("RAY_ADDRESS", "127.0.0.1:1")  # nothing listens there: the run must have tried it
+    result = run_cli("run", str(config), "--executor", "ray", "--episodes", "0")
+    assert result.code == 1, result.err
+    assert "Ray: the cluster at 127.0.0.1:1 (from RAY_ADDRESS; --ray-address overrides it)" in result.err
+    assert "could not connect to the Ray cluster at 127.0.0.1:1" in result.err and "Traceback" not in result.err
+    overridden = run_cli("run", str(config), "--executor", "ray", "--ray-address", "127.0.0.1:2", "--episodes", "0")
+    assert overridden.code == 1 and "Ray: the cluster at 127.0.0.1:2 (--ray-address)" in overridden.err
+    assert "127.0.0.1:1" not in overridden.err
+    local = run_cli("run", str(config), "--episodes", "0")  # the local executor never reads it
+    assert local.code == 0 and "Ray" not in local.err, local.err
+
+
+def test_without_an_address_a_local_instance_is_started_and_said(
+    examples_dir: Path, tmp_path: Path, run_cli, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    config = isolated_examples(examples_dir, tmp_path / "ray_local")
+    result = run_cli("run", str(config), "--executor", "ray", "--jobs", "2", "--episodes", "0")
+    assert result.code == 0, result.err
+    assert "Ray: a local instance (neither --ray-address nor RAY_ADDRESS is set)" in result.err

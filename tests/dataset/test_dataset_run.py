@@ -201,12 +201,18 @@ def test_single_layout_one_recording_per_globbed_file(examples_dir: Path, tmp_pa
         assert any("/visual_geometries/" in c.entity_path for c in RrdReader(path).stream().to_chunks())
 
 
-def test_ctrl_c_stops_cleanly_and_leaves_only_complete_files(so101_dataset: Path, erd_share: Path) -> None:
+def _long_dataset(so101_dataset: Path, erd_share: Path) -> None:
+    """12 episodes of 100,000 rows: long enough to stop a run in the middle."""
     reference = PinocchioRobot(erd_share / "robots" / "so_arm_description" / "urdf" / "so101.urdf")
     dataset = so101_dataset.parent / "long_so101"
     write_so101_dataset(dataset, random_so101_episodes(reference, [100_000] * 12, seed=24))
     edit_config(so101_dataset, lambda d: d["sources"]["so101"].update(lerobot="long_so101"))
-    command = [sys.executable, "-m", "urdf_pipeline", "run", str(so101_dataset), "--jobs", "2"]
+
+
+def _stopped_run(config: Path, signum: signal.Signals, *extra: str) -> tuple[int, str, str]:
+    """`run CONFIG --jobs 2`, sent `signum` (to its whole process group, as a terminal's Ctrl-C) once some segments
+    are done and others in flight: (exit status, stdout, stderr)."""
+    command = [sys.executable, "-m", "urdf_pipeline", "run", str(config), "--jobs", "2", *extra]
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     assert process.stderr is not None
     seen = []
@@ -214,10 +220,19 @@ def test_ctrl_c_stops_cleanly_and_leaves_only_complete_files(so101_dataset: Path
         seen.append(line)
         if "[3/" in line:
             break
-    os.killpg(process.pid, signal.SIGINT)  # as a terminal's Ctrl-C: the whole process group
+    os.killpg(process.pid, signum)
     out, rest = process.communicate(timeout=60)
-    err = "".join(seen) + rest
-    assert process.returncode == 130, err
+    return process.returncode, out, "".join(seen) + rest
+
+
+def _identities(outputs: Path) -> dict[str, tuple[int, int]]:
+    return {p.stem: (p.stat().st_ino, p.stat().st_mtime_ns) for p in outputs.glob("*.rrd")}
+
+
+def test_ctrl_c_stops_cleanly_and_leaves_only_complete_files(so101_dataset: Path, erd_share: Path) -> None:
+    _long_dataset(so101_dataset, erd_share)
+    code, out, err = _stopped_run(so101_dataset, signal.SIGINT)
+    assert code == 130, err
     assert "interrupted" in err and "Traceback" not in err
     outputs = _outputs(so101_dataset)
     assert not list(outputs.glob(".*partial*")), "partial files were left behind"
@@ -228,6 +243,38 @@ def test_ctrl_c_stops_cleanly_and_leaves_only_complete_files(so101_dataset: Path
     for name in written:
         assert store_ids(outputs / name)[1] == name.removesuffix(".rrd")  # readable: complete
     assert set(out.split()) == {str(outputs / n) for n in written} | {str(outputs / "model.rrd")}
+    # the summary says "written" for exactly the files there, "interrupted" for the others, and counts them
+    statuses = status_lines(err)
+    assert {label for label, status in statuses.items() if status == "written"} == {"model"} | {n.removesuffix(".rrd") for n in written}
+    assert {status for label, status in statuses.items() if f"{label}.rrd" not in written and label != "model"} == {"interrupted"}
+    not_done = 12 - len(written)
+    assert f"interrupted (Ctrl-C): {len(written) + 1} written in this run, 0 up to date from an earlier run, {not_done} not done (" in err
+
+
+def test_a_stopped_rerun_says_written_only_of_what_it_rewrote(so101_dataset: Path, erd_share: Path, run_cli) -> None:
+    """A `--force` run stopped by SIGTERM after a complete run: the files it did not rewrite are the earlier run's,
+    untouched, and the summary says so ("up to date", not "written"), exit 143."""
+    _long_dataset(so101_dataset, erd_share)
+    assert run_cli("run", str(so101_dataset), "--jobs", "2").code == 0
+    outputs = _outputs(so101_dataset)
+    before = _identities(outputs)
+    code, out, err = _stopped_run(so101_dataset, signal.SIGTERM, "--force")
+    assert code == 143, err
+    assert "Traceback" not in err
+    after = _identities(outputs)
+    assert after.keys() == before.keys()  # every complete file is still there
+    rewritten = {label for label in before if after[label] != before[label]}
+    statuses = status_lines(err)
+    assert {label for label, status in statuses.items() if status == "written"} == rewritten
+    assert 2 <= len(rewritten) < 13
+    assert {statuses[label] for label in before.keys() - rewritten} == {"skipped"}
+    kept = 13 - len(rewritten)
+    assert f"{len(rewritten)} written, {kept} up to date;" in err
+    expected = f"interrupted (SIGTERM): {len(rewritten)} written in this run, {kept} up to date from an earlier run ({kept} of them not rewritten as --force asked), 0 not done"
+    assert expected in err
+    assert set(out.split()) == {str(outputs / f"{label}.rrd") for label in before}  # all complete and up to date
+    manifest = _manifest(so101_dataset)
+    assert all("summary" in entry for entry in manifest["segments"]), "an entry left as it was keeps its summary"
 
 
 def test_base_recordings_must_hold_every_segment(so101_dataset: Path, run_cli) -> None:

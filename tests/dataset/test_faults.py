@@ -223,7 +223,7 @@ def test_sigterm_stops_like_ctrl_c(so101_dataset: Path, tmp_path: Path) -> None:
     out, err = process.communicate(timeout=WAIT)
 
     assert process.returncode == 143, err
-    assert "interrupted (SIGTERM): only complete outputs were kept" in err
+    assert "interrupted (SIGTERM): " in err and "; only complete outputs were kept" in err
     assert "Traceback" not in err
     statuses = status_lines(err)
     assert "interrupted" in statuses.values(), "the summary lists what was stopped"

@@ -36,12 +36,12 @@ def run(
     path: str | os.PathLike[str], *, episodes: str | Iterable[int] | None = None, jobs: int | None = None, force: bool = False
 ) -> list[Path]:
     """Do what `urdf-pipeline run` does: write every segment's recording (the model, in the split layout) that is not
-    up to date, in `jobs` processes (default: every core), and return the paths of the recordings, written or already
+    up to date, in `jobs` processes (default: the CPUs this process may use), and return the paths of the recordings, written or already
     up to date. A segment that fails raises ConfigError (with every failed segment's lines) after the others are done."""
-    from ..dataset import RunOptions, run_dataset
+    from ..dataset import RunOptions, run_dataset, usable_cpus
 
     plan = load(path, episodes=episodes)
-    finished = run_dataset(plan, RunOptions(jobs or os.cpu_count() or 1, "local", None, force))
+    finished = run_dataset(plan, RunOptions(jobs or usable_cpus(), "local", None, force))
     if finished.interrupted:
         raise KeyboardInterrupt
     if finished.bugs:

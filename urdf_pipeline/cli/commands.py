@@ -6,13 +6,14 @@ from __future__ import annotations
 import argparse
 import contextlib
 import logging
+import os
 import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..errors import ExitCode, UserError, neutral_line, neutral_text
+from ..errors import ExitCode, Stopped, UserError, neutral_line, neutral_text, shown
 from .viewer_target import require_viewer, spawn_viewer
 
 if TYPE_CHECKING:
@@ -28,6 +29,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.catalog and not args.dataset:
         raise UserError("--catalog needs --dataset NAME: the catalog dataset to register the outputs in")
     viewer = require_viewer(args.connect) if args.connect else None  # a viewer listening there, before any work
+    if args.jobs is None:
+        from ..dataset import usable_cpus
+
+        args.jobs = usable_cpus()  # not the machine's count: the CPUs this process may use
     plan = _compiled_for_run(args)
     if args.spawn:  # a valid config: start the viewer (or find it running) before the run, so a failure costs nothing
         viewer = spawn_viewer()
@@ -35,10 +40,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     run = _run_segments(args, plan, many)
     _say_results(run, many, plan.dataset.joint_series)
     if run.interrupted:
-        from ..dataset import signal_name
+        from ..dataset import stopped_line
 
-        print(f"interrupted ({signal_name(run.signal)}): only complete outputs were kept", file=sys.stderr)
-        return run.exit_status
+        print(stopped_line(run), file=sys.stderr)
+        raise Stopped(run.signal, said=True)  # the exit point's status: 130 or 143
     _deliver(args, plan, run, viewer)
     if run.bugs:
         print("urdf-pipeline: internal error (a bug, not your config); please report it with the traceback above", file=sys.stderr)
@@ -68,11 +73,17 @@ def _run_segments(args: argparse.Namespace, plan: Plan, many: bool) -> DatasetRu
     from ..dataset import RunOptions, report_target, run_dataset, write_report
     from ..progress import LOGGER, SegmentProgress, detail, say
 
-    if many:
-        say(f"{len(plan.segments)} segment(s), layout {plan.dataset.layout}, {args.jobs} job(s) on the {args.executor} executor")
+    address, origin = _ray_address(args)
+
+    def ready() -> None:  # said once nothing refuses the run: a refused run claims no work
+        if many:
+            say(f"{len(plan.segments)} segment(s), layout {plan.dataset.layout}, {args.jobs} job(s) on the {args.executor} executor")
+        if args.executor == "ray":
+            say(f"Ray: the cluster at {shown(address)} ({origin})" if address else f"Ray: a local instance ({origin})")
+
     report = report_target(args.report) if args.report else None  # a URL of the wrong form: refused before the run
-    options = RunOptions(args.jobs, args.executor, args.ray_address, args.force, verbose=not many)
-    run = run_dataset(plan, options, SegmentProgress() if many and LOGGER.isEnabledFor(logging.INFO) else None)
+    options = RunOptions(args.jobs, args.executor, address, args.force, verbose=not many)
+    run = run_dataset(plan, options, SegmentProgress() if many and LOGGER.isEnabledFor(logging.INFO) else None, ready)
     for result in run.results if many else ():
         detail(f"{result.label}: {result.status} by {result.worker or 'no worker'}, peak {result.peak_rss_mib:.0f} MiB")
         for text in result.notes:
@@ -80,6 +91,16 @@ def _run_segments(args: argparse.Namespace, plan: Plan, many: bool) -> DatasetRu
     if report is not None:
         write_report(report, plan, run, options)
     return run
+
+
+def _ray_address(args: argparse.Namespace) -> tuple[str | None, str]:
+    """The Ray cluster `--executor ray` joins, and where that came from: `--ray-address`, else `RAY_ADDRESS` (as Ray's
+    own tools read it), else none (a local instance started for the run)."""
+    if args.ray_address:
+        return args.ray_address, "--ray-address"
+    if args.executor == "ray" and os.environ.get("RAY_ADDRESS", "").strip():
+        return os.environ["RAY_ADDRESS"].strip(), "from RAY_ADDRESS; --ray-address overrides it"
+    return None, "neither --ray-address nor RAY_ADDRESS is set"
 
 
 def _say_results(run: DatasetRun, many: bool, joint_series: bool) -> None:
@@ -93,7 +114,8 @@ def _say_results(run: DatasetRun, many: bool, joint_series: bool) -> None:
         say(f"blueprint (a 3D view of the scene and one per robot{plots}): {run.blueprint}")
     if many or run.interrupted:
         LOGGER.info(summary_table(run.results))
-        say(totals_line(run.results, run.seconds) + f"; manifest {run.manifest}")
+        listed = f"manifest {run.manifest}" if run.manifest.is_file() else "no manifest: nothing to list"
+        say(f"{totals_line(run.results, run.seconds)}; {listed}")
     else:
         _print_single(run.results[0])
     for line in differences_lines(run.results):
@@ -128,7 +150,7 @@ def _print_single(result: SegmentResult) -> None:
     elif result.status == "skipped":
         say(f"{result.output} is up to date (same content hash); --force writes it again")
     elif result.status == "written":
-        say(f"{result.label}: {result.frames:,} rows in {result.seconds:.1f} s")
+        say(f"{result.label}: {result.frames:,} rows in {result.seconds:.1f} s, written to {result.output}")
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
@@ -157,7 +179,9 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 def cmd_live(args: argparse.Namespace) -> int:
     """A robot's stream into a viewer (--connect, --spawn: the default without --save) and/or a file (--save): the
-    config checked before anything is subscribed; Ctrl-C or SIGTERM end it, as the stream's end does (exit 0)."""
+    config checked before anything is subscribed; the stream's end exits 0, Ctrl-C or SIGTERM end it the same way
+    (its line said, --save kept) and exit 130 or 143, as they do every command."""
+    from ..execute import folders_removed_if_left_empty
     from ..live_views import LiveOptions, live_command
     from ..progress import say
 
@@ -165,8 +189,11 @@ def cmd_live(args: argparse.Namespace) -> int:
     if args.spawn or (viewer is None and args.save is None):
         viewer = spawn_viewer()
     save = Path(args.save) if args.save else None
-    summary = live_command(LiveOptions(Path(args.config), args.source, viewer, save, args.reconnects))
+    with folders_removed_if_left_empty([save.parent] if save is not None else []):  # refused at the first message: none left
+        summary = live_command(LiveOptions(Path(args.config), args.source, viewer, save, args.reconnects))
     say(summary.line())
+    if summary.signal:
+        raise Stopped(summary.signal, said=True)  # the exit point's status: 130 or 143
     return ExitCode.OK
 
 
@@ -204,9 +231,10 @@ def _site(folder: str | None) -> Iterator[SiteWriter | None]:
     if folder is None:
         yield None
         return
+    from ..execute import folders_removed_if_left_empty
     from ..web import write_site
 
-    with write_site(Path(folder)) as site:
+    with folders_removed_if_left_empty([Path(folder).parent]), write_site(Path(folder)) as site:
         yield site
 
 
@@ -283,11 +311,13 @@ def cmd_diff(args: argparse.Namespace) -> int:
 def cmd_browse(args: argparse.Namespace) -> int:
     """A dataset browser over the config's written outputs (from the run's manifest only); the site's folder on stdout."""
     from ..compile import compile_config
+    from ..execute import folders_removed_if_left_empty
     from ..progress import say
     from ..web import browse_config
 
     plan = compile_config(Path(args.config))
-    result = browse_config(plan, Path(args.output), args.config, args.base)
+    with folders_removed_if_left_empty([Path(args.output).parent]):
+        result = browse_config(plan, Path(args.output), args.config, args.base)
     missing = f", {result.missing} with something missing" if result.missing else ""
     say(
         f"browser of {result.segments} segment(s){missing} written in {result.seconds:.3f} s "

@@ -11,7 +11,7 @@ import traceback
 from collections.abc import Callable, Sequence
 
 from .. import PandasLeftOut
-from ..errors import ExitCode, UserError, neutral_text
+from ..errors import ExitCode, Stopped, UserError, neutral_text, stop_signal
 from ..progress import command_logging, warnings_logged
 from .parser import build_parser
 from .stderr_relay import stderr_through_logger
@@ -43,8 +43,6 @@ def _main(argv: Sequence[str] | None) -> int:
 
 def _handle(handler: Callable[[argparse.Namespace], int], args: argparse.Namespace) -> int:
     """The one exit point: a user error's lines, a bug's traceback, Ctrl-C and a closed stdout, as exit statuses."""
-    from ..dataset import exit_status, signal_number
-
     # `diff --exit-code` says 1 for "they differ", so its errors (a user error, a bug) say 2, as diff(1) does
     trouble = ExitCode.DIFF_TROUBLE if getattr(args, "exit_code", False) else None
 
@@ -57,9 +55,10 @@ def _handle(handler: Callable[[argparse.Namespace], int], args: argparse.Namespa
         for line in exc.lines():
             print(line, file=sys.stderr)
         return trouble or ExitCode.USER_ERROR
-    except KeyboardInterrupt as stop:  # Ctrl-C, or SIGTERM (interrupts.Terminated): 128 + the signal's number
-        print("interrupted", file=sys.stderr)
-        return exit_status(signal_number(stop))
+    except KeyboardInterrupt as stop:  # Ctrl-C, or SIGTERM (errors.Stopped), whichever command: 128 + the signal's number
+        if not (isinstance(stop, Stopped) and stop.said):  # a command that said its own last line (live, run) keeps it last
+            print("interrupted", file=sys.stderr)
+        return ExitCode.for_signal(stop_signal(stop))
     except BrokenPipeError:  # `urdf-pipeline plan ... | head`: the reader left; not a bug
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # so the interpreter's final flush is quiet too
         return ExitCode.BROKEN_PIPE

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, NoReturn
@@ -122,9 +121,13 @@ def _add_run(commands: _Commands) -> None:
     run = commands.add_parser("run", cmd_run, help="validate CONFIG, compute forward kinematics and write the .rrd of every segment")
     run.add_argument("config")
     run.add_argument("--episodes", metavar="SPEC", help="override output.episodes: all, 0,3,7 or 10:20")
-    run.add_argument("--jobs", type=_positive, default=os.cpu_count() or 1, help="segments written in parallel (default: number of cores)")
+    run.add_argument(
+        "--jobs", type=_positive, help="segments written in parallel (default: the CPUs this process may use: affinity, cgroup quota)"
+    )
     run.add_argument("--executor", choices=("local", "ray"), default="local", help="local worker processes (default) or Ray tasks")
-    run.add_argument("--ray-address", metavar="ADDR", help="the Ray cluster to run on (default: a local Ray instance)")
+    run.add_argument(
+        "--ray-address", metavar="ADDR", help="the Ray cluster to run on (default: RAY_ADDRESS when set, else a local Ray instance)"
+    )
     run.add_argument("--force", action="store_true", help="write every segment, even those whose output is up to date")
     run.add_argument("--base", metavar="DIR_OR_GLOB", help="fail unless every segment id is the recording_id of a base .rrd there")
     run.add_argument("--catalog", metavar="URL", help="register the outputs in this Rerun catalog server (needs --dataset)")

@@ -12,11 +12,12 @@ from .. import lazy_surface
 
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
     from .base_check import BaseRecording, base_files, check_base
-    from .interrupts import exit_status, handle_sigterm, keep_sigterm_handler, restore_sigterm_handler, signal_name, signal_number
+    from .cpus import usable_cpus
+    from .interrupts import handle_sigterm, keep_sigterm_handler, restore_sigterm_handler, signal_name
     from .manifest import SegmentEntry, run_output, segment_summaries
     from .remote_outputs import bucket_state, fetch_manifest, local_outputs
     from .run import DatasetRun, RunOptions, register_outputs, run_dataset
-    from .summary import differences_lines, report_target, summary_table, totals_line, write_report
+    from .summary import differences_lines, report_target, stopped_line, summary_table, totals_line, write_report
 
 if not TYPE_CHECKING:  # the names above, imported when first used
     __all__, __getattr__ = lazy_surface(__name__, __file__)

@@ -2,8 +2,8 @@
 
 Python's default for SIGTERM ends the process at once: worker processes, partial files and temporary folders are left
 behind and no summary is printed. Raised as an exception instead, it takes the path Ctrl-C takes (workers stopped,
-partial files removed, the manifest true to the complete files, the summary printed). The exit status is the shell's
-convention for a signal, 128 + its number: 130 after Ctrl-C (SIGINT), 143 after SIGTERM.
+partial files removed, the manifest true to the complete files, the summary printed). The exit status is the CLI's
+exit point's (`errors.ExitCode.for_signal`: 130 after Ctrl-C, 143 after SIGTERM), for every command.
 """
 
 from __future__ import annotations
@@ -12,22 +12,16 @@ import signal
 import threading
 from types import FrameType
 
-
-class Terminated(KeyboardInterrupt):
-    """A stop requested by a signal other than SIGINT; `signum` says which."""
-
-    def __init__(self, signum: int) -> None:
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
+from ..errors import Stopped
 
 
 def _raise_terminated(signum: int, frame: FrameType | None) -> None:
     signal.signal(signum, signal.SIG_IGN)  # a second SIGTERM must not break the cleanup the first one started
-    raise Terminated(signum)
+    raise Stopped(signum)
 
 
 def handle_sigterm() -> None:
-    """From now on, SIGTERM raises Terminated in the main thread (signal handlers can only be set there)."""
+    """From now on, SIGTERM raises `errors.Stopped` in the main thread (signal handlers can only be set there)."""
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, _raise_terminated)
 
@@ -44,14 +38,5 @@ def restore_sigterm_handler(handler: object) -> None:
         signal.signal(signal.SIGTERM, handler)  # type: ignore[arg-type]
 
 
-def signal_number(interrupt: BaseException) -> int:
-    """The signal that stopped the run: SIGTERM for Terminated, SIGINT for a plain KeyboardInterrupt (Ctrl-C)."""
-    return interrupt.signum if isinstance(interrupt, Terminated) else int(signal.SIGINT)
-
-
 def signal_name(signum: int) -> str:
     return "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
-
-
-def exit_status(signum: int) -> int:
-    return 128 + signum

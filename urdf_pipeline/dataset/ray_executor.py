@@ -23,6 +23,7 @@ from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from ..errors import UserError
+from .cpus import usable_cpus
 from .interrupts import keep_sigterm_handler, restore_sigterm_handler
 
 if TYPE_CHECKING:
@@ -122,7 +123,7 @@ def _connect(ray: Any, address: str | None, num_cpus: int | None) -> None:
     options: dict[str, Any] = {"logging_level": logging.WARNING, "log_to_driver": False}
     if address is None:
         # "local", not None: None would join a cluster named by RAY_ADDRESS or the last `ray start` on this machine
-        options |= {"address": "local", "num_cpus": num_cpus or os.cpu_count() or 1, "include_dashboard": False}
+        options |= {"address": "local", "num_cpus": num_cpus or usable_cpus(), "include_dashboard": False}
         what = "could not start a local Ray instance"
     else:
         if address != "auto":

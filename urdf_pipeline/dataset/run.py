@@ -10,17 +10,27 @@ from __future__ import annotations
 import os
 import time
 import traceback
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..errors import ExitCode, Problems, UserError
-from ..execute import Parts, SegmentJob, SegmentResult, remove_stale_partials, require_ours, require_writable, run_segment
+from ..errors import ExitCode, Problems, UserError, stop_signal
+from ..execute import (
+    Parts,
+    SegmentJob,
+    SegmentResult,
+    folders_removed_if_left_empty,
+    remove_stale_partials,
+    require_ours,
+    require_writable,
+    run_segment,
+)
 from ..plan import Plan, RemoteOutputs
 from ..progress import LOGGER, SegmentProgress, process_identity
 from .executors import ExecutorName, executor_for
 from .fingerprint import file_hashes_used, model_hash, remember_file_hashes, segment_hashes
-from .interrupts import exit_status, signal_name, signal_number
+from .interrupts import signal_name
 from .manifest import Manifest
 from .remote_outputs import bucket_state, fetch_manifest, fresh_in_bucket, input_versions, upload_run_files
 
@@ -49,6 +59,7 @@ class DatasetRun:
     signal: int = 0  # what interrupted it: SIGINT (Ctrl-C) or SIGTERM
     blueprint: Path | None = None  # the run's blueprint, when some output was written or is up to date
     remote: RemoteOutputs | None = None  # outputs in S3: their staged paths' URLs
+    not_rewritten: int = 0  # of the up-to-date outputs, those `--force` asked for again that a stop left as they were
 
     @property
     def usable(self) -> tuple[SegmentResult, ...]:
@@ -81,7 +92,7 @@ class DatasetRun:
         """The command's exit status: the signal's when interrupted, else a bug's, else a user error's if a segment
         failed, else OK."""
         if self.interrupted:
-            return exit_status(self.signal)
+            return ExitCode.for_signal(self.signal)
         if self.bugs:
             return ExitCode.BUG
         return ExitCode.USER_ERROR if self.failed else ExitCode.OK
@@ -105,8 +116,18 @@ def build_jobs(plan: Plan) -> list[SegmentJob]:
     return jobs
 
 
-def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | None = None) -> DatasetRun:
-    """Every recording of the plan that is not up to date, written on the executor `options` name; see the module."""
+def run_dataset(
+    plan: Plan, options: RunOptions, progress: SegmentProgress | None = None, ready: Callable[[], None] | None = None
+) -> DatasetRun:
+    """Every recording of the plan that is not up to date, written on the executor `options` name; see the module.
+    `ready` is called once every refusal before the work is behind (a refused run says nothing of work it never did).
+    An output folder the run made and wrote nothing into is removed (a refused or stopped run leaves none behind)."""
+    folders = [*(segment.output.parent for segment in plan.dataset.segments), plan.dataset.manifest.parent]
+    with folders_removed_if_left_empty(folders + ([plan.dataset.model.parent] if plan.dataset.model is not None else [])):
+        return _run(plan, options, progress, ready)
+
+
+def _run(plan: Plan, options: RunOptions, progress: SegmentProgress | None, ready: Callable[[], None] | None) -> DatasetRun:
     started = time.perf_counter()
     remote = plan.dataset.remote
     if remote is not None and options.executor == "ray" and plan.dataset.layout != "split":
@@ -124,18 +145,20 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
     in_bucket = fresh_in_bucket(jobs, manifest, state, plan.output_where) if state is not None else None
     results, to_run = _up_to_date(jobs, manifest, options.force, in_bucket)
     _prepare_outputs(plan, jobs, to_run, manifest)
+    if ready is not None:
+        ready()
     if progress is not None:
         progress.start(len(jobs), sum(j.frames_expected or 0 for j in to_run), skipped=len(jobs) - len(to_run))
     to_run = _dispatched(to_run, options)
-    keeper = _Bookkeeper(results, manifest, progress)
+    keeper = _Bookkeeper(results, manifest, progress, {job.label: _identity(job.output) for job in to_run})
     interrupted = 0
     try:
         here, elsewhere = _where_jobs_run(plan, options, to_run)
         if here:  # the split layout's model on a cluster without the config's disk: its meshes are read here
             executor_for("local", 1, None, plan).run(run_segment, here, keeper.done, keeper.crashed)
         executor_for(options.executor, options.jobs, options.ray_address, plan).run(run_segment, elsewhere, keeper.done, keeper.crashed)
-    except KeyboardInterrupt as stop:  # Ctrl-C, or SIGTERM (interrupts.Terminated)
-        interrupted = signal_number(stop)
+    except KeyboardInterrupt as stop:  # Ctrl-C, or SIGTERM (errors.Stopped)
+        interrupted = stop_signal(stop)
         _remove_partial_files([job.output for job in to_run])
         keeper.stopped(to_run, interrupted)
     finally:
@@ -150,7 +173,8 @@ def run_dataset(plan: Plan, options: RunOptions, progress: SegmentProgress | Non
         blueprint = _blueprint(plan, manifest)
     if remote is not None and not interrupted:
         upload_run_files(plan, remote, blueprint)  # the manifest last
-    return DatasetRun(ordered, time.perf_counter() - started, manifest.path, bool(interrupted), interrupted, blueprint, remote)
+    seconds = time.perf_counter() - started
+    return DatasetRun(ordered, seconds, manifest.path, bool(interrupted), interrupted, blueprint, remote, keeper.not_rewritten)
 
 
 def _manifest(plan: Plan) -> Manifest:
@@ -212,6 +236,8 @@ class _Bookkeeper:
     results: dict[str, SegmentResult]
     manifest: Manifest
     progress: SegmentProgress | None
+    before: dict[str, tuple[int, int, int, int] | None]  # each job's output as the run found it (`_identity`)
+    not_rewritten: int = 0
 
     def done(self, job: SegmentJob, result: SegmentResult) -> None:
         self.results[job.label] = result
@@ -234,15 +260,43 @@ class _Bookkeeper:
         self.done(job, SegmentResult(job.label, job.output, "bug", job.content_hash, reason=reason))
 
     def stopped(self, jobs: list[SegmentJob], signum: int) -> None:
-        """After Ctrl-C or SIGTERM (partial files removed): a job without a result was written, or interrupted."""
+        """After Ctrl-C or SIGTERM (partial files removed), what became of each job without a result: written (a
+        worker renamed its file into place as the signal came), up to date (an earlier run's file, untouched, as the
+        manifest lists it: `--force` had asked for it again), or not done (an earlier file, out of date, left as it
+        was). Only a file this run put in place is "written"."""
+        stop = signal_name(signum)
         for job in jobs:
             if job.label in self.results:
                 continue
-            if _adopt_if_written(job, self.manifest):  # finished by a worker stopped before its result arrived
-                reason = f"finished as {signal_name(signum)} came"
-                self.results[job.label] = SegmentResult(job.label, job.output, "written", job.content_hash, reason=reason)
+            now = _identity(job.output)
+            if now is not None and now != self.before.get(job.label) and _adopt_if_written(job, self.manifest):
+                result = SegmentResult(
+                    job.label, job.output, "written", job.content_hash, frames=job.frames_expected or 0, reason=f"finished as {stop} came"
+                )
+            elif (
+                now is not None and now == self.before.get(job.label) and self.manifest.up_to_date(job.label, job.output, job.content_hash)
+            ):
+                result = SegmentResult(
+                    job.label,
+                    job.output,
+                    "skipped",
+                    job.content_hash,
+                    reason=f"up to date (an earlier run's); not rewritten: {stop} came first",
+                )
+                self.not_rewritten += 1
             else:
-                self.results[job.label] = SegmentResult(job.label, job.output, "interrupted", job.content_hash, reason=signal_name(signum))
+                kept = "; the earlier file, out of date, is left as it was" if now is not None else ""
+                result = SegmentResult(job.label, job.output, "interrupted", job.content_hash, reason=f"not done: {stop} came first{kept}")
+            self.results[job.label] = result
+
+
+def _identity(path: Path) -> tuple[int, int, int, int] | None:
+    """What tells a file renamed into place from the one that was there (device, inode, size, mtime), None if absent."""
+    try:
+        stat = path.stat()
+    except OSError:
+        return None
+    return (stat.st_dev, stat.st_ino, stat.st_size, stat.st_mtime_ns)
 
 
 def _blueprint(plan: Plan, manifest: Manifest) -> Path:

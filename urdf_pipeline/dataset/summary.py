@@ -5,11 +5,13 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import tempfile
 from collections import Counter
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from ..confine import file_state
 from ..errors import UserError, neutral_line, shown
 from ..execute import SegmentResult
 from ..remote import is_remote, parse_url, upload
@@ -60,12 +62,31 @@ def differences_lines(results: tuple[SegmentResult, ...]) -> list[str]:
     return lines
 
 
+_TOTALS: dict[str, str] = {"written": "written", "skipped": "up to date", "failed": "failed", "bug": "bug", "interrupted": "not done"}
+
+
 def totals_line(results: tuple[SegmentResult, ...], seconds: float) -> str:
-    counts = Counter(r.status for r in results)
-    frames = sum(r.frames for r in results)
-    parts = ", ".join(f"{counts[s]} {s}" for s in ("written", "skipped", "failed", "bug", "interrupted") if counts[s])
+    """The counts by status, in words a reader needs no table for: "written" is only what this run wrote."""
+    counts: Counter[str] = Counter(r.status for r in results)
+    frames = sum(r.frames for r in results if r.status == "written")
+    parts = ", ".join(f"{counts[status]} {words}" for status, words in _TOTALS.items() if counts[status])
     rate = f", {frames / seconds:,.0f} frames/s" if seconds > 0 and frames else ""
-    return f"{len(results)} outputs: {parts}; {frames:,} frames in {seconds:.1f} s{rate}"
+    return f"{len(results)} outputs: {parts}; {frames:,} frames written in {seconds:.1f} s{rate}"
+
+
+def stopped_line(run: DatasetRun, names: int = 5) -> str:
+    """After Ctrl-C or SIGTERM: what this run wrote, what was up to date, what failed, and what is not done (the first
+    `names` of them named), and how to finish."""
+    from .interrupts import signal_name
+
+    counts: Counter[str] = Counter(r.status for r in run.results)
+    kept = f" ({run.not_rewritten} of them not rewritten as --force asked)" if run.not_rewritten else ""
+    said = [f"{counts['written']} written in this run", f"{counts['skipped']} up to date from an earlier run{kept}"]
+    said += [f"{counts[status]} {_TOTALS[status]}" for status in ("failed", "bug") if counts[status]]
+    not_done = [shown(r.label) for r in run.results if r.status == "interrupted"]
+    named = ", ".join(not_done[:names]) + (f" and {len(not_done) - names} more" if len(not_done) > names else "")
+    said.append(f"{len(not_done)} not done ({named}: the same command again does them)" if not_done else "0 not done")
+    return neutral_line(f"interrupted ({signal_name(run.signal)}): {', '.join(said)}; only complete outputs were kept")
 
 
 def _result(result: SegmentResult, run: DatasetRun) -> dict[str, Any]:
@@ -81,6 +102,12 @@ def report_target(text: str) -> str:
     config's: the allow rule for a config's URLs does not apply, its scheme and form do)."""
     if is_remote(text):
         parse_url(text, None, "--report")
+        return text
+    target = Path(text)
+    if file_state(target, "--report:", None, "written") == "folder":
+        raise UserError(f"--report: {text} is a folder; name a file such as {Path(text) / 'report.json'}")
+    if file_state(target.parent, "--report:", None, "written") != "folder" or not os.access(target.parent, os.W_OK | os.X_OK):
+        raise UserError(f"--report: cannot write {text}: {target.parent} is not a folder this process can write to")
     return text
 
 

@@ -24,7 +24,15 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
     from .summary_record import JointPreview, SegmentSummary, TimeRange
     from .temporal_stream import TemporalEdgeStats, TemporalEdgeValues, check_temporal_edges
     from .viewer_delivery import send_to_viewer, viewer_binary
-    from .writer import foreign_reason, process_alive, remove_stale_partials, require_ours, require_writable, write_file_atomically
+    from .writer import (
+        folders_removed_if_left_empty,
+        foreign_reason,
+        process_alive,
+        remove_stale_partials,
+        require_ours,
+        require_writable,
+        write_file_atomically,
+    )
 
 if not TYPE_CHECKING:  # the names above, imported when first used
     __all__, __getattr__ = lazy_surface(__name__, __file__)

@@ -45,6 +45,6 @@ def deferred_signals() -> Iterator[list[int]]:
     if received:
         first = previous[received[0]]
         if callable(first):
-            first(received[0], None)  # default_int_handler raises KeyboardInterrupt; handle_sigterm's raises Terminated
+            first(received[0], None)  # default_int_handler raises KeyboardInterrupt; handle_sigterm's raises errors.Stopped
         elif first == signal.SIG_DFL:
             signal.raise_signal(received[0])

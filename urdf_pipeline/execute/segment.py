@@ -64,11 +64,11 @@ def execute(
     `rows_expected` (from the source's metadata) gives the progress lines a share done and an ETA."""
     log: Callable[[str], None] = _silent if quiet else say
     started = time.perf_counter()
+    # what it does, never "writing": a segment its checks refuse (after the pass) writes nothing, and says so
     if parts == "model":
-        log(f"writing the model of {len(plan.robots)} robot(s)")
+        log(f"building the model of {len(plan.robots)} robot(s)")
     else:
         log(f"reading {len(plan.sources)} source(s), computing forward kinematics for {len(plan.robots)} robot(s)")
-    log(f"writing {plan.output.path}")
     # A source found out of time order part-way is read again, whole and sorted: the attempt opens every stream anew.
     with local_inputs(plan) as local:  # remote sources fetched into this machine's cache, held while read
         written, rows, notes, summary = with_sorting_retry(lambda: _write(local, parts, provenance or {}, on_note, quiet, rows_expected))

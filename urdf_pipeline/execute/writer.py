@@ -12,7 +12,8 @@ import os
 import re
 import stat
 import tempfile
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Literal
 
@@ -145,3 +146,26 @@ def process_alive(pid: int) -> bool:
     except PermissionError:
         return True
     return True
+
+
+@contextmanager
+def folders_removed_if_left_empty(folders: Iterable[Path]) -> Iterator[None]:
+    """The folders missing now on the way to each of `folders` (what the block may make) are removed when the block
+    ends if they hold nothing but empty folders: a refused or stopped command leaves no empty output folder behind,
+    and a folder that was there is left as it was. Call it where no other process of the run writes any more."""
+    made: dict[Path, None] = {}
+    for folder in dict.fromkeys(folders):
+        top = None
+        while not os.path.lexists(folder) and folder != folder.parent:
+            top, folder = folder, folder.parent
+        if top is not None:
+            made[top] = None
+    try:
+        yield
+    finally:
+        for top in made:
+            for inner, _, _ in sorted(os.walk(top), key=lambda entry: -len(entry[0])):  # the deepest first
+                try:
+                    os.rmdir(inner)
+                except OSError:  # not empty: something was written there
+                    pass

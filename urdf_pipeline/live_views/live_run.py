@@ -60,6 +60,7 @@ class LiveSummary:
     latency: Latencies = field(default_factory=Latencies)
     saved: Path | None = None
     dropped: int = 0  # samples dropped because the views fell behind (said when it happens)
+    signal: int = 0  # the signal that ended it (Ctrl-C, SIGTERM): the command's exit status says so
 
     def line(self) -> str:
         saved = f"; saved {self.saved}" if self.saved else ""
@@ -121,6 +122,7 @@ def _stop_on_signals(summary: LiveSummary, feed: Feed) -> Iterator[None]:
 
     def stop(signum: int, frame: FrameType | None) -> None:
         summary.ended = "stopped by Ctrl-C" if signum == signal.SIGINT else f"stopped by {signal.Signals(signum).name}"
+        summary.signal = signum
         signal.signal(signal.SIGINT, signal.default_int_handler)
         feed.close()
 
