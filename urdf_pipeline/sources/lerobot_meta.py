@@ -8,23 +8,21 @@ from __future__ import annotations
 import functools
 import json
 import os
-import string
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
 
 import pyarrow as pa
 
-from ..config import Document
+from ..config import Document, Placeholder, Template, checked_template
 from ..confine import file_state
-from ..errors import UserError, Where
+from ..errors import UserError, Where, quoted
 from ..plan import LeRobotSourcePlan
 from .ordering import with_duplicates
 
 T = TypeVar("T")
 # What a hostile or broken dataset's metadata raises while it is read: each becomes one user error at the source.
 METADATA_ERRORS = (OSError, ValueError, KeyError, TypeError, AttributeError, IndexError, pa.ArrowException)
-TEMPLATE_FIELDS = frozenset({"episode_chunk", "episode_index", "chunk_index", "file_index"})
 V3_COLUMNS = ("data/chunk_index", "data/file_index")  # v3: which data file holds an episode's rows
 
 
@@ -56,21 +54,38 @@ def read_info(root: Path, where: Where | None = None, shown: str | None = None) 
     return info
 
 
-def data_path_template(info: dict[str, Any], info_path: Path | str, where: Where | None) -> str:
-    """info.json's data_path: relative, inside the dataset (no `..`), with only LeRobot's own fields and no attribute
-    or item access (`{episode_index.__class__}` would reach into Python objects)."""
-    template = str(info.get("data_path", ""))
-    try:
-        fields = {name for _, name, _, _ in string.Formatter().parse(template) if name is not None}
-    except ValueError as exc:
-        raise UserError(f"data_path '{template}' in {info_path} is not a path template: {exc}", where) from None
-    if not fields <= TEMPLATE_FIELDS or Path(template).is_absolute() or ".." in Path(template).parts:
-        raise UserError(
-            f"data_path '{template}' in {info_path} must stay inside the dataset and use only "
-            f"{', '.join('{' + f + '}' for f in sorted(TEMPLATE_FIELDS))}",
-            where,
-        )
-    return template
+# The placeholders of info.json's path templates, written exactly as LeRobot writes them: Rerun's reader replaces
+# these texts and nothing else, so any other spelling would make the file we check differ from the file it reads.
+V2_PLACEHOLDERS = {"episode_chunk": Placeholder(int, "03d"), "episode_index": Placeholder(int, "06d")}
+V3_PLACEHOLDERS = {"chunk_index": Placeholder(int, "03d"), "file_index": Placeholder(int, "03d")}
+VIDEO_KEY = {"video_key": Placeholder(str, "")}
+
+
+def is_v3(info: dict[str, Any]) -> bool:
+    return str(info.get("codebase_version", "")).startswith("v3")
+
+
+def data_path_template(info: dict[str, Any], info_path: Path | str, where: Where | None) -> Template:
+    """info.json's data_path (and video_path, which the reader also takes): relative, inside the dataset (no `..`),
+    with only the placeholders of the dataset's layout as LeRobot writes them (config/templates.py refuses the rest:
+    `{episode_index.__class__}`, `{episode_index:999999999d}`...)."""
+    placeholders = V3_PLACEHOLDERS if is_v3(info) else V2_PLACEHOLDERS
+    video = info.get("video_path")
+    if video is not None:
+        _path_template(video, "video_path", {**placeholders, **VIDEO_KEY}, info_path, where)
+    return _path_template(info.get("data_path"), "data_path", placeholders, info_path, where)
+
+
+def _path_template(text: object, key: str, placeholders: dict[str, Placeholder], info_path: Path | str, where: Where | None) -> Template:
+    if not isinstance(text, str):
+        kind = "missing" if text is None else f"a JSON {type(text).__name__}"
+        raise UserError(f"{key} in {info_path} is {kind}, not a path template such as {_LEROBOT_DEFAULT}", where)
+    if Path(text).is_absolute() or ".." in Path(text).parts:
+        raise UserError(f"{key} {quoted(text)} in {info_path} must stay inside the dataset (a relative path without '..')", where)
+    return checked_template(text, placeholders, f"{key} in {info_path}:", where)
+
+
+_LEROBOT_DEFAULT = "'data/chunk-{episode_chunk:03d}/episode_{episode_index:06d}.parquet'"
 
 
 def metadata(shown: str, where: Where | None, read: Callable[[], T]) -> T:
@@ -172,14 +187,14 @@ def episode_lengths(root: Path, table: pa.Table | None, where: Where | None, sho
     return dict(zip(table.column("episode_index").to_pylist(), lengths, strict=True))
 
 
-def v2_data_file(info: dict[str, Any], template: str, episode: int) -> str | None:
+def v2_data_file(info: dict[str, Any], template: Template, episode: int) -> str | None:
     """v2: the one data file of `episode` (data_path holds {episode_index}), relative to the dataset; None for v3."""
-    if "{episode_index" not in template:
+    if "episode_index" not in template.fields:
         return None
     return template.format(episode_chunk=episode // int(info.get("chunks_size", 1000)), episode_index=episode)
 
 
-def v3_data_files(table: pa.Table | None, template: str, episode: int | None = None) -> dict[int, tuple[str, ...]] | None:
+def v3_data_files(table: pa.Table | None, template: Template, episode: int | None = None) -> dict[int, tuple[str, ...]] | None:
     """v3: episode -> the data file(s) its rows are in (episodes share files), relative to the dataset, from the
     episode table's data/chunk_index and data/file_index (only `episode`'s, when given); None when the table does
     not say."""

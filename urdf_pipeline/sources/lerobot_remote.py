@@ -22,7 +22,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from ..config import Document
+from ..config import Document, Template
 from ..errors import UserError, Where, shown, warn
 from ..plan import LeRobotSourcePlan, RemoteDataset, RemoteObject
 from ..remote import (
@@ -64,7 +64,7 @@ class _Dataset:
 
     lengths: dict[int, int | None]  # episode -> frames (None: the metadata does not say)
     info: dict[str, Any]
-    template: str  # info.json's data_path, checked
+    template: Template  # info.json's data_path, checked
     shared: dict[int, tuple[str, ...]] | None  # v3: episode -> its data files
     objects: dict[str, RemoteObject] | None  # S3: every object under data/, by its path in the dataset; None: the Hub
 
@@ -131,7 +131,7 @@ def _learn(view: Path, where: Where | None, shown_url: str, objects: dict[str, R
         info = read_info(view, where, shown_url)
         template = data_path_template(info, f"{shown_url}/meta/info.json", where)
         table = episode_table(view)
-        shared = None if "{episode_index" in template else v3_data_files(table, template)
+        shared = None if "episode_index" in template.fields else v3_data_files(table, template)
         return _Dataset(episode_lengths(view, table, where, shown_url), info, template, shared, objects)
 
     return metadata(shown_url, where, read)
