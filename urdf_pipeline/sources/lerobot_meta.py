@@ -14,15 +14,24 @@ from typing import Any, TypeVar
 
 import pyarrow as pa
 
-from ..config import Document, Placeholder, Template, checked_template
+from ..config import MAX_BYTES, Document, Placeholder, Template, checked_template
 from ..confine import file_state
 from ..errors import UserError, Where, quoted
 from ..plan import LeRobotSourcePlan
+from .lerobot_numbers import (
+    MetadataError,
+    check_episode_columns,
+    check_info_numbers,
+    check_v2_listing,
+    jsonl_table,
+    listed_episodes,
+    wanted_columns,
+)
 from .ordering import with_duplicates
 
 T = TypeVar("T")
 # What a hostile or broken dataset's metadata raises while it is read: each becomes one user error at the source.
-METADATA_ERRORS = (OSError, ValueError, KeyError, TypeError, AttributeError, IndexError, pa.ArrowException)
+METADATA_ERRORS = (OSError, ValueError, KeyError, TypeError, AttributeError, IndexError, RecursionError, pa.ArrowException)
 V3_COLUMNS = ("data/chunk_index", "data/file_index")  # v3: which data file holds an episode's rows
 
 
@@ -39,18 +48,23 @@ def feature_names(feature: dict[str, Any]) -> list[str] | None:
 
 
 def read_info(root: Path, where: Where | None = None, shown: str | None = None) -> dict[str, Any]:
-    """meta/info.json as a mapping; a user error when it is missing, no regular file (a FIFO would block), or not a
-    JSON object."""
+    """meta/info.json as a mapping, its numbers checked (lerobot_numbers.py); a user error when it is missing, no
+    regular file (a FIFO would block), larger than MAX_BYTES or not a JSON object."""
     path = root / "meta" / "info.json"
     named = f"{shown}/meta/info.json" if shown else str(path)
     if file_state(path, "LeRobot metadata file", where) != "file":
         raise UserError(f"{shown or root} is not a LeRobot dataset: {named} is missing", where)
     try:
-        info = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise UserError(f"cannot read {named}: {exc}", where) from None
+        with path.open("rb") as stream:
+            raw = stream.read(MAX_BYTES + 1)
+        if len(raw) > MAX_BYTES:
+            raise ValueError(f"it is larger than {MAX_BYTES // 2**20} MB, the most read as metadata")
+        info = json.loads(raw.decode("utf-8"))
+    except (OSError, ValueError, RecursionError) as exc:
+        raise UserError(f"cannot read {named}: {'nested too deeply' if isinstance(exc, RecursionError) else exc}", where) from None
     if not isinstance(info, dict):
         raise UserError(f"{named} holds {type(info).__name__}, not a JSON object", where)
+    check_info_numbers(info, named, where)
     return info
 
 
@@ -168,23 +182,32 @@ def episode_table(root: Path) -> pa.Table | None:
 
 @functools.lru_cache(maxsize=4)
 def _read_episode_table(files: tuple[FileStamp, ...]) -> pa.Table:
+    """The episodes' table, every number in it checked (lerobot_numbers.py) as it is read."""
     import pyarrow.parquet as pq
 
     if files[0][0].name == "episodes.jsonl":
-        rows = [json.loads(line) for line in files[0][0].read_text(encoding="utf-8").splitlines() if line.strip()]
-        return pa.table({"episode_index": [int(r["episode_index"]) for r in rows], "length": [r.get("length") for r in rows]})
-    wanted = ["episode_index", "length", *V3_COLUMNS]
-    tables = [pq.read_table(f, columns=[c for c in wanted if c in pq.read_schema(f).names]) for f, _, _ in files]
+        return jsonl_table(files[0][0])
+    tables = []
+    for file, _, _ in files:  # one iteration per episodes file (a v3 dataset has one per 1000 episodes or so)
+        columns = wanted_columns(pq.read_schema(file).names)
+        relative = "/".join(file.parts[len(file.parts) - 1 - file.parts[::-1].index("meta") :])
+        if "episode_index" not in columns:
+            raise MetadataError(f"{relative} has no episode_index column")
+        tables.append(pq.read_table(file, columns=columns))
+        check_episode_columns(tables[-1], relative)
     return pa.concat_tables(tables, promote_options="default")
 
 
 def episode_lengths(root: Path, table: pa.Table | None, where: Where | None, shown: str) -> dict[int, int | None]:
     """Episode index -> its length in frames (None when the metadata does not say)."""
+    info, named = read_info(root, where, shown), f"{shown}/meta/info.json"
     if table is None:
-        total = int(read_info(root, where, shown).get("total_episodes", 0))
-        return dict.fromkeys(range(total))
+        return dict.fromkeys(listed_episodes(info, named, where))
     lengths = table.column("length").to_pylist() if "length" in table.column_names else [None] * table.num_rows
-    return dict(zip(table.column("episode_index").to_pylist(), lengths, strict=True))
+    found = dict(zip(table.column("episode_index").to_pylist(), lengths, strict=True))
+    if not is_v3(info):
+        check_v2_listing(info, max(found, default=None), named, where)
+    return found
 
 
 def v2_data_file(info: dict[str, Any], template: Template, episode: int) -> str | None:
