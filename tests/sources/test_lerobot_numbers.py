@@ -287,3 +287,22 @@ def test_v2_episodes_agree_with_the_counts_rerun_reads_them_by(changes: dict[str
     root = _v2(tmp_path / "ds")
     _info(root, **changes)
     _episodes_refused(root, says, "the two must agree")
+
+
+def test_a_v3_episodes_file_declaring_more_rows_than_the_bound_is_refused_before_it_is_read(tmp_path: Path) -> None:
+    """An episodes file of a few hundred KB can declare millions of rows of zeros (30 million took 4 GB and 92 s
+    before): its footer's rows count towards the bound, checked before any column is read."""
+    root = _v3(tmp_path / "ds")
+    rows = lerobot_numbers.MAX_EPISODE_ROWS + 1
+    zeros = pa.array(np.zeros(rows, np.int64))
+    path = root / "meta" / "episodes" / "chunk-000" / "file-000.parquet"
+    pq.write_table(pa.table({"episode_index": zeros, "length": zeros, "data/chunk_index": zeros, "data/file_index": zeros}), path)
+    assert path.stat().st_size < 2**20
+    _episodes_refused(root, "meta/episodes/chunk-000/file-000.parquet declares 1,000,001 rows", "beyond 1,000,000 rows")
+
+
+@pytest.mark.parametrize(("column", "values"), [("episode_index", ["0", "1", "2", "3"]), ("length", [[1], [2], [3], [4]])])
+def test_a_v3_column_of_another_type_is_refused_before_it_is_read(column: str, values: list[Any], tmp_path: Path) -> None:
+    root = _v3(tmp_path / "ds")
+    _episodes_file(root, column, values)
+    _episodes_refused(root, f"{column} in meta/episodes/chunk-000/file-000.parquet holds", "not whole numbers")

@@ -18,15 +18,7 @@ from ..config import MAX_BYTES, Document, Placeholder, Template, checked_templat
 from ..confine import file_state
 from ..errors import UserError, Where, quoted
 from ..plan import LeRobotSourcePlan
-from .lerobot_numbers import (
-    MetadataError,
-    check_episode_columns,
-    check_info_numbers,
-    check_v2_listing,
-    jsonl_table,
-    listed_episodes,
-    wanted_columns,
-)
+from .lerobot_numbers import check_episode_columns, check_info_numbers, check_v2_listing, episode_file_columns, jsonl_table, listed_episodes
 from .ordering import with_duplicates
 
 T = TypeVar("T")
@@ -187,12 +179,10 @@ def _read_episode_table(files: tuple[FileStamp, ...]) -> pa.Table:
 
     if files[0][0].name == "episodes.jsonl":
         return jsonl_table(files[0][0])
-    tables = []
+    tables: list[pa.Table] = []
     for file, _, _ in files:  # one iteration per episodes file (a v3 dataset has one per 1000 episodes or so)
-        columns = wanted_columns(pq.read_schema(file).names)
         relative = "/".join(file.parts[len(file.parts) - 1 - file.parts[::-1].index("meta") :])
-        if "episode_index" not in columns:
-            raise MetadataError(f"{relative} has no episode_index column")
+        columns = episode_file_columns(pq.read_metadata(file), sum(t.num_rows for t in tables), relative)
         tables.append(pq.read_table(file, columns=columns))
         check_episode_columns(tables[-1], relative)
     return pa.concat_tables(tables, promote_options="default")

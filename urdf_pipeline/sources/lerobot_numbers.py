@@ -4,8 +4,10 @@ A dataset is a stranger's data: `chunks_size: 0` makes Rerun's v2 reader divide 
 `total_episodes: 1e30` would make a loop of 10^30 episodes, a NaN timestamp or a negative row range would reach the
 reader. info.json's counts, its fps and its features' shapes are checked as read_info parses it; the episodes' table
 (v2's episodes.jsonl, v3's meta/episodes/*.parquet) as it is read, over whole columns, naming the file, the column and
-the first row at fault. Each refusal is a user error naming the file and the key; nothing here trusts a size the
-dataset states about itself (episodes.jsonl is read line by line within EPISODES_JSONL_BYTES)."""
+the first row at fault. Each refusal is a user error naming the file and the key. The table is bounded before it is
+built: episodes.jsonl is read line by line within EPISODES_JSONL_BYTES and MAX_EPISODE_ROWS lines; a parquet file's
+rows (its footer: a file of 800 KB can declare 30 million rows of zeros) count towards MAX_EPISODE_ROWS and its columns
+read must be numbers, before a column is read."""
 
 from __future__ import annotations
 
@@ -22,7 +24,8 @@ from ..errors import UserError, Where, shown
 INT64_MAX = 2**63 - 1  # an index a timeline or a parquet column holds
 MAX_FPS = 1_000_000  # frames per second: far beyond any camera or control loop, far below where a float stops counting
 MAX_LISTED_EPISODES = 1_000_000  # episodes taken from total_episodes alone, when the dataset has no episodes table
-EPISODES_JSONL_BYTES = 64 * 2**20  # v2's episodes.jsonl: ~100 bytes an episode, so over half a million episodes
+EPISODES_JSONL_BYTES = 32 * 2**20  # v2's episodes.jsonl: ~100 bytes an episode, so some 300,000 episodes
+MAX_EPISODE_ROWS = 1_000_000  # rows of the episodes' table, all files together: 10 times the largest public datasets
 # info.json's counts and the least each may be; Rerun's reader reads each as an unsigned integer
 INFO_COUNTS = {
     "total_episodes": 0,
@@ -113,8 +116,11 @@ def jsonl_lines(path: Path) -> Iterator[tuple[int, str]]:
     with path.open("rb") as stream:
         for number, raw in enumerate(stream, 1):  # one iteration per line, each at most the bound
             read += len(raw)
-            if read > EPISODES_JSONL_BYTES:
-                raise MetadataError(f"meta/episodes.jsonl is larger than {EPISODES_JSONL_BYTES // 2**20} MB, the most read as metadata")
+            if read > EPISODES_JSONL_BYTES or number > MAX_EPISODE_ROWS:
+                raise MetadataError(
+                    f"meta/episodes.jsonl is larger than {EPISODES_JSONL_BYTES // 2**20} MB or {MAX_EPISODE_ROWS:,} lines, "
+                    "the most read as metadata"
+                )
             text = raw.decode("utf-8").strip()
             if text:
                 yield number, text
@@ -148,6 +154,24 @@ def jsonl_table(path: Path) -> pa.Table:
 def wanted_columns(names: list[str]) -> list[str]:
     """The columns of a v3 episodes file that are read, each checked: indices, row ranges, video time ranges."""
     return [name for name in names if name in INDEX_COLUMNS or name.endswith(INDEX_SUFFIXES + TIME_SUFFIXES)]
+
+
+def episode_file_columns(metadata: Any, rows_before: int, relative: str) -> list[str]:
+    """The columns of a v3 episodes file to read, from its footer (`pq.read_metadata`), before any is read: the table's
+    rows with this file's stay within MAX_EPISODE_ROWS, and every column read holds plain numbers."""
+    if rows_before + metadata.num_rows > MAX_EPISODE_ROWS:
+        raise MetadataError(
+            f"{relative} declares {metadata.num_rows:,} rows, which bring the episodes' table beyond {MAX_EPISODE_ROWS:,} rows"
+        )
+    schema = metadata.schema.to_arrow_schema()
+    columns = wanted_columns(schema.names)
+    if "episode_index" not in columns:
+        raise MetadataError(f"{relative} has no episode_index column")
+    for name in columns:  # one iteration per column to read
+        kind = schema.field(name).type
+        if not (pa.types.is_integer(kind) or (name.endswith(TIME_SUFFIXES) and pa.types.is_floating(kind))):
+            raise MetadataError(f"{name} in {relative} holds {kind}, not {'seconds' if name.endswith(TIME_SUFFIXES) else 'whole numbers'}")
+    return columns
 
 
 def check_episode_columns(table: pa.Table, relative: str) -> None:
