@@ -130,3 +130,64 @@ def lerobot_panda_config(examples_dir: Path, stem: str, source: dict[str, Any]) 
 def cached_names(folder: Path) -> list[str]:
     """The files a cache folder holds (their names), its own lock and ledger files left out."""
     return sorted(p.name for p in folder.rglob("*") if p.is_file() and not p.name.startswith(".")) if folder.exists() else []
+
+
+def _edited_info(root: Path, **changes: Any) -> None:
+    """meta/info.json with `changes` (a value of None removes its key); NaN and Infinity written as Python's json
+    writes them, which LeRobot's own reader (json.load) accepts."""
+    path = root / "meta" / "info.json"
+    info = json.loads(path.read_text(encoding="utf-8"))
+    info.update(changes)
+    path.write_text(json.dumps({k: v for k, v in info.items() if v is not None}), encoding="utf-8")
+
+
+def _edited_jsonl(root: Path, row: int, **changes: Any) -> None:
+    path = root / "meta" / "episodes.jsonl"
+    rows = [json.loads(line) for line in path.read_text(encoding="utf-8").splitlines()]
+    rows[row].update(changes)
+    path.write_text("\n".join(json.dumps(r) for r in rows) + "\n", encoding="utf-8")
+
+
+def _edited_episodes(root: Path, row: int, **changes: Any) -> None:
+    """v3: meta/episodes' file with row `row`'s columns changed (a new column is added, null in the other rows)."""
+    path = root / "meta" / "episodes" / "chunk-000" / "file-000.parquet"
+    rows = [{**dict.fromkeys(changes), **r} for r in pq.read_table(path).to_pylist()]
+    rows[row].update(changes)
+    pq.write_table(pa.Table.from_pylist(rows), path)
+
+
+def _v3_copy(source: Path, root: Path) -> None:
+    """`source` (a v2.1 dataset without videos) again in the v3 layout, two episodes a data file."""
+    files = sorted((source / "data").glob("*/*.parquet"))
+    episodes = [np.asarray(pq.read_table(f).column("observation.state").to_pylist(), dtype=np.float64) for f in files]
+    names = json.loads((source / "meta" / "info.json").read_text())["features"]["observation.state"]["names"]
+    write_v3_dataset(root, episodes, names)
+
+
+# data/hostile_lerobot/NAME: a copy of the examples' so101 dataset (v2.1), or of it in the v3 layout, with one hostile
+# edit to its metadata each; the invalid cases metadata_* and template_*_path_* read them
+HOSTILE_LEROBOT: dict[str, tuple[str, Any]] = {
+    "chunks_size_zero": ("v2", lambda d: _edited_info(d, chunks_size=0)),
+    "total_episodes_huge": ("v2", lambda d: (_edited_info(d, total_episodes=10**30), (d / "meta" / "episodes.jsonl").unlink())),
+    "fps_nan": ("v2", lambda d: _edited_info(d, fps=float("nan"))),
+    "episode_index_huge": ("v2", lambda d: _edited_jsonl(d, 1, episode_index=1e30)),
+    "row_range_reversed": ("v3", lambda d: _edited_episodes(d, 2, dataset_to_index=0)),
+    "video_time_infinite": ("v3", lambda d: _edited_episodes(d, 1, **{"videos/cam/from_timestamp": float("inf")})),
+    "data_path_width": (
+        "v2",
+        lambda d: _edited_info(d, data_path="data/chunk-{episode_chunk:03d}/episode_{episode_index:999999999d}.parquet"),
+    ),
+    "video_path_attribute": ("v2", lambda d: _edited_info(d, video_path="videos/{video_key.__class__.__mro__}/{episode_index:06d}.mp4")),
+}
+
+
+def write_hostile_lerobot(data: Path, source: Path) -> None:
+    """Every dataset of HOSTILE_LEROBOT under data/hostile_lerobot/, made from `source` (a v2.1 dataset)."""
+    for name, (layout, edit) in HOSTILE_LEROBOT.items():
+        root = data / "hostile_lerobot" / name
+        shutil.rmtree(root, ignore_errors=True)
+        if layout == "v3":
+            _v3_copy(source, root)
+        else:
+            shutil.copytree(source, root)
+        edit(root)

@@ -26,6 +26,7 @@ from urdf_pipeline.examples import panda_raw_values, write_joint_parquet
 from urdf_pipeline.urdf.model import read_urdf
 
 from ..hostile_inputs import write_hostile_inputs
+from ..lerobot_layouts import write_hostile_lerobot
 from ..mjcf_inputs import write_mjcf_inputs
 from ..source_inputs import write_source_inputs
 
@@ -144,6 +145,7 @@ def invalid_dir(examples_dir: Path) -> Path:
     # Symlink loops, a file in an output folder's place, a newline in a file name, hostile HDF5 and index values.
     write_hostile_inputs(examples_dir, panda_raw_values(FRAMES, panda))
     write_mjcf_inputs(robots)  # the mjcf_* cases: robots/mjcf_arm_*.xml
+    write_hostile_lerobot(data, data / "so101_lerobot")  # the metadata_* and template_*_path_* cases
 
     text = panda_urdf.read_text(encoding="utf-8")
     original = "package://example-robot-data/robots/panda_description/meshes/visual/link3.dae"

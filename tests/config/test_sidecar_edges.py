@@ -104,7 +104,13 @@ BROKEN_SIDECARS = {
         "edges.yaml",
         "- parent: world\n  child: panda_link0\n  translation: [0, .nan, 0.5]\n  rpy: [0, 0, 0]\n",
         3,
-        "[0].translation: translation holds a NaN or infinite value",
+        "[0].translation[1]: NaN is not a number this tool can use",
+    ),
+    "json_nan": (  # JSON's NaN and Infinity, which Python's json reads: the same rule as YAML's .nan and .inf
+        "edges.json",
+        '[\n  {"parent": "world", "child": "panda_link0",\n   "translation": [0, 0, Infinity],\n   "rpy": [NaN, 0, 0]}\n]\n',
+        3,
+        "[0].translation[2]: an infinity is not a number this tool can use",
     ),
 }
 

@@ -368,7 +368,7 @@ LEROBOT_CASES: dict[str, tuple[Callable[[Path], None], str]] = {
     ),
     "data_path_reaches_into_python": (
         lambda d: _edit_info(d, data_path="data/{episode_index.__class__.__mro__}.parquet"),
-        "must stay inside the dataset and use only",
+        "reads an attribute or item",
     ),
     "data_file_a_fifo": (
         lambda d: _replace_with(d / "data" / "chunk-000" / "episode_000001.parquet", lambda p: __import__("os").mkfifo(p)),

@@ -29,6 +29,8 @@ def test_the_episode_lengths_are_kept_while_the_metadata_is_unchanged_and_read_a
 
     jsonl = tmp_path / "meta" / "episodes.jsonl"
     jsonl.write_text(jsonl.read_text() + json.dumps({"episode_index": 2, "tasks": ["wave"], "length": 3}) + "\n")
+    info = tmp_path / "meta" / "info.json"  # the count Rerun's reader reads episodes by, as LeRobot updates it too
+    info.write_text(json.dumps({**json.loads(info.read_text()), "total_episodes": 3}))
     assert lerobot.episodes(plan) == {0: 5, 1: 7, 2: 3}
 
 

@@ -3,11 +3,12 @@ robot has compiled: the copy must name another robot, not itself a copy, with th
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import replace
 from typing import Any
 
-from ..errors import listing, shown
+from ..errors import listing, quoted, shown
 from ..plan import Comparison, RobotPlan
 from ..urdf import UrdfModel
 from .context import CompileContext
@@ -53,6 +54,15 @@ def with_comparisons(ctx: CompileContext, robots: list[RobotPlan], models: dict[
             resolved.append(robot)
             continue
         values, text = _threshold(written.get("threshold", {}))
+        infinite = [kind for kind, (value, _) in values.items() if not math.isfinite(value)]
+        if infinite:  # 1e999 deg: a number beyond a float's range, which the schema's NUMBER UNIT pattern lets through
+            for kind in infinite:
+                ctx.problems.add(
+                    f"threshold {quoted(written['threshold'][kind])} is beyond a float's range: write a finite number",
+                    ctx.where("robots", robot.key, "compare", "threshold", kind),
+                )
+            resolved.append(robot)
+            continue
         kinds = {joint.name: joint.type for joint in models[robot.key].joints}
         per_joint = [values["length" if kinds[c.joint] == "prismatic" else "angle"] for c in robot.channels]
         comparison = Comparison(

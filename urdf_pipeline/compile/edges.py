@@ -71,12 +71,6 @@ def compile_edges(
             else:
                 broken.append(edge)
             continue
-        nonfinite = [key for key in ("translation", "quaternion_xyzw", "rpy", "rpy_deg") if not all(map(math.isfinite, spec.get(key, ())))]
-        if nonfinite:  # YAML .nan / .inf, JSON NaN / Infinity
-            for key in nonfinite:
-                problems.add(f"{key} holds a NaN or infinite value", edge.where(key))
-            broken.append(edge)
-            continue
         if "quaternion_xyzw" in spec:
             quaternion = normalized_quaternion(tuple(spec["quaternion_xyzw"]))
             if quaternion is None:

@@ -10,36 +10,36 @@ removed; the manifest is uploaded last (`DatasetPlan.remote` maps a staged path 
 from __future__ import annotations
 
 import itertools
-import string
 from pathlib import Path
 
+from ..config import Placeholder, checked_template
 from ..confine import resolved_or_written
-from ..errors import UserError, listing, shown
+from ..errors import UserError, quoted, shown
 from ..plan import DatasetPlan, RemoteOutputs, Segment
 from ..remote import is_remote, remote_location, staged_path, staging_folder
 from .context import CompileContext
+
+OUTPUT_PATH = {"segment": Placeholder(str)}  # output.path's placeholders
 
 
 def output_paths(ctx: CompileContext, template: str, ids: list[str]) -> list[Path] | None:
     problems = ctx.problems
     where = ctx.where("output", "path")
-    fields = [name for _, name, _, _ in string.Formatter().parse(template) if name is not None]
-    unknown = [name for name in fields if name != "segment"]
-    if unknown:
-        problems.add(
-            f"output.path uses unknown placeholder(s) {listing(['{' + n + '}' for n in unknown])}; only {{segment}} is known", where
-        )
+    try:
+        checked = checked_template(template, OUTPUT_PATH, "output.path", where)
+    except UserError as error:
+        problems.extend(error)
         return None
-    if len(ids) > 1 and "segment" not in fields:
-        problems.add(f"{len(ids)} segments would all be written to '{template}'; put {{segment}} in output.path", where)
+    if len(ids) > 1 and "segment" not in checked.fields:
+        problems.add(f"{len(ids)} segments would all be written to {quoted(template)}; put {{segment}} in output.path", where)
         return None
     if is_remote(template):
         try:
-            return [staged_path(remote_location(template.format(segment=i), where, "output.path")) for i in ids]
+            return [staged_path(remote_location(checked.format(segment=i), where, "output.path")) for i in ids]
         except UserError as error:
             problems.extend(error)
             return None
-    return [resolved_or_written(ctx.config_dir / template.format(segment=i)) for i in ids]
+    return [resolved_or_written(ctx.config_dir / checked.format(segment=i)) for i in ids]
 
 
 def dataset_plan(ctx: CompileContext, segments: tuple[Segment, ...]) -> DatasetPlan | None:

@@ -10,12 +10,13 @@ import glob
 import itertools
 import os
 import re
-import string
+from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ..config import Placeholder, checked_template
 from ..confine import Unresolvable, file_state, resolved
 from ..errors import UserError, Where, listing, quoted, shown
 from ..plan import DatasetPlan, LeRobotSourcePlan, Segment, SourcePlan
@@ -297,16 +298,18 @@ def _common_stems(ctx: CompileContext, files: dict[str, dict[str, SourcePlan]]) 
     return sorted(reference)
 
 
+SEGMENT = {"episode": Placeholder(int), "stem": Placeholder(str)}  # output.segment's placeholders
+
+
 def _segment_ids(ctx: CompileContext, template: str, keys: list[tuple[int | None, str | None]], where: Where) -> list[str] | None:
     problems = ctx.problems
-    fields = {name for _, name, _, _ in string.Formatter().parse(template) if name is not None}
-    known = {"episode": any(e is not None for e, _ in keys), "stem": any(s is not None for _, s in keys)}
-    unknown = sorted(fields - set(known))
-    if unknown:
-        problems.add(
-            f"output.segment uses unknown placeholder(s) {listing(['{' + n + '}' for n in unknown])}; known: {{episode}}, {{stem}}", where
-        )
+    try:
+        checked = checked_template(template, SEGMENT, "output.segment", where)
+    except UserError as error:
+        problems.extend(error)
         return None
+    fields = checked.fields
+    known = {"episode": any(e is not None for e, _ in keys), "stem": any(s is not None for _, s in keys)}
     unavailable = sorted(f for f in fields if not known[f])
     if unavailable:
         problems.add(
@@ -315,15 +318,11 @@ def _segment_ids(ctx: CompileContext, template: str, keys: list[tuple[int | None
             where,
         )
         return None
-    try:
-        ids = [template.format(episode=e, stem=s) for e, s in keys]
-    except (ValueError, TypeError) as exc:
-        problems.add(f"output.segment '{template}' cannot be formatted: {exc}", where)
-        return None
-    duplicated = sorted({i for i in ids if ids.count(i) > 1}) if len(set(ids)) != len(ids) else []
+    ids = [checked.format(**{k: v for k, v in (("episode", e), ("stem", s)) if v is not None}) for e, s in keys]
+    duplicated = sorted(i for i, count in Counter(ids).items() if count > 1)
     if duplicated:
         problems.add(
-            f"{len(ids)} segments but output.segment '{template}' names several of them {listing(duplicated)}: two segments with "
+            f"{len(ids)} segments but output.segment {quoted(template)} names several of them {listing(duplicated)}: two segments with "
             "the same id would overwrite each other; put {episode} or {stem} in it",
             where,
         )

@@ -7,6 +7,7 @@ must hold no temporal edge (its pose comes from another source's rows, which the
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -20,15 +21,33 @@ _WINDOW = re.compile(r"^\s*(\d+(?:\.\d*)?|\.\d+)\s*(ms|s|min|rows?)\s*$")
 _SECONDS = {"ms": 1e-3, "s": 1.0, "min": 60.0}
 
 
+INT64_MAX = 2**63 - 1  # a timeline's values: nanoseconds on a time timeline, rows on a sequence timeline
+
+
 def parse_window(text: str) -> tuple[float, WindowUnit] | None:
-    """`2 s`, `500 ms`, `1.5 min` (seconds) or `200 rows` (rows); None when it is neither."""
+    """`2 s`, `500 ms`, `1.5 min` (seconds) or `200 rows` (rows); None when it is neither, or not above 0. A float
+    either way (a number of 400 digits is inf): `window_beyond` says whether a timeline can hold it."""
     match = _WINDOW.match(text)
     if match is None or float(match.group(1)) <= 0:
         return None
     number, unit = float(match.group(1)), match.group(2)
     if unit.startswith("row"):
-        return (number, "rows") if number.is_integer() else None
+        return (number, "rows") if number.is_integer() or math.isinf(number) else None
     return number * _SECONDS[unit], "s"
+
+
+def window_beyond(span: float, unit: WindowUnit) -> str | None:
+    """Why a parsed window is more (or less) than a timeline can hold, or None. Rerun's blueprint stores the window as
+    an int64 offset from the time cursor, in nanoseconds as `int(seconds * 1e9)` (its TimeInt) or in rows: a longer
+    one would be dropped from the blueprint with a warning, or stop the run."""
+    if unit == "rows":
+        return "more rows than a sequence timeline holds (below 2^63)" if not span < 2**63 else None
+    nanos = span * 1e9
+    if not nanos < INT64_MAX:  # inf from a number of 400 digits too
+        return f"longer than a time timeline holds (int64 nanoseconds: at most {INT64_MAX // 10**9:,} s, about 292 years)"
+    if int(nanos) < 1:
+        return "shorter than 1 ns, the finest step of a time timeline"
+    return None
 
 
 def source_timelines(source: SourcePlan) -> tuple[tuple[str, str], ...]:
@@ -242,6 +261,10 @@ def _window(
         )
         return None
     span, unit = parsed
+    beyond = window_beyond(span, unit)
+    if beyond is not None:
+        ctx.problems.add(f"window {quoted(str(spec['window']))} is {beyond}", where)
+        return None
     if not timelines:
         return span, unit, ()
     fitting = tuple(name for name, kind in timelines if (kind == "sequence") == (unit == "rows"))

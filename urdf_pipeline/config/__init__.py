@@ -1,5 +1,5 @@
-"""The config as written: YAML with a location for every key, the JSON Schema, sidecar edge files, and the
-generated reference.
+"""The config as written: YAML with a location for every key, the JSON Schema, sidecar edge files, the format
+templates a config or a dataset's metadata supplies, and the generated reference.
 
 The names below are the package's public surface; other packages import them from here, never from its modules.
 """
@@ -14,6 +14,7 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
     from .document import MAX_BYTES, Document, format_path, load_document, parse_document
     from .schema import SCHEMA_RESOURCE, require_schema_valid, schema_text, validate_document
     from .sidecar import EdgeSpec, expand_edge_specs
+    from .templates import Placeholder, Template, checked_template
 
 if not TYPE_CHECKING:  # the names above, imported when first used
     __all__, __getattr__ = lazy_surface(__name__, __file__)

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import difflib
 import json
-from collections.abc import Mapping
+import math
+from collections.abc import Iterator, Mapping
 from functools import lru_cache
 from importlib import resources
 from typing import Any
@@ -12,8 +13,8 @@ from typing import Any
 import jsonschema
 from jsonschema.exceptions import ValidationError, best_match
 
-from ..errors import Problems, UserError
-from .document import Document, format_path
+from ..errors import Problems, UserError, shown
+from .document import Document, PathKey, format_path
 
 SCHEMA_RESOURCE = "urdf-pipeline.schema.json"
 
@@ -34,15 +35,52 @@ def _validator(subschema: str | None) -> jsonschema.Draft202012Validator:
     return jsonschema.Draft202012Validator(root if subschema is None else {"$ref": f"#/$defs/{subschema}", "$defs": root["$defs"]})
 
 
+INT64 = 2**63  # a whole number in a config is below it in size: every count, index and size the tool keeps is an int64
+
+
+def unusable_numbers(data: Any, path: PathKey = ()) -> Iterator[tuple[PathKey, str]]:
+    """(path, why) of every number no key can use, wherever it is: NaN and infinities (YAML's .nan, .inf and -.inf, a
+    literal beyond a float's range such as 1e999, JSON's NaN and Infinity), a whole number beyond 64 bits. One rule for
+    every number key, present and future: a NaN offset or colour would make no pose and no picture, and JSON Schema's
+    `type: number`, `minimum` and `maximum` all let NaN through."""
+    if isinstance(data, dict):
+        for key, value in data.items():  # one iteration per key; nodes and depth are bounded by document.py
+            yield from unusable_numbers(value, (*path, key))
+    elif isinstance(data, list):
+        for index, value in enumerate(data):
+            yield from unusable_numbers(value, (*path, index))
+    elif isinstance(data, float) and not math.isfinite(data):
+        kind = "NaN" if math.isnan(data) else ("an infinity" if data > 0 else "a negative infinity")
+        yield (
+            path,
+            f"{kind} is not a number this tool can use (.nan, .inf, or a literal beyond a float's range such as 1e999): write a finite number",
+        )
+    elif isinstance(data, int) and not isinstance(data, bool) and not -INT64 <= data < INT64:
+        yield path, f"{shown(data, 40)} is beyond a 64-bit integer (2^63): write a smaller number"
+
+
 def validate_document(document: Document, subschema: str | None = None) -> None:
-    """Validate against the schema (or one of its $defs); raise all errors at once, each at its line and column."""
+    """Validate against the schema (or one of its $defs); raise all errors at once, each at its line and column.
+    A number no key can use (`unusable_numbers`) is refused at its own key, and the schema's errors about it (a NaN
+    sign is not -1 or 1) are left out."""
     validator = _validator(subschema)
     problems = Problems()
+    unusable = dict(unusable_numbers(document.data))
+    for path, why in unusable.items():
+        problems.add(why, document.where(*path))
     errors = sorted(validator.iter_errors(document.data), key=lambda e: (_position(document, e), list(map(str, e.absolute_path))))
     for error in errors:
+        if unusable and _about(error, unusable):
+            continue
         path, message = _explain(error)
         problems.add(message, document.where(*path))
     problems.raise_if_any()
+
+
+def _about(error: ValidationError, unusable: dict[PathKey, str]) -> bool:
+    """Whether a schema error is about an unusable number: at it or below it, or a choice (oneOf) above it."""
+    path = tuple(error.absolute_path)
+    return any(bad[: len(path)] == path if error.validator in ("oneOf", "anyOf") else path[: len(bad)] == bad for bad in unusable)
 
 
 def _position(document: Document, error: ValidationError) -> tuple[int, int]:

@@ -233,7 +233,12 @@ def _one_vector_per_row(chunk: Chunk) -> list[Chunk]:
 
 
 def open_stream(plan: LeRobotSourcePlan) -> SourceStream:
-    reader, known = _reader(plan.root, (stamped(plan.root / "meta" / "info.json"), *episode_files(plan.root)))
+    try:  # what Rerun's reader refuses in the metadata that compile's checks let through: the dataset's fault
+        reader, known = _reader(plan.root, (stamped(plan.root / "meta" / "info.json"), *episode_files(plan.root)))
+    except ValueError as exc:
+        raise UserError(
+            f"Rerun's LeRobot reader cannot read {shown_root(plan)}: {shown(str(exc).splitlines()[0] if str(exc) else exc)}", plan.where
+        ) from None
     if plan.episode not in known:
         raise UserError(f"episode {plan.episode} is not in {shown_root(plan)}", plan.where)
     if plan.per_segment:  # a pinned episode was checked when the config compiled

@@ -8,23 +8,22 @@ from __future__ import annotations
 import functools
 import json
 import os
-import string
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
 
 import pyarrow as pa
 
-from ..config import Document
+from ..config import MAX_BYTES, Document, Placeholder, Template, checked_template
 from ..confine import file_state
-from ..errors import UserError, Where
+from ..errors import UserError, Where, quoted
 from ..plan import LeRobotSourcePlan
+from .lerobot_numbers import check_episode_columns, check_info_numbers, check_v2_listing, episode_file_columns, jsonl_table, listed_episodes
 from .ordering import with_duplicates
 
 T = TypeVar("T")
 # What a hostile or broken dataset's metadata raises while it is read: each becomes one user error at the source.
-METADATA_ERRORS = (OSError, ValueError, KeyError, TypeError, AttributeError, IndexError, pa.ArrowException)
-TEMPLATE_FIELDS = frozenset({"episode_chunk", "episode_index", "chunk_index", "file_index"})
+METADATA_ERRORS = (OSError, ValueError, KeyError, TypeError, AttributeError, IndexError, RecursionError, pa.ArrowException)
 V3_COLUMNS = ("data/chunk_index", "data/file_index")  # v3: which data file holds an episode's rows
 
 
@@ -41,36 +40,58 @@ def feature_names(feature: dict[str, Any]) -> list[str] | None:
 
 
 def read_info(root: Path, where: Where | None = None, shown: str | None = None) -> dict[str, Any]:
-    """meta/info.json as a mapping; a user error when it is missing, no regular file (a FIFO would block), or not a
-    JSON object."""
+    """meta/info.json as a mapping, its numbers checked (lerobot_numbers.py); a user error when it is missing, no
+    regular file (a FIFO would block), larger than MAX_BYTES or not a JSON object."""
     path = root / "meta" / "info.json"
     named = f"{shown}/meta/info.json" if shown else str(path)
     if file_state(path, "LeRobot metadata file", where) != "file":
         raise UserError(f"{shown or root} is not a LeRobot dataset: {named} is missing", where)
     try:
-        info = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise UserError(f"cannot read {named}: {exc}", where) from None
+        with path.open("rb") as stream:
+            raw = stream.read(MAX_BYTES + 1)
+        if len(raw) > MAX_BYTES:
+            raise ValueError(f"it is larger than {MAX_BYTES // 2**20} MB, the most read as metadata")
+        info = json.loads(raw.decode("utf-8"))
+    except (OSError, ValueError, RecursionError) as exc:
+        raise UserError(f"cannot read {named}: {'nested too deeply' if isinstance(exc, RecursionError) else exc}", where) from None
     if not isinstance(info, dict):
         raise UserError(f"{named} holds {type(info).__name__}, not a JSON object", where)
+    check_info_numbers(info, named, where)
     return info
 
 
-def data_path_template(info: dict[str, Any], info_path: Path | str, where: Where | None) -> str:
-    """info.json's data_path: relative, inside the dataset (no `..`), with only LeRobot's own fields and no attribute
-    or item access (`{episode_index.__class__}` would reach into Python objects)."""
-    template = str(info.get("data_path", ""))
-    try:
-        fields = {name for _, name, _, _ in string.Formatter().parse(template) if name is not None}
-    except ValueError as exc:
-        raise UserError(f"data_path '{template}' in {info_path} is not a path template: {exc}", where) from None
-    if not fields <= TEMPLATE_FIELDS or Path(template).is_absolute() or ".." in Path(template).parts:
-        raise UserError(
-            f"data_path '{template}' in {info_path} must stay inside the dataset and use only "
-            f"{', '.join('{' + f + '}' for f in sorted(TEMPLATE_FIELDS))}",
-            where,
-        )
-    return template
+# The placeholders of info.json's path templates, written exactly as LeRobot writes them: Rerun's reader replaces
+# these texts and nothing else, so any other spelling would make the file we check differ from the file it reads.
+V2_PLACEHOLDERS = {"episode_chunk": Placeholder(int, "03d"), "episode_index": Placeholder(int, "06d")}
+V3_PLACEHOLDERS = {"chunk_index": Placeholder(int, "03d"), "file_index": Placeholder(int, "03d")}
+VIDEO_KEY = {"video_key": Placeholder(str, "")}
+
+
+def is_v3(info: dict[str, Any]) -> bool:
+    return str(info.get("codebase_version", "")).startswith("v3")
+
+
+def data_path_template(info: dict[str, Any], info_path: Path | str, where: Where | None) -> Template:
+    """info.json's data_path (and video_path, which the reader also takes): relative, inside the dataset (no `..`),
+    with only the placeholders of the dataset's layout as LeRobot writes them (config/templates.py refuses the rest:
+    `{episode_index.__class__}`, `{episode_index:999999999d}`...)."""
+    placeholders = V3_PLACEHOLDERS if is_v3(info) else V2_PLACEHOLDERS
+    video = info.get("video_path")
+    if video is not None:
+        _path_template(video, "video_path", {**placeholders, **VIDEO_KEY}, info_path, where)
+    return _path_template(info.get("data_path"), "data_path", placeholders, info_path, where)
+
+
+def _path_template(text: object, key: str, placeholders: dict[str, Placeholder], info_path: Path | str, where: Where | None) -> Template:
+    if not isinstance(text, str):
+        kind = "missing" if text is None else f"a JSON {type(text).__name__}"
+        raise UserError(f"{key} in {info_path} is {kind}, not a path template such as {_LEROBOT_DEFAULT}", where)
+    if Path(text).is_absolute() or ".." in Path(text).parts:
+        raise UserError(f"{key} {quoted(text)} in {info_path} must stay inside the dataset (a relative path without '..')", where)
+    return checked_template(text, placeholders, f"{key} in {info_path}:", where)
+
+
+_LEROBOT_DEFAULT = "'data/chunk-{episode_chunk:03d}/episode_{episode_index:06d}.parquet'"
 
 
 def metadata(shown: str, where: Where | None, read: Callable[[], T]) -> T:
@@ -153,33 +174,40 @@ def episode_table(root: Path) -> pa.Table | None:
 
 @functools.lru_cache(maxsize=4)
 def _read_episode_table(files: tuple[FileStamp, ...]) -> pa.Table:
+    """The episodes' table, every number in it checked (lerobot_numbers.py) as it is read."""
     import pyarrow.parquet as pq
 
     if files[0][0].name == "episodes.jsonl":
-        rows = [json.loads(line) for line in files[0][0].read_text(encoding="utf-8").splitlines() if line.strip()]
-        return pa.table({"episode_index": [int(r["episode_index"]) for r in rows], "length": [r.get("length") for r in rows]})
-    wanted = ["episode_index", "length", *V3_COLUMNS]
-    tables = [pq.read_table(f, columns=[c for c in wanted if c in pq.read_schema(f).names]) for f, _, _ in files]
+        return jsonl_table(files[0][0])
+    tables: list[pa.Table] = []
+    for file, _, _ in files:  # one iteration per episodes file (a v3 dataset has one per 1000 episodes or so)
+        relative = "/".join(file.parts[len(file.parts) - 1 - file.parts[::-1].index("meta") :])
+        columns = episode_file_columns(pq.read_metadata(file), sum(t.num_rows for t in tables), relative)
+        tables.append(pq.read_table(file, columns=columns))
+        check_episode_columns(tables[-1], relative)
     return pa.concat_tables(tables, promote_options="default")
 
 
 def episode_lengths(root: Path, table: pa.Table | None, where: Where | None, shown: str) -> dict[int, int | None]:
     """Episode index -> its length in frames (None when the metadata does not say)."""
+    info, named = read_info(root, where, shown), f"{shown}/meta/info.json"
     if table is None:
-        total = int(read_info(root, where, shown).get("total_episodes", 0))
-        return dict.fromkeys(range(total))
+        return dict.fromkeys(listed_episodes(info, named, where))
     lengths = table.column("length").to_pylist() if "length" in table.column_names else [None] * table.num_rows
-    return dict(zip(table.column("episode_index").to_pylist(), lengths, strict=True))
+    found = dict(zip(table.column("episode_index").to_pylist(), lengths, strict=True))
+    if not is_v3(info):
+        check_v2_listing(info, max(found, default=None), named, where)
+    return found
 
 
-def v2_data_file(info: dict[str, Any], template: str, episode: int) -> str | None:
+def v2_data_file(info: dict[str, Any], template: Template, episode: int) -> str | None:
     """v2: the one data file of `episode` (data_path holds {episode_index}), relative to the dataset; None for v3."""
-    if "{episode_index" not in template:
+    if "episode_index" not in template.fields:
         return None
     return template.format(episode_chunk=episode // int(info.get("chunks_size", 1000)), episode_index=episode)
 
 
-def v3_data_files(table: pa.Table | None, template: str, episode: int | None = None) -> dict[int, tuple[str, ...]] | None:
+def v3_data_files(table: pa.Table | None, template: Template, episode: int | None = None) -> dict[int, tuple[str, ...]] | None:
     """v3: episode -> the data file(s) its rows are in (episodes share files), relative to the dataset, from the
     episode table's data/chunk_index and data/file_index (only `episode`'s, when given); None when the table does
     not say."""

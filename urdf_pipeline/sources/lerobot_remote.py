@@ -14,7 +14,6 @@ layout (`remote.fetched_folder`), removed after the segment.
 from __future__ import annotations
 
 import functools
-import json
 import os
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -22,7 +21,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from ..config import Document
+from ..config import Document, Template
 from ..errors import UserError, Where, shown, warn
 from ..plan import LeRobotSourcePlan, RemoteDataset, RemoteObject
 from ..remote import (
@@ -48,6 +47,7 @@ from .lerobot_meta import (
     v2_data_file,
     v3_data_files,
 )
+from .lerobot_numbers import jsonl_episode, jsonl_lines
 
 META_FILES = ("meta/info.json", "meta/episodes.jsonl", "meta/tasks.jsonl", "meta/tasks.parquet")  # what a reader opens
 META_PATTERNS = (*META_FILES, "meta/episodes/*.parquet")  # for the Hub client (fnmatch: `*` crosses folders)
@@ -64,7 +64,7 @@ class _Dataset:
 
     lengths: dict[int, int | None]  # episode -> frames (None: the metadata does not say)
     info: dict[str, Any]
-    template: str  # info.json's data_path, checked
+    template: Template  # info.json's data_path, checked
     shared: dict[int, tuple[str, ...]] | None  # v3: episode -> its data files
     objects: dict[str, RemoteObject] | None  # S3: every object under data/, by its path in the dataset; None: the Hub
 
@@ -131,7 +131,7 @@ def _learn(view: Path, where: Where | None, shown_url: str, objects: dict[str, R
         info = read_info(view, where, shown_url)
         template = data_path_template(info, f"{shown_url}/meta/info.json", where)
         table = episode_table(view)
-        shared = None if "{episode_index" in template else v3_data_files(table, template)
+        shared = None if "episode_index" in template.fields else v3_data_files(table, template)
         return _Dataset(episode_lengths(view, table, where, shown_url), info, template, shared, objects)
 
     return metadata(shown_url, where, read)
@@ -243,9 +243,9 @@ def _present_episodes_only(root: Path, plan: LeRobotSourcePlan) -> None:
 
 @functools.lru_cache(maxsize=4)
 def _jsonl_lines(real: str, size: int, mtime_ns: int) -> dict[int, str]:
-    """A v2 episodes.jsonl of the download cache, as episode index -> its line (kept while the file is unchanged)."""
+    """A v2 episodes.jsonl of the download cache, as episode index -> its line (kept while the file is unchanged),
+    read and checked as a local one is."""
     found: dict[int, str] = {}
-    for line in Path(real).read_text(encoding="utf-8").splitlines():  # one iteration per episode of the dataset, once
-        if line.strip():
-            found[int(json.loads(line)["episode_index"])] = line
+    for number, line in jsonl_lines(Path(real)):  # one iteration per episode of the dataset, once
+        found[jsonl_episode(number, line)[0]] = line
     return found
