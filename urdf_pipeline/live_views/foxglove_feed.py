@@ -16,12 +16,11 @@ from ..errors import UserError, Where, quoted, shown
 from ..progress import detail, say
 from .foxglove_protocol import Advertised, ProtocolError, advertised, message_data, server_message, subscribe, unadvertised
 from .foxglove_socket import BINARY, CONNECT_SECONDS, TEXT, Connection, Lost, check_url
-from .joint_state import JOINT_STATE, POLL_SECONDS, JointStateDecoder, JointStateSample, same_topic
+from .joint_state import JOINT_STATE, POLL_SECONDS, JointStateDecoder, JointStateSample, NameOrders, same_topic
 
 MAX_BATCH = 1000  # frames read into one batch: the caller gets to stop or flush between batches, however fast data comes
 FIRST_DELAY, MAX_DELAY = 0.25, 2.0  # seconds before a reconnect: doubling from the first to the most
 NOTE_AFTER_SECONDS = 2.0  # connected this long with no wanted topic advertised: say so, once per connection
-MAX_NAME_ORDERS = 4096  # distinct name lists kept per topic for reuse; past it the cache starts again
 MAX_RESUBSCRIBES, RESUBSCRIBE_SECONDS = 8, 0.1  # per connection, each later than the last: _Session._subscribe_again
 MAX_STATUS_LINES = 10  # the server's warnings and errors said per connection (a server may repeat one forever)
 _LISTED_TOPICS = 8
@@ -36,11 +35,9 @@ class _Subscription(NamedTuple):
 class _Session:
     """One connection's state: the channels subscribed, and the samples its frames give."""
 
-    def __init__(
-        self, connection: Connection, wanted: Mapping[str, Where | None], names: dict[str, dict[tuple[str, ...], tuple[str, ...]]]
-    ) -> None:
+    def __init__(self, connection: Connection, wanted: Mapping[str, Where | None], orders: Mapping[str, NameOrders]) -> None:
         self.connection, self.url = connection, shown(connection.url)
-        self._wanted, self._names = wanted, names
+        self._wanted, self._orders = wanted, orders
         self.received = False  # a sample came: the connection works (the reconnect count starts again)
         self._subscriptions: dict[int, _Subscription] = {}  # our subscription id -> its topic and decoder
         self._by_channel: dict[int, int] = {}  # the server's channel id -> our subscription id
@@ -97,19 +94,7 @@ class _Session:
         except UserError as error:
             raise UserError(f"{error.message} (from {self.url})", error.where) from None
         self.received = True
-        return JointStateSample(
-            subscription.topic, self._interned(subscription.topic, names), positions, header_ns, timestamp_ns, timestamp_ns, received_ns
-        )
-
-    def _interned(self, topic: str, names: tuple[str, ...]) -> tuple[str, ...]:
-        """One tuple object per distinct name list of a topic, across reconnects, so the caller can cache by identity."""
-        seen = self._names[topic]
-        kept = seen.get(names)
-        if kept is None:
-            if len(seen) >= MAX_NAME_ORDERS:
-                seen.clear()
-            seen[names] = kept = names
-        return kept
+        return JointStateSample(subscription.topic, names, positions, header_ns, timestamp_ns, timestamp_ns, received_ns)
 
     def _message(self, data: bytes) -> dict[str, Any]:
         try:
@@ -184,7 +169,9 @@ class _Session:
     def _decoder(self, topic: str, channel: Advertised) -> JointStateDecoder:
         where = self._wanted[topic]
         try:  # the decoder's `where` is typed Where; None (a topic not from a config) is a UserError's "no location"
-            return JointStateDecoder(topic, channel.schema_name, channel.schema_encoding, channel.schema, channel.encoding, where)
+            return JointStateDecoder(
+                topic, channel.schema_name, channel.schema_encoding, channel.schema, channel.encoding, where, self._orders[topic]
+            )
         except UserError as error:
             raise UserError(
                 f"{error.message}, at {self.url}; the config's source must name a topic of {JOINT_STATE} messages", where
@@ -245,7 +232,7 @@ class FoxgloveFeed:
         self.description = check_url(url)
         self._wanted = dict(topics)
         self._reconnects = reconnects
-        self._names: dict[str, dict[tuple[str, ...], tuple[str, ...]]] = {topic: {} for topic in topics}
+        self._orders = {topic: NameOrders() for topic in topics}  # names interned per topic, across reconnects
         self._stop = threading.Event()
         self._guard = threading.Lock()  # over _connection, which close() ends from another thread
         self._connection: Connection | None = None
@@ -272,7 +259,7 @@ class FoxgloveFeed:
             connection.goodbye()
 
     def _stream(self, retries: _Retries) -> Iterator[list[JointStateSample]]:
-        session = _Session(self._connect(), self._wanted, self._names)
+        session = _Session(self._connect(), self._wanted, self._orders)
         session.handshake()
         retries.connected()
         while not self._stop.is_set():

@@ -28,7 +28,7 @@ from ..sources import checked_first_names
 from .joint_state import Feed, JointStateSample, same_topic
 from .latency import Latencies
 from .live_view import LiveView
-from .prefetch import Prefetched
+from .prefetch import MAX_QUEUED_BYTES, Prefetched, WaitingSamples
 from .recordings import live_recording
 
 if TYPE_CHECKING:
@@ -37,7 +37,7 @@ if TYPE_CHECKING:
 FROM_OPTION = Where(Path("--from"), 0)
 SAVE_OPTION = Where(Path("--save"), 0)
 WAIT_NOTE_SECONDS = 5.0  # "waiting for the first message on ..." repeated this often
-MAX_EARLY_SAMPLES = 10_000  # kept while the first messages of other topics are awaited
+MAX_EARLY_SAMPLES = 10_000  # kept while the first messages of other topics are awaited (and MAX_QUEUED_BYTES)
 
 
 @dataclass(frozen=True)
@@ -138,7 +138,7 @@ class _Session:
     def __init__(self, options: LiveOptions, specs: tuple[LiveSourceSpec, ...], summary: LiveSummary) -> None:
         self.options, self.specs, self.summary = options, specs, summary
         self.stream_names: dict[str, tuple[str, ...]] = {}
-        self.early: list[JointStateSample] = []
+        self.early = WaitingSamples(MAX_EARLY_SAMPLES, MAX_QUEUED_BYTES)
         self.views: dict[str, list[LiveView]] = {}  # topic as the config writes it -> views of robots its source drives
         self.stamps: dict[str, str] = {}  # topic -> header | log_time | publish_time
         self.recording: RecordingStream | None = None
@@ -181,17 +181,14 @@ class _Session:
                     self.stream_names[spec.name] = spec.names or checked_first_names(
                         sample.names, sample.topic, self.options.source, spec.where
                     )
-        self.early += batch
-        if len(self.early) > MAX_EARLY_SAMPLES:  # the topics with names wait for those without: bounded, and said
-            over = len(self.early) - MAX_EARLY_SAMPLES
-            self.early = self.early[over:]
+        over = self.early.append(batch) if batch else 0
+        if over:  # the topics with names wait for those without: bounded, and said
             self.early_dropped += over
             say(f"live: dropped the {over} oldest samples while waiting for the first message of every topic")
         if len(self.stream_names) < len([s for s in self.specs if s.topic is not None]):
             return []
         self._make_views(partial)
-        early, self.early = self.early, []
-        return early
+        return self.early.take_all()
 
     def _make_views(self, partial: Path | None) -> None:
         plan = compile_live(self.options.config, self.stream_names)
