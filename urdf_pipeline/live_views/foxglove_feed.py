@@ -19,6 +19,7 @@ from .foxglove_socket import BINARY, CONNECT_SECONDS, TEXT, Connection, Lost, ch
 from .joint_state import JOINT_STATE, POLL_SECONDS, JointStateDecoder, JointStateSample, NameOrders, same_topic
 
 MAX_BATCH = 1000  # frames read into one batch: the caller gets to stop or flush between batches, however fast data comes
+MAX_BATCH_BYTES = 1024 * 1024  # and their bytes (a batch's samples are a small multiple of them: joint_state.names_bytes)
 FIRST_DELAY, MAX_DELAY = 0.25, 2.0  # seconds before a reconnect: doubling from the first to the most
 NOTE_AFTER_SECONDS = 2.0  # connected this long with no wanted topic advertised: say so, once per connection
 MAX_RESUBSCRIBES, RESUBSCRIBE_SECONDS = 8, 0.1  # per connection, each later than the last: _Session._subscribe_again
@@ -47,6 +48,7 @@ class _Session:
         self._again: dict[int, float] = {}  # channel id -> when to subscribe it again
         self._other_topics: dict[str, None] = {}  # advertised, not wanted: named in the note
         self._opened, self._noted = time.monotonic(), False
+        self._failure: Lost | UserError | None = None  # what ended a batch that had samples: raised by the next
 
     def handshake(self) -> None:
         """The server's first message must be its serverInfo, within CONNECT_SECONDS."""
@@ -64,14 +66,22 @@ class _Session:
 
     def batch(self) -> list[JointStateSample]:
         """The samples of the frames that came within POLL_SECONDS, and of all those already here after them."""
+        if self._failure is not None:
+            raise self._failure
         samples: list[JointStateSample] = []
-        frame, taken = self.connection.receive(POLL_SECONDS), 0
-        while frame is not None:
-            self._take(*frame, samples)
-            taken += 1
-            if taken == MAX_BATCH or not self.connection.pending():
-                break
-            frame = self.connection.receive(POLL_SECONDS)
+        try:
+            frame, taken, size = self.connection.receive(POLL_SECONDS), 0, 0
+            while frame is not None:
+                self._take(*frame, samples)
+                taken, size = taken + 1, size + len(frame[1])
+                if taken == MAX_BATCH or size >= MAX_BATCH_BYTES or not self.connection.pending():
+                    break
+                frame = self.connection.receive(POLL_SECONDS)
+        except (Lost, UserError) as failure:  # the samples read before it are given first
+            if not samples:
+                raise
+            self._failure = failure
+            return samples
         self.connection.keep_alive()
         self._subscribe_due()
         self._note_missing()
@@ -251,7 +261,7 @@ class FoxgloveFeed:
             self._drop()
 
     def close(self) -> None:
-        """Ends `batches()` within about POLL_SECONDS (a connect under way: within CONNECT_SECONDS), from any thread."""
+        """Ends `batches()` at once (a connect, a handshake or a read under way ended), from any thread."""
         self._stop.set()
         with self._guard:
             connection = self._connection
@@ -269,11 +279,13 @@ class FoxgloveFeed:
             yield batch
 
     def _connect(self) -> Connection:
-        connection = Connection.open(self.description)
+        """A connection, registered before it opens so that close() ends its connect or handshake at once."""
+        connection = Connection(self.description)
         with self._guard:
             self._connection = connection
-        if self._stop.is_set():  # close() came while connecting, before it could end this connection
+        if self._stop.is_set():  # close() came before it could end this connection
             raise Lost("closed")
+        connection.open()
         return connection
 
     def _drop(self) -> None:
