@@ -28,8 +28,9 @@ class Gone(Exception):
 class Peer:
     """One accepted connection, as a behaviour sees it."""
 
-    def __init__(self, sock: socket.socket, stopping: threading.Event) -> None:
+    def __init__(self, sock: socket.socket, stopping: threading.Event, index: int = 0) -> None:
         self.sock, self.stopping = sock, stopping
+        self.index = index  # which connection of the server this is: 1, 2, ...
         self.buffer = b""
 
     def send(self, data: bytes) -> None:
@@ -147,14 +148,14 @@ class RawServer:
             except OSError:
                 return
             self.connections += 1
-            thread = threading.Thread(target=self._serve, args=(sock,), daemon=True)
+            thread = threading.Thread(target=self._serve, args=(sock, self.connections), daemon=True)
             self._threads.append(thread)
             thread.start()
 
-    def _serve(self, sock: socket.socket) -> None:
+    def _serve(self, sock: socket.socket, index: int) -> None:
         sock.settimeout(0.1)
         with sock, contextlib.suppress(Gone):
-            self.behaviour(Peer(sock, self.stopping))
+            self.behaviour(Peer(sock, self.stopping, index))
             while True:  # done misbehaving: hold the connection open, silent, until the client or the test ends
                 Peer(sock, self.stopping).wait(0.1)
 

@@ -3,26 +3,24 @@
 The config is checked before anything is subscribed (`check_live_config`, as `validate --live`); each MCAP source's
 names come from `names:` or from the first message on its topic, and the plan is compiled then (a map naming a joint
 the stream lacks is refused at that first message). Samples are sent as each poll of the feed brings them. Ctrl-C and
-SIGTERM end the view as the end of the stream does: views closed, the recording finished, `--save` renamed into place.
+SIGTERM end the view as the end of the stream does (views closed, the recording finished, `--save` renamed into place;
+nothing saved when no sample came), then end the command as they end any other (exit 130, 143).
 """
 
 from __future__ import annotations
 
 import signal
-import threading
 import time
-from collections.abc import Callable, Iterator, Mapping
-from contextlib import contextmanager
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import FrameType
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..compile import LivePlan, LiveSourceSpec, check_live_config, compile_live
 from ..errors import UserError, UserErrors, Where, shown
-from ..execute import provenance_stream, write_file_atomically
+from ..execute import deferred_signals, provenance_stream, write_file_atomically
 from ..progress import say
 from ..sources import checked_first_names
 from .joint_state import Feed, JointStateSample, same_topic
@@ -89,21 +87,31 @@ def open_feed(source: str, topics: Mapping[str, Where | None], reconnects: int) 
 
 def live_command(options: LiveOptions) -> LiveSummary:
     """Check, subscribe, show; the summary of what was seen. A problem found once samples were sent keeps them in
-    `--save` (a complete recording of what came before it) and is raised after, saying so."""
+    `--save` (a complete recording of what came before it) and is raised after, saying so.
+
+    Ctrl-C and SIGTERM end the view as the stream's end does (within a poll of the feed: views closed, the recording
+    finished, `--save` renamed into place, the last line said), then go on as every command's interruption does: the
+    signal is delivered to the handler it had (`execute.deferred_signals`), so the command line exits 130 or 143."""
     check = check_live_config(options.config, stream_only=True)
     if check.errors:
         raise UserErrors(list(check.errors))
     topics = {spec.topic: spec.where for spec in check.sources if spec.topic is not None}
     summary = LiveSummary()
-    session = _Session(options, check.sources, summary)
     feed = open_feed(options.source, topics, options.reconnects)
     say(f"live: {options.config} from {feed.description}, topics {', '.join(shown(t) for t in topics)}")
-    with _stop_on_signals(summary, feed):
-        if options.save is None:
-            session.run(feed, None)
-        else:
-            write_file_atomically(options.save, lambda partial: session.run(feed, partial), "recording", SAVE_OPTION)
-            summary.saved = options.save if session.sent_any else None
+    with deferred_signals() as stop:  # the handlers only record the signal: the session sees it between batches
+        session = _Session(options, check.sources, summary, stop)
+        try:
+            if options.save is None:
+                session.run(feed, None)
+            else:
+                write_file_atomically(options.save, lambda partial: session.save(feed, partial), "recording", SAVE_OPTION)
+                summary.saved = options.save
+        except _NothingSaved:
+            pass
+        if stop:
+            summary.ended = "stopped by Ctrl-C" if stop[0] == signal.SIGINT else f"stopped by {signal.Signals(stop[0]).name}"
+            say(summary.line())  # said here: the signal goes on to the command line as the block ends
     if session.late_error is not None:
         error = session.late_error
         kept = f"; the {summary.sent} samples before it are saved in {options.save}" if options.save else ""
@@ -111,32 +119,17 @@ def live_command(options: LiveOptions) -> LiveSummary:
     return summary
 
 
-@contextmanager
-def _stop_on_signals(summary: LiveSummary, feed: Feed) -> Iterator[None]:
-    """Ctrl-C and SIGTERM close the feed (its `batches` ends within a poll), so the session ends as at the stream's
-    end; a second signal is the default's (Ctrl-C raises at once)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def stop(signum: int, frame: FrameType | None) -> None:
-        summary.ended = "stopped by Ctrl-C" if signum == signal.SIGINT else f"stopped by {signal.Signals(signum).name}"
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-        feed.close()
-
-    previous = {signum: signal.signal(signum, stop) for signum in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
+class _NothingSaved(Exception):
+    """No sample reached the views: `--save` writes no file (raised inside the atomic write, which removes its
+    partial file)."""
 
 
 class _Session:
     """One subscription's views: made once every source's names are known, fed each poll's samples."""
 
-    def __init__(self, options: LiveOptions, specs: tuple[LiveSourceSpec, ...], summary: LiveSummary) -> None:
+    def __init__(self, options: LiveOptions, specs: tuple[LiveSourceSpec, ...], summary: LiveSummary, stop: list[int]) -> None:
         self.options, self.specs, self.summary = options, specs, summary
+        self.stop = stop  # the signals received (deferred_signals): the session ends at the next batch
         self.stream_names: dict[str, tuple[str, ...]] = {}
         self.early = WaitingSamples(MAX_EARLY_SAMPLES, MAX_QUEUED_BYTES)
         self.views: dict[str, list[LiveView]] = {}  # topic as the config writes it -> views of robots its source drives
@@ -156,6 +149,8 @@ class _Session:
             if all(spec.names is not None for spec in self.specs):
                 self._make_views(partial)
             for batch in ahead.batches():
+                if self.stop:
+                    break  # a batch that came with the signal is left out: --save holds every sample sent
                 self.summary.received += len(batch)
                 if self.recording is None:
                     batch = self._await_names(batch, partial)
@@ -172,6 +167,12 @@ class _Session:
             self.summary.dropped = ahead.dropped + self.early_dropped
             ahead.close()
             self._finish()
+
+    def save(self, feed: Feed, partial: Path) -> None:
+        """`run` into the partial file of `--save`; _NothingSaved when no sample was sent (the partial is removed)."""
+        self.run(feed, partial)
+        if not self.sent_any:
+            raise _NothingSaved
 
     def _await_names(self, batch: list[JointStateSample], partial: Path | None) -> list[JointStateSample]:
         """Samples before every source's names are known are kept (bounded); then the plan and the views are made."""

@@ -18,6 +18,7 @@ from .joint_state import POLL_SECONDS, Feed, JointStateSample, names_bytes
 
 MAX_QUEUED = 100_000  # samples (about 100 s of a 1 kHz stream)
 MAX_QUEUED_BYTES = 64 * 1024 * 1024  # what they hold (a 29-joint sample: about 450 bytes, its names shared)
+JOIN_SECONDS = 1.0  # how long close() waits for the reading thread
 SAMPLE_BYTES = 200  # a sample's own objects besides its positions' values (the dataclass, the array, the ints)
 
 
@@ -100,9 +101,12 @@ class Prefetched:
             raise self._failure
 
     def close(self) -> None:
+        """The feed closed and its thread waited for, JOIN_SECONDS at most: every feed ends a wait under way when
+        closed, but a host name being resolved cannot be cut short, and the caller must end promptly (the thread is a
+        daemon, and touches nothing but this object)."""
         self.feed.close()
         if self._thread.is_alive() and threading.current_thread() is not self._thread:
-            self._thread.join()
+            self._thread.join(JOIN_SECONDS)
 
     def _read(self) -> None:
         try:
