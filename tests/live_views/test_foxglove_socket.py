@@ -286,3 +286,33 @@ def test_the_subscribe_message_is_sent_as_a_client_frame() -> None:
 @pytest.fixture(autouse=True)
 def _info_lines(caplog: pytest.LogCaptureFixture) -> None:
     caplog.set_level(logging.INFO, logger="urdf_pipeline")
+
+
+def three_then_a_stalled_frame(peer: Peer) -> None:
+    peer.upgrade()
+    peer.subscribed()
+    from mcap_ros2._dynamic import serialize_dynamic
+
+    from urdf_pipeline.examples import JOINT_STATE_MSGDEF
+
+    from .joint_motion import message
+
+    encode = serialize_dynamic("sensor_msgs/msg/JointState", JOINT_STATE_MSGDEF)["sensor_msgs/msg/JointState"]
+    frames = b"".join(message_data(1, k, encode(message(k, ["a", "b"], 1_000_000))) for k in range(3))
+    peer.send(frames + message_data(1, 9, bytes(100))[:30])  # in one write: three whole messages, then half a frame
+
+
+def test_samples_before_a_stalled_frame_are_given_at_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A drain reads on only while a whole message is here: the three samples are not held for the half frame after
+    them (which would take MESSAGE_SECONDS, set here beyond the test's own guard)."""
+    monkeypatch.setattr(foxglove_socket, "MESSAGE_SECONDS", 10 * HANG_GUARD)
+    with raw_server(three_then_a_stalled_frame) as server:
+        feed = FoxgloveFeed(server.url, {"/joint_states": WHERE})
+        batches = feed.batches()
+        taken: list[int] = []
+        thread = threading.Thread(target=lambda: taken.extend(s.log_time_ns for s in collect(batches, at_least(3))), daemon=True)
+        thread.start()
+        thread.join(HANG_GUARD)
+        before_close = list(taken)  # close() would hand over held samples too: what came before it is what counts
+        feed.close()
+    assert before_close == [0, 1, 2]

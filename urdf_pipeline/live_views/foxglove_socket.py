@@ -317,17 +317,44 @@ class Connection:
         return "closed" if self._ended.is_set() else _lost_reason(exc)
 
     def pending(self) -> bool:
-        """Whether more bytes are here already (read from the socket, or waiting in it): a drain reads on."""
-        sock = self._sock
-        if self._buffer:
+        """Whether a frame that ends a message is here whole (read now, without waiting): a drain reads on, and never
+        holds the samples it has for a message still on its way."""
+        if self._whole_frame():
             return True
+        sock = self._sock
         if sock is None or sock.fileno() < 0:
             return False
-        if isinstance(sock, ssl.SSLSocket) and sock.pending():
-            return True
-        with selectors.DefaultSelector() as selector:
-            selector.register(sock, selectors.EVENT_READ)
-            return bool(selector.select(0))
+        if not (isinstance(sock, ssl.SSLSocket) and sock.pending()):
+            with selectors.DefaultSelector() as selector:
+                selector.register(sock, selectors.EVENT_READ)
+                if not selector.select(0):
+                    return False
+        try:
+            self._fill(time.monotonic() + 0.001)
+        except _Late:
+            return False
+        except OSError as exc:
+            raise Lost(self._closed_reason(exc)) from None
+        return self._whole_frame()
+
+    def _whole_frame(self) -> bool:
+        """Whether the buffer holds, from its start, whole frames up to one with its final bit set."""
+        data, at = self._buffer, 0
+        for _ in range(MAX_FRAGMENTS):
+            if len(data) < at + 2:
+                return False
+            final, length, head = data[at] & 0x80, data[at + 1] & 0x7F, 2
+            if length >= 126:
+                head += 2 if length == 126 else 8
+                if len(data) < at + head:
+                    return False
+                length = int.from_bytes(data[at + 2 : at + head], "big")
+            at += head + length
+            if len(data) < at:
+                return False
+            if final:
+                return True
+        return True  # more frames than a message may have: `receive` refuses them at once
 
     # -- writing
 
