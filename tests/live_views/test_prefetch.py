@@ -48,7 +48,7 @@ def test_samples_arrive_in_order() -> None:
     assert got == list(range(100))
 
 
-def test_a_slow_reader_drops_the_oldest_and_says_so(caplog: pytest.LogCaptureFixture) -> None:
+def test_a_slow_reader_drops_the_oldest_and_says_so_once_in_a_while(caplog: pytest.LogCaptureFixture) -> None:
     caplog.set_level(logging.WARNING, logger="urdf_pipeline")
     feed = ListFeed([[sample(k)] for k in range(50)])
     ahead = Prefetched(feed, max_queued=10)
@@ -57,7 +57,7 @@ def test_a_slow_reader_drops_the_oldest_and_says_so(caplog: pytest.LogCaptureFix
     got = [s.header_ns for batch in reader for s in batch]
     assert got == list(range(40, 50)) and ahead.dropped == 40
     said = [r.getMessage() for r in caplog.records]
-    assert said and all("fell behind a list: dropped the 1 oldest samples" in line for line in said) and "(40 in all)" in said[-1]
+    assert len(said) == 1 and "fell behind a list: dropped the 1 oldest samples waiting (1 in all)" in said[0]  # once per 5 s
 
 
 def test_the_feeds_error_reaches_the_reader_after_its_samples() -> None:

@@ -182,10 +182,7 @@ class _Session:
                     self.stream_names[spec.name] = spec.names or checked_first_names(
                         sample.names, sample.topic, self.options.source, spec.where
                     )
-        over = self.early.append(batch) if batch else 0
-        if over:  # the topics with names wait for those without: bounded, and said
-            self.early_dropped += over
-            say(f"live: dropped the {over} oldest samples while waiting for the first message of every topic")
+        self.early_dropped += self.early.append(batch) if batch else 0  # said by _note_waiting, counted in the last line
         if len(self.stream_names) < len([s for s in self.specs if s.topic is not None]):
             return []
         self._make_views(partial)
@@ -208,7 +205,8 @@ class _Session:
         if time.monotonic() - noted < WAIT_NOTE_SECONDS:
             return noted
         waiting = [shown(s.topic) for s in self.specs if s.topic is not None and s.name not in self.stream_names]
-        say(f"live: waiting for the first message on {', '.join(waiting)}")
+        dropped = f" (the {self.early_dropped} oldest samples of the others dropped meanwhile)" if self.early_dropped else ""
+        say(f"live: waiting for the first message on {', '.join(waiting)}{dropped}")
         return time.monotonic()
 
     def _show(self, batch: list[JointStateSample]) -> None:

@@ -4,12 +4,13 @@ oldest beyond, silently, so a client that stops reading for a second at 1 kHz wo
 
 Here the samples wait in `WaitingSamples`, bounded in samples (`MAX_QUEUED`) and in bytes (`MAX_QUEUED_BYTES`: a
 sample of 4,096 joints is 100 times a 29-joint one); beyond either the oldest are dropped and counted, and the count
-is said (`dropped`), never silent. The feed's errors reach the reader of `batches()`, in order.
+is said (`dropped`, a line per 5 s at most), never silent. The feed's errors reach the reader of `batches()`, in order.
 """
 
 from __future__ import annotations
 
 import threading
+import time
 from collections import deque
 from collections.abc import Iterator
 
@@ -18,6 +19,7 @@ from .joint_state import POLL_SECONDS, Feed, JointStateSample, names_bytes
 
 MAX_QUEUED = 100_000  # samples (about 100 s of a 1 kHz stream)
 MAX_QUEUED_BYTES = 64 * 1024 * 1024  # what they hold (a 29-joint sample: about 450 bytes, its names shared)
+WARN_SECONDS = 5.0  # samples dropped are said at most once per window (the first at once); the last line counts all
 JOIN_SECONDS = 1.0  # how long close() waits for the reading thread
 SAMPLE_BYTES = 200  # a sample's own objects besides its positions' values (the dataclass, the array, the ints)
 
@@ -79,6 +81,7 @@ class Prefetched:
         self.feed = feed
         self.description = feed.description
         self.dropped = 0
+        self._unsaid, self._said = 0, -WARN_SECONDS  # dropped since the last line, and when it was said
         self._waiting = WaitingSamples(max_queued, max_bytes)
         self._done = False
         self._failure: BaseException | None = None
@@ -126,4 +129,10 @@ class Prefetched:
             self._ready.notify_all()
         if dropped:
             self.dropped += dropped
-            warn(f"live: the views fell behind {self.description}: dropped the {dropped} oldest samples waiting ({self.dropped} in all)")
+            self._unsaid += dropped
+            if time.monotonic() - self._said >= WARN_SECONDS:  # a line per window at most: a flood says once in a while
+                self._said = time.monotonic()
+                warn(
+                    f"live: the views fell behind {self.description}: dropped the {self._unsaid} oldest samples waiting ({self.dropped} in all)"
+                )
+                self._unsaid = 0
