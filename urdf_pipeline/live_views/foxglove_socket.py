@@ -129,8 +129,10 @@ class Connection:
         """What a failed open means: Lost (try again later) or UserError (this URL is wrong)."""
         if self._ended.is_set():
             return Lost("closed")
-        if isinstance(exc, _Late | TimeoutError):
+        if isinstance(exc, _Late):
             return Lost(f"no WebSocket handshake within {CONNECT_SECONDS:g} s")
+        if isinstance(exc, TimeoutError):  # the TCP connect or the TLS handshake
+            return Lost(f"no answer within {CONNECT_SECONDS:g} s")
         if isinstance(exc, ssl.SSLError):
             return UserError(
                 f"{shown(self.url)}: the TLS connection failed ({shown(exc)}); a wss:// server needs a certificate this machine trusts"
