@@ -11,12 +11,15 @@ import time
 from collections.abc import Callable
 
 import pytest
+from mcap_ros2._dynamic import serialize_dynamic
 
 from urdf_pipeline.errors import UserError, has_control_character
+from urdf_pipeline.examples import JOINT_STATE_MSGDEF
 from urdf_pipeline.live_views import FoxgloveFeed, foxglove_socket
 from urdf_pipeline.live_views.foxglove_protocol import MAX_FRAME_BYTES, MAX_TEXT_BYTES
 
-from .raw_server import Peer, frame, message_data, raw_server
+from .joint_motion import message
+from .raw_server import JOINT_STATE, Peer, frame, message_data, raw_server
 from .test_foxglove_feed import WHERE, at_least, collect, lines
 
 HANG_GUARD = 30.0  # no test asserts how fast; this only keeps a broken client from hanging the suite
@@ -241,13 +244,7 @@ def test_close_ends_a_feed_whatever_the_server_does(behaviour: Callable[[Peer], 
 def serve_then_close(peer: Peer) -> None:
     peer.upgrade()
     peer.subscribed()
-    from mcap_ros2._dynamic import serialize_dynamic
-
-    from urdf_pipeline.examples import JOINT_STATE_MSGDEF
-
-    from .joint_motion import message
-
-    encode = serialize_dynamic("sensor_msgs/msg/JointState", JOINT_STATE_MSGDEF)["sensor_msgs/msg/JointState"]
+    encode = serialize_dynamic(JOINT_STATE, JOINT_STATE_MSGDEF)[JOINT_STATE]
     for k in range(3):
         peer.send(frame(9, b"hi"))  # a ping between messages: answered, not a sample
         peer.send(message_data(1, k, encode(message(k, ["a", "b"], 1_000_000))))
@@ -291,13 +288,7 @@ def _info_lines(caplog: pytest.LogCaptureFixture) -> None:
 def three_then_a_stalled_frame(peer: Peer) -> None:
     peer.upgrade()
     peer.subscribed()
-    from mcap_ros2._dynamic import serialize_dynamic
-
-    from urdf_pipeline.examples import JOINT_STATE_MSGDEF
-
-    from .joint_motion import message
-
-    encode = serialize_dynamic("sensor_msgs/msg/JointState", JOINT_STATE_MSGDEF)["sensor_msgs/msg/JointState"]
+    encode = serialize_dynamic(JOINT_STATE, JOINT_STATE_MSGDEF)[JOINT_STATE]
     frames = b"".join(message_data(1, k, encode(message(k, ["a", "b"], 1_000_000))) for k in range(3))
     peer.send(frames + message_data(1, 9, bytes(100))[:30])  # in one write: three whole messages, then half a frame
 
@@ -316,3 +307,20 @@ def test_samples_before_a_stalled_frame_are_given_at_once(monkeypatch: pytest.Mo
         before_close = list(taken)  # close() would hand over held samples too: what came before it is what counts
         feed.close()
     assert before_close == [0, 1, 2]
+
+
+def endless_channels(peer: Peer) -> None:
+    """Advertisements without end: other topics, and channels of the wanted topic under new ids."""
+    peer.upgrade()
+    peer.send(frame(1, json.dumps({"op": "serverInfo", "name": "hostile", "capabilities": []}).encode()))
+    for k in range(10**6):
+        others = [{"id": 10**6 + 100 * k + j, "topic": f"/other_{k}_{j}", "encoding": "cdr", "schemaName": "x"} for j in range(100)]
+        wanted = {"id": k + 1, "topic": "/joint_states", "encoding": "cdr", "schemaName": JOINT_STATE, "schema": JOINT_STATE_MSGDEF}
+        peer.send(frame(1, json.dumps({"op": "advertise", "channels": [*others, wanted]}).encode()))
+
+
+def test_endless_advertisements_are_bounded() -> None:
+    with raw_server(endless_channels) as server:
+        error = refused(server.url, reconnects=3)
+    assert error.message.startswith(f"{server.url} advertised more than 64 channels of '/joint_states';"), error.message
+    assert server.connections == 1

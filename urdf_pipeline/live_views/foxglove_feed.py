@@ -23,6 +23,7 @@ MAX_BATCH_BYTES = 1024 * 1024  # and their bytes (a batch's samples are a small 
 FIRST_DELAY, MAX_DELAY = 0.25, 2.0  # seconds before a reconnect: doubling from the first to the most
 NOTE_AFTER_SECONDS = 2.0  # connected this long with no wanted topic advertised: say so, once per connection
 MAX_RESUBSCRIBES, RESUBSCRIBE_SECONDS = 8, 0.1  # per connection, each later than the last: _Session._subscribe_again
+MAX_CHANNELS = 64  # channels of the wanted topics subscribed per connection (a server's endless advertisements refused)
 MAX_STATUS_LINES = 10  # the server's warnings and errors said per connection (a server may repeat one forever)
 _LISTED_TOPICS = 8
 _UNKNOWN_CHANNEL = re.compile(r"Unknown channel ID: (\d+)")  # foxglove-sdk's status for a channel it does not know
@@ -167,8 +168,14 @@ class _Session:
         for channel in channels:
             topic = next((wanted for wanted in self._wanted if same_topic(wanted, channel.topic)), None)
             if topic is None:
-                self._other_topics.setdefault(channel.topic)
+                if len(self._other_topics) <= _LISTED_TOPICS:  # the note names a few: a server's endless topics are not kept
+                    self._other_topics.setdefault(channel.topic)
             elif channel.id not in self._by_channel:
+                if len(self._subscriptions) >= MAX_CHANNELS:
+                    raise UserError(
+                        f"{self.url} advertised more than {MAX_CHANNELS} channels of {' or '.join(quoted(t) for t in self._wanted)}; "
+                        "a Foxglove server advertises one per topic and message type"
+                    )
                 subscription = self._next_subscription = self._next_subscription + 1
                 self._subscriptions[subscription] = _Subscription(topic, self._decoder(topic, channel))
                 self._by_channel[channel.id] = subscription
