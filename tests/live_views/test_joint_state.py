@@ -10,10 +10,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from mcap.writer import Writer
 from mcap_ros2._dynamic import serialize_dynamic
 
 from urdf_pipeline.errors import UserError, Where, has_control_character
 from urdf_pipeline.examples import JOINT_STATE_MSGDEF
+from urdf_pipeline.live_views import McapFollowFeed
 from urdf_pipeline.live_views.joint_state import (
     JOINT_STATE,
     MAX_NAME_BYTES,
@@ -251,3 +253,29 @@ def test_a_message_of_the_largest_size_costs_its_bytes() -> None:
     finally:
         tracemalloc.stop()
     assert got == tuple(names)
+
+
+def _followed(tmp_path: Path, definition: str, payload: bytes) -> UserError:
+    """A finished MCAP file with one channel of `definition` under JointState's name and one message: what the
+    follow feed says of it (the same decoder as the WebSocket feed's)."""
+    path = tmp_path / "hostile.mcap"
+    with path.open("wb") as stream:
+        writer = Writer(stream)
+        writer.start()
+        schema = writer.register_schema(JOINT_STATE, "ros2msg", definition.encode())
+        channel = writer.register_channel("/joint_states", "cdr", schema)
+        writer.add_message(channel, 1, payload, 1)
+        writer.finish()
+    with pytest.raises(UserError) as refused:
+        for _ in McapFollowFeed(path, {"/joint_states": WHERE}).batches():
+            pass
+    return refused.value
+
+
+def test_a_followed_file_goes_through_the_same_decoder(tmp_path: Path) -> None:
+    recursive = JOINT_STATE_MSGDEF + "=" * 80 + "\nMSG: pkg/Loop\npkg/Loop self\n"
+    assert (
+        "is named sensor_msgs/msg/JointState, but its definition has types JointState's has not"
+        in _followed(tmp_path, recursive, encoded(["a"], [1.0])).message
+    )
+    assert "it names 2,147,483,648 joints (at most 4,096)" in _followed(tmp_path, JOINT_STATE_MSGDEF, _count_claim(2**31)).message
