@@ -4,8 +4,10 @@ as documented (bounded), or refuses a server that is no Foxglove server, naming 
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
+import socket
 import threading
 import time
 from collections.abc import Callable
@@ -199,6 +201,23 @@ def test_a_frame_beyond_its_bounds_is_refused_from_its_header(behaviour: Callabl
     assert server.connections == 1  # refused: no reconnect would mend it
 
 
+def _consuming(feed: FoxgloveFeed) -> tuple[threading.Thread, threading.Event, list[BaseException]]:
+    """The feed's batches read on a thread; the event is set when they end (errors: what they raised)."""
+    ended, errors = threading.Event(), []
+
+    def consume() -> None:
+        try:
+            for _ in feed.batches():
+                pass
+        except BaseException as exc:  # noqa: BLE001 - handed to the test
+            errors.append(exc)
+        ended.set()
+
+    thread = threading.Thread(target=consume, daemon=True)
+    thread.start()
+    return thread, ended, errors
+
+
 def stalled_mid_frame(peer: Peer) -> None:
     peer.upgrade()
     peer.subscribed()
@@ -219,18 +238,7 @@ def test_close_ends_a_feed_whatever_the_server_does(behaviour: Callable[[Peer], 
     without an answer (the test measures nothing; the report's figures are by hand)."""
     with raw_server(behaviour) as server:
         feed = FoxgloveFeed(server.url, {"/joint_states": WHERE})
-        ended, errors = threading.Event(), []
-
-        def consume() -> None:
-            try:
-                for _ in feed.batches():
-                    pass
-            except BaseException as exc:  # noqa: BLE001 - handed to the test
-                errors.append(exc)
-            ended.set()
-
-        thread = threading.Thread(target=consume, daemon=True)
-        thread.start()
+        _, ended, errors = _consuming(feed)
         deadline = time.monotonic() + HANG_GUARD
         while server.connections == 0:
             assert time.monotonic() < deadline
@@ -324,3 +332,23 @@ def test_endless_advertisements_are_bounded() -> None:
         error = refused(server.url, reconnects=3)
     assert error.message.startswith(f"{server.url} advertised more than 64 channels of '/joint_states';"), error.message
     assert server.connections == 1
+
+
+def test_close_ends_a_connect_under_way() -> None:
+    """A listener whose backlog is full drops the client's SYNs, as a host that is switched off does: the TCP connect
+    waits, and close() ends it (not CONNECT_SECONDS later)."""
+    with socket.socket() as listener:
+        listener.bind(("127.0.0.1", 0))
+        listener.listen(0)
+        fillers = [socket.socket() for _ in range(3)]
+        for filler in fillers:
+            filler.settimeout(0.5)
+            with contextlib.suppress(OSError):
+                filler.connect(listener.getsockname())
+        feed = FoxgloveFeed(f"ws://127.0.0.1:{listener.getsockname()[1]}", {"/joint_states": WHERE})
+        thread, ended, errors = _consuming(feed)
+        assert not ended.wait(1.0)  # still connecting
+        feed.close()
+        assert ended.wait(HANG_GUARD) and not errors
+        for filler in fillers:
+            filler.close()
