@@ -16,13 +16,14 @@ from ..errors import UserError, Where, quoted, shown
 from ..progress import detail, say
 from .foxglove_protocol import Advertised, ProtocolError, advertised, message_data, server_message, subscribe, unadvertised
 from .foxglove_socket import BINARY, CONNECT_SECONDS, TEXT, Connection, Lost, check_url
-from .joint_state import JOINT_STATE, POLL_SECONDS, JointStateDecoder, JointStateSample, same_topic
+from .joint_state import JOINT_STATE, POLL_SECONDS, JointStateDecoder, JointStateSample, NameOrders, same_topic
 
 MAX_BATCH = 1000  # frames read into one batch: the caller gets to stop or flush between batches, however fast data comes
+MAX_BATCH_BYTES = 1024 * 1024  # and their bytes (a batch's samples are a small multiple of them: joint_state.names_bytes)
 FIRST_DELAY, MAX_DELAY = 0.25, 2.0  # seconds before a reconnect: doubling from the first to the most
 NOTE_AFTER_SECONDS = 2.0  # connected this long with no wanted topic advertised: say so, once per connection
-MAX_NAME_ORDERS = 4096  # distinct name lists kept per topic for reuse; past it the cache starts again
 MAX_RESUBSCRIBES, RESUBSCRIBE_SECONDS = 8, 0.1  # per connection, each later than the last: _Session._subscribe_again
+MAX_CHANNELS = 64  # channels of the wanted topics subscribed per connection (a server's endless advertisements refused)
 MAX_STATUS_LINES = 10  # the server's warnings and errors said per connection (a server may repeat one forever)
 _LISTED_TOPICS = 8
 _UNKNOWN_CHANNEL = re.compile(r"Unknown channel ID: (\d+)")  # foxglove-sdk's status for a channel it does not know
@@ -36,11 +37,9 @@ class _Subscription(NamedTuple):
 class _Session:
     """One connection's state: the channels subscribed, and the samples its frames give."""
 
-    def __init__(
-        self, connection: Connection, wanted: Mapping[str, Where | None], names: dict[str, dict[tuple[str, ...], tuple[str, ...]]]
-    ) -> None:
+    def __init__(self, connection: Connection, wanted: Mapping[str, Where | None], orders: Mapping[str, NameOrders]) -> None:
         self.connection, self.url = connection, shown(connection.url)
-        self._wanted, self._names = wanted, names
+        self._wanted, self._orders = wanted, orders
         self.received = False  # a sample came: the connection works (the reconnect count starts again)
         self._subscriptions: dict[int, _Subscription] = {}  # our subscription id -> its topic and decoder
         self._by_channel: dict[int, int] = {}  # the server's channel id -> our subscription id
@@ -50,6 +49,7 @@ class _Session:
         self._again: dict[int, float] = {}  # channel id -> when to subscribe it again
         self._other_topics: dict[str, None] = {}  # advertised, not wanted: named in the note
         self._opened, self._noted = time.monotonic(), False
+        self._failure: Lost | UserError | None = None  # what ended a batch that had samples: raised by the next
 
     def handshake(self) -> None:
         """The server's first message must be its serverInfo, within CONNECT_SECONDS."""
@@ -67,14 +67,22 @@ class _Session:
 
     def batch(self) -> list[JointStateSample]:
         """The samples of the frames that came within POLL_SECONDS, and of all those already here after them."""
+        if self._failure is not None:
+            raise self._failure
         samples: list[JointStateSample] = []
-        frame, taken = self.connection.receive(POLL_SECONDS), 0
-        while frame is not None:
-            self._take(*frame, samples)
-            taken += 1
-            if taken == MAX_BATCH or not self.connection.pending():
-                break
-            frame = self.connection.receive(POLL_SECONDS)
+        try:
+            frame, taken, size = self.connection.receive(POLL_SECONDS), 0, 0
+            while frame is not None:
+                self._take(*frame, samples)
+                taken, size = taken + 1, size + len(frame[1])
+                if taken == MAX_BATCH or size >= MAX_BATCH_BYTES or not self.connection.pending():
+                    break
+                frame = self.connection.receive(POLL_SECONDS)
+        except (Lost, UserError) as failure:  # the samples read before it are given first
+            if not samples:
+                raise
+            self._failure = failure
+            return samples
         self.connection.keep_alive()
         self._subscribe_due()
         self._note_missing()
@@ -97,19 +105,7 @@ class _Session:
         except UserError as error:
             raise UserError(f"{error.message} (from {self.url})", error.where) from None
         self.received = True
-        return JointStateSample(
-            subscription.topic, self._interned(subscription.topic, names), positions, header_ns, timestamp_ns, timestamp_ns, received_ns
-        )
-
-    def _interned(self, topic: str, names: tuple[str, ...]) -> tuple[str, ...]:
-        """One tuple object per distinct name list of a topic, across reconnects, so the caller can cache by identity."""
-        seen = self._names[topic]
-        kept = seen.get(names)
-        if kept is None:
-            if len(seen) >= MAX_NAME_ORDERS:
-                seen.clear()
-            seen[names] = kept = names
-        return kept
+        return JointStateSample(subscription.topic, names, positions, header_ns, timestamp_ns, timestamp_ns, received_ns)
 
     def _message(self, data: bytes) -> dict[str, Any]:
         try:
@@ -172,8 +168,14 @@ class _Session:
         for channel in channels:
             topic = next((wanted for wanted in self._wanted if same_topic(wanted, channel.topic)), None)
             if topic is None:
-                self._other_topics.setdefault(channel.topic)
+                if len(self._other_topics) <= _LISTED_TOPICS:  # the note names a few: a server's endless topics are not kept
+                    self._other_topics.setdefault(channel.topic)
             elif channel.id not in self._by_channel:
+                if len(self._subscriptions) >= MAX_CHANNELS:
+                    raise UserError(
+                        f"{self.url} advertised more than {MAX_CHANNELS} channels of {' or '.join(quoted(t) for t in self._wanted)}; "
+                        "a Foxglove server advertises one per topic and message type"
+                    )
                 subscription = self._next_subscription = self._next_subscription + 1
                 self._subscriptions[subscription] = _Subscription(topic, self._decoder(topic, channel))
                 self._by_channel[channel.id] = subscription
@@ -184,7 +186,9 @@ class _Session:
     def _decoder(self, topic: str, channel: Advertised) -> JointStateDecoder:
         where = self._wanted[topic]
         try:  # the decoder's `where` is typed Where; None (a topic not from a config) is a UserError's "no location"
-            return JointStateDecoder(topic, channel.schema_name, channel.schema_encoding, channel.schema, channel.encoding, where)
+            return JointStateDecoder(
+                topic, channel.schema_name, channel.schema_encoding, channel.schema, channel.encoding, where, self._orders[topic]
+            )
         except UserError as error:
             raise UserError(
                 f"{error.message}, at {self.url}; the config's source must name a topic of {JOINT_STATE} messages", where
@@ -245,7 +249,7 @@ class FoxgloveFeed:
         self.description = check_url(url)
         self._wanted = dict(topics)
         self._reconnects = reconnects
-        self._names: dict[str, dict[tuple[str, ...], tuple[str, ...]]] = {topic: {} for topic in topics}
+        self._orders = {topic: NameOrders() for topic in topics}  # names interned per topic, across reconnects
         self._stop = threading.Event()
         self._guard = threading.Lock()  # over _connection, which close() ends from another thread
         self._connection: Connection | None = None
@@ -264,7 +268,7 @@ class FoxgloveFeed:
             self._drop()
 
     def close(self) -> None:
-        """Ends `batches()` within about POLL_SECONDS (a connect under way: within CONNECT_SECONDS), from any thread."""
+        """Ends `batches()` at once (a connect, a handshake or a read under way ended), from any thread."""
         self._stop.set()
         with self._guard:
             connection = self._connection
@@ -272,7 +276,7 @@ class FoxgloveFeed:
             connection.goodbye()
 
     def _stream(self, retries: _Retries) -> Iterator[list[JointStateSample]]:
-        session = _Session(self._connect(), self._wanted, self._names)
+        session = _Session(self._connect(), self._wanted, self._orders)
         session.handshake()
         retries.connected()
         while not self._stop.is_set():
@@ -282,11 +286,13 @@ class FoxgloveFeed:
             yield batch
 
     def _connect(self) -> Connection:
-        connection = Connection.open(self.description)
+        """A connection, registered before it opens so that close() ends its connect or handshake at once."""
+        connection = Connection(self.description)
         with self._guard:
             self._connection = connection
-        if self._stop.is_set():  # close() came while connecting, before it could end this connection
+        if self._stop.is_set():  # close() came before it could end this connection
             raise Lost("closed")
+        connection.open()
         return connection
 
     def _drop(self) -> None:

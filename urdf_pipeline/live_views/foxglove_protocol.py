@@ -17,6 +17,9 @@ from typing import Any
 # older servers speak `foxglove.websocket.v1`. A client offers both; the server picks.
 SUBPROTOCOLS = ("foxglove.sdk.v1", "foxglove.websocket.v1")
 MAX_FRAME_BYTES = 16 * 1024 * 1024  # a JointState is a few kB; a bigger frame is no joint state, and memory is bounded
+# A JSON message (serverInfo, advertise: every topic's definition, a few kB each) becomes Python objects, up to about
+# 25 times its bytes (`[{},{},...]`): bounded tighter than a binary one.
+MAX_TEXT_BYTES = 4 * 1024 * 1024
 MESSAGE_DATA = 0x01  # the binary opcode of a subscribed message; the others (time, service responses) are not ours
 _MESSAGE_HEADER = struct.Struct("<BIQ")  # opcode, subscription id, timestamp (ns), then the payload
 _UINT32 = 2**32
@@ -44,6 +47,8 @@ def server_message(data: bytes | str) -> dict[str, Any]:
         message = json.loads(data)
     except (ValueError, UnicodeDecodeError) as exc:
         raise ProtocolError(f"a text frame that is not JSON ({exc})") from None
+    except RecursionError:
+        raise ProtocolError("a text frame of JSON nested too deep") from None
     if not isinstance(message, dict) or not isinstance(message.get("op"), str):
         raise ProtocolError("a JSON message that is not an object with an 'op'")
     return message

@@ -3,32 +3,30 @@
 The config is checked before anything is subscribed (`check_live_config`, as `validate --live`); each MCAP source's
 names come from `names:` or from the first message on its topic, and the plan is compiled then (a map naming a joint
 the stream lacks is refused at that first message). Samples are sent as each poll of the feed brings them. Ctrl-C and
-SIGTERM end the view as the end of the stream does: views closed, the recording finished, `--save` renamed into place.
+SIGTERM end the view as the end of the stream does (views closed, the recording finished, `--save` renamed into place;
+nothing saved when no sample came), then end the command as they end any other (exit 130, 143).
 """
 
 from __future__ import annotations
 
 import signal
-import threading
 import time
-from collections.abc import Callable, Iterator, Mapping
-from contextlib import contextmanager
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import FrameType
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..compile import LivePlan, LiveSourceSpec, check_live_config, compile_live
-from ..errors import UserError, UserErrors, Where, shown
-from ..execute import provenance_stream, write_file_atomically
+from ..errors import Stopped, UserError, UserErrors, Where, shown, stop_signal
+from ..execute import deferred_signals, provenance_stream, write_file_atomically
 from ..progress import say
 from ..sources import checked_first_names
 from .joint_state import Feed, JointStateSample, same_topic
 from .latency import Latencies
 from .live_view import LiveView
-from .prefetch import Prefetched
+from .prefetch import MAX_QUEUED_BYTES, Prefetched, WaitingSamples
 from .recordings import live_recording
 
 if TYPE_CHECKING:
@@ -37,7 +35,7 @@ if TYPE_CHECKING:
 FROM_OPTION = Where(Path("--from"), 0)
 SAVE_OPTION = Where(Path("--save"), 0)
 WAIT_NOTE_SECONDS = 5.0  # "waiting for the first message on ..." repeated this often
-MAX_EARLY_SAMPLES = 10_000  # kept while the first messages of other topics are awaited
+MAX_EARLY_SAMPLES = 10_000  # kept while the first messages of other topics are awaited (and MAX_QUEUED_BYTES)
 
 
 @dataclass(frozen=True)
@@ -60,7 +58,6 @@ class LiveSummary:
     latency: Latencies = field(default_factory=Latencies)
     saved: Path | None = None
     dropped: int = 0  # samples dropped because the views fell behind (said when it happens)
-    signal: int = 0  # the signal that ended it (Ctrl-C, SIGTERM): the command's exit status says so
 
     def line(self) -> str:
         saved = f"; saved {self.saved}" if self.saved else ""
@@ -90,21 +87,34 @@ def open_feed(source: str, topics: Mapping[str, Where | None], reconnects: int) 
 
 def live_command(options: LiveOptions) -> LiveSummary:
     """Check, subscribe, show; the summary of what was seen. A problem found once samples were sent keeps them in
-    `--save` (a complete recording of what came before it) and is raised after, saying so."""
+    `--save` (a complete recording of what came before it) and is raised after, saying so.
+
+    Ctrl-C and SIGTERM end the view as the stream's end does (within a poll of the feed: views closed, the recording
+    finished, `--save` renamed into place, the last line said), then go on as every command's interruption does: the
+    signal is delivered to the handler it had (`execute.deferred_signals`), so the command line exits 130 or 143."""
     check = check_live_config(options.config, stream_only=True)
     if check.errors:
         raise UserErrors(list(check.errors))
     topics = {spec.topic: spec.where for spec in check.sources if spec.topic is not None}
     summary = LiveSummary()
-    session = _Session(options, check.sources, summary)
     feed = open_feed(options.source, topics, options.reconnects)
     say(f"live: {options.config} from {feed.description}, topics {', '.join(shown(t) for t in topics)}")
-    with _stop_on_signals(summary, feed):
-        if options.save is None:
-            session.run(feed, None)
-        else:
-            write_file_atomically(options.save, lambda partial: session.run(feed, partial), "recording", SAVE_OPTION)
-            summary.saved = options.save if session.sent_any else None
+    try:
+        with deferred_signals() as stop:  # the handlers only record the signal: the session sees it between batches
+            session = _Session(options, check.sources, summary, stop)
+            try:
+                if options.save is None:
+                    session.run(feed, None)
+                else:
+                    write_file_atomically(options.save, lambda partial: session.save(feed, partial), "recording", SAVE_OPTION)
+                    summary.saved = options.save
+            except _NothingSaved:
+                pass
+            if stop:
+                summary.ended = "stopped by Ctrl-C" if stop[0] == signal.SIGINT else f"stopped by {signal.Signals(stop[0]).name}"
+                say(summary.line())  # said here: the signal goes on to the command line as the block ends
+    except KeyboardInterrupt as interrupt:  # the signal, given back as the block ended: this command said its line
+        raise Stopped(stop_signal(interrupt), said=True) from None
     if session.late_error is not None:
         error = session.late_error
         kept = f"; the {summary.sent} samples before it are saved in {options.save}" if options.save else ""
@@ -112,35 +122,19 @@ def live_command(options: LiveOptions) -> LiveSummary:
     return summary
 
 
-@contextmanager
-def _stop_on_signals(summary: LiveSummary, feed: Feed) -> Iterator[None]:
-    """Ctrl-C and SIGTERM close the feed (its `batches` ends within a poll), so the session ends as at the stream's
-    end; a second signal is the default's (Ctrl-C raises at once)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def stop(signum: int, frame: FrameType | None) -> None:
-        summary.ended = "stopped by Ctrl-C" if signum == signal.SIGINT else f"stopped by {signal.Signals(signum).name}"
-        summary.signal = signum
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-        feed.close()
-
-    previous = {signum: signal.signal(signum, stop) for signum in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
+class _NothingSaved(Exception):
+    """No sample reached the views: `--save` writes no file (raised inside the atomic write, which removes its
+    partial file)."""
 
 
 class _Session:
     """One subscription's views: made once every source's names are known, fed each poll's samples."""
 
-    def __init__(self, options: LiveOptions, specs: tuple[LiveSourceSpec, ...], summary: LiveSummary) -> None:
+    def __init__(self, options: LiveOptions, specs: tuple[LiveSourceSpec, ...], summary: LiveSummary, stop: list[int]) -> None:
         self.options, self.specs, self.summary = options, specs, summary
+        self.stop = stop  # the signals received (deferred_signals): the session ends at the next batch
         self.stream_names: dict[str, tuple[str, ...]] = {}
-        self.early: list[JointStateSample] = []
+        self.early = WaitingSamples(MAX_EARLY_SAMPLES, MAX_QUEUED_BYTES)
         self.views: dict[str, list[LiveView]] = {}  # topic as the config writes it -> views of robots its source drives
         self.stamps: dict[str, str] = {}  # topic -> header | log_time | publish_time
         self.recording: RecordingStream | None = None
@@ -158,6 +152,8 @@ class _Session:
             if all(spec.names is not None for spec in self.specs):
                 self._make_views(partial)
             for batch in ahead.batches():
+                if self.stop:
+                    break  # a batch that came with the signal is left out: --save holds every sample sent
                 self.summary.received += len(batch)
                 if self.recording is None:
                     batch = self._await_names(batch, partial)
@@ -175,6 +171,12 @@ class _Session:
             ahead.close()
             self._finish()
 
+    def save(self, feed: Feed, partial: Path) -> None:
+        """`run` into the partial file of `--save`; _NothingSaved when no sample was sent (the partial is removed)."""
+        self.run(feed, partial)
+        if not self.sent_any:
+            raise _NothingSaved
+
     def _await_names(self, batch: list[JointStateSample], partial: Path | None) -> list[JointStateSample]:
         """Samples before every source's names are known are kept (bounded); then the plan and the views are made."""
         for sample in batch:
@@ -183,17 +185,11 @@ class _Session:
                     self.stream_names[spec.name] = spec.names or checked_first_names(
                         sample.names, sample.topic, self.options.source, spec.where
                     )
-        self.early += batch
-        if len(self.early) > MAX_EARLY_SAMPLES:  # the topics with names wait for those without: bounded, and said
-            over = len(self.early) - MAX_EARLY_SAMPLES
-            self.early = self.early[over:]
-            self.early_dropped += over
-            say(f"live: dropped the {over} oldest samples while waiting for the first message of every topic")
+        self.early_dropped += self.early.append(batch) if batch else 0  # said by _note_waiting, counted in the last line
         if len(self.stream_names) < len([s for s in self.specs if s.topic is not None]):
             return []
         self._make_views(partial)
-        early, self.early = self.early, []
-        return early
+        return self.early.take_all()
 
     def _make_views(self, partial: Path | None) -> None:
         plan = compile_live(self.options.config, self.stream_names)
@@ -212,7 +208,8 @@ class _Session:
         if time.monotonic() - noted < WAIT_NOTE_SECONDS:
             return noted
         waiting = [shown(s.topic) for s in self.specs if s.topic is not None and s.name not in self.stream_names]
-        say(f"live: waiting for the first message on {', '.join(waiting)}")
+        dropped = f" (the {self.early_dropped} oldest samples of the others dropped meanwhile)" if self.early_dropped else ""
+        say(f"live: waiting for the first message on {', '.join(waiting)}{dropped}")
         return time.monotonic()
 
     def _show(self, batch: list[JointStateSample]) -> None:
