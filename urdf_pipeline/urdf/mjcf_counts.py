@@ -161,9 +161,10 @@ class MjcfCounts:
                 or self.pixels > MAX_TEXTURE_PIXELS
                 or self.samples > MAX_HFIELD_SAMPLES
             ):
+                copies = f" (the replicates around it make {multiplier:,} copies)" if multiplier > 1 else ""
                 raise UserError(
-                    f"MJCF file {at}: <attach> brings the model, with {multiplier:,} copies of the attached model, beyond "
-                    f"its bounds ({MAX_ELEMENTS:,} elements, {MAX_NUMBERS:,} numbers, {MAX_TEXTURE_PIXELS:,} texture pixels, "
+                    f"MJCF file {at}: <attach> brings the model, with the attached one{copies}, beyond its bounds "
+                    f"({MAX_ELEMENTS:,} elements, {MAX_NUMBERS:,} numbers, {MAX_TEXTURE_PIXELS:,} texture pixels, "
                     f"{MAX_HFIELD_SAMPLES:,} height field samples); {TOO_LARGE}",
                     where,
                 )

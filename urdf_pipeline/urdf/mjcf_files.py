@@ -17,6 +17,7 @@ MuJoCo compiles it.
 
 from __future__ import annotations
 
+import codecs
 import os
 import re
 from dataclasses import dataclass, field
@@ -28,11 +29,11 @@ from ..errors import UserError, Where, quoted, shown
 from .mjcf_counts import MjcfCounts
 from .xml_text import doctype_line
 
-MAX_XML_BYTES = 64 << 20  # all the XML files of one model together (meshes are read by MuJoCo in the bounded child)
+MAX_XML_BYTES = 16 << 20  # all the XML files of one model together (meshes are read by MuJoCo in the bounded child)
 MAX_FILES = 1000  # included files of one model
 MAX_DEPTH = 64  # includes within includes
 _FOLDERS = ("meshdir", "texturedir", "assetdir")
-_BOM = b"\xef\xbb\xbf"
+_CHUNK = 1 << 20
 _RAW_TAG = re.compile(rb"""<[^\s/>]+(?:\s+[^\s=/>]+\s*=\s*(?:"[^"]*"|'[^']*'))*\s*/?>""")
 _RAW_ATTRIBUTE = re.compile(rb"""([^\s=/>]+)\s*=\s*("[^"]*"|'[^']*')""")
 
@@ -59,8 +60,8 @@ class MjcfFiles:
         return f"{shown(name)}:{line}"
 
 
-def _read(files: MjcfFiles, path: Path) -> str:
-    """The file's text, as MuJoCo reads it: bytes within the model's budget, UTF-8, no DOCTYPE."""
+def _read(files: MjcfFiles, path: Path) -> bytes:
+    """The file's bytes, as MuJoCo reads them: within the model's budget, UTF-8, no DOCTYPE."""
     try:
         with path.open("rb") as file:
             data = file.read(files.budget[0] + 1)
@@ -80,15 +81,18 @@ def _read(files: MjcfFiles, path: Path) -> str:
             "remove the DOCTYPE (and write any entity's text in place)",
             files.where,
         )
-    try:
-        return data.removeprefix(_BOM).decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = data.count(b"\n", 0, exc.start) + 1
-        raise UserError(
-            f"MJCF file {files.at(path, line)} is not UTF-8 text (byte {exc.start}): MuJoCo reads its files as UTF-8 "
-            "whatever the XML declaration says; save it as UTF-8",
-            files.where,
-        ) from None
+    decoder = codecs.getincrementaldecoder("utf-8")()
+    for start in range(0, len(data), _CHUNK):  # checked, not kept: expat reads the bytes themselves
+        try:
+            decoder.decode(data[start : start + _CHUNK], start + _CHUNK >= len(data))
+        except UnicodeDecodeError as exc:
+            line = data.count(b"\n", 0, start + exc.start) + 1
+            raise UserError(
+                f"MJCF file {files.at(path, line)} is not UTF-8 text (byte {start + exc.start}): MuJoCo reads its files as "
+                "UTF-8 whatever the XML declaration says; save it as UTF-8",
+                files.where,
+            ) from None
+    return data
 
 
 class _FileScan:
@@ -99,9 +103,8 @@ class _FileScan:
         """`nesting`: the level of the element the file's root stands for (1 for a model's own file, an include's for
         an included one); `multiplier`: the copies the replicates around it make."""
         self.files, self.path, self.depth = files, path, depth
-        self.text = _read(files, path)
-        self.raw = self.text.encode("utf-8")  # what expat's byte indexes count
-        self.parser = ParserCreate()  # namespace-unaware, like TinyXML2
+        self.raw = _read(files, path)
+        self.parser = ParserCreate(encoding="utf-8")  # whatever the XML declaration says; namespace-unaware, like TinyXML2
         self.stack: list[int] = [multiplier]  # the multiplier inside each open element
         self.nesting = nesting - 1  # an element's level is self.nesting + len(self.stack)
 
@@ -109,7 +112,7 @@ class _FileScan:
         self.parser.StartElementHandler = self.start
         self.parser.EndElementHandler = self.end
         try:
-            self.parser.Parse(self.text, True)
+            self.parser.Parse(self.raw, True)
         except ExpatError as exc:
             raise UserError(f"MJCF file {self.files.at(self.path, exc.lineno)} is not valid XML: {exc}", self.files.where) from None
 
