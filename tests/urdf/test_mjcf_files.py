@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from ..mjcf_inputs import ARM, DOCTYPE_HIDING, robot_config, write_mjcf_inputs
+from ..mjcf_inputs import ARM, DOCTYPE_HIDING, robot_config, tetrahedron_stl, write_mjcf_inputs
 
 mujoco = pytest.importorskip("mujoco", reason="MJCF robots need mujoco (pip install 'urdf-pipeline[mjcf]')")
 
@@ -110,3 +110,23 @@ def test_a_file_in_another_encoding_is_refused(tmp_path: Path, run_cli) -> None:
     (tmp_path / "robot.xml").write_bytes(b'<?xml version="1.0" encoding="ISO-8859-1"?>\n' + text.encode("latin-1"))
     config = robot_config(tmp_path, {"mjcf": "robot.xml"}, "shoulder")
     refused(run_cli("validate", str(config)), config, "MJCF file robot.xml:7 is not UTF-8 text", "save it as UTF-8")
+
+
+def test_dot_dot_after_a_link_is_folded_as_mujoco_folds_it(tmp_path: Path, run_cli) -> None:
+    """MuJoCo joins `meshdir` and `file` and folds `..` as written (it opens pr/m.stl for `lnk/..`, never the link's
+    parent): the check resolves the same path, so `lnk/..` stays inside and `lnk` itself is refused."""
+    pr, outside = tmp_path / "pr", tmp_path / "outside" / "deep"
+    outside.mkdir(parents=True)
+    pr.mkdir()
+    (pr / "lnk").symlink_to(outside, target_is_directory=True)
+    (pr / "m.stl").write_bytes(tetrahedron_stl())
+    (outside.parent / "m.stl").write_bytes(tetrahedron_stl()[:84])  # no facet: MuJoCo refuses it if it opens it
+    (outside / "m.stl").write_bytes(tetrahedron_stl())
+    robot = '<mujoco><compiler meshdir="{}"/><asset><mesh name="m" file="m.stl"/></asset><worldbody><body><joint name="j1"/><geom type="mesh" mesh="m"/></body></worldbody></mujoco>'
+    (pr / "robot.xml").write_text(robot.format("lnk/.."), encoding="utf-8")
+    assert mujoco.MjModel.from_xml_path(str(pr / "robot.xml")).nmeshvert == 4, "MuJoCo opened pr/m.stl"
+    config = robot_config(pr, {"mjcf": "robot.xml"})
+    assert run_cli("validate", str(config)).code == 0
+
+    (pr / "robot.xml").write_text(robot.format("lnk"), encoding="utf-8")
+    refused(run_cli("validate", str(config)), config, "MJCF <compiler meshdir> folder in robot.xml:1:", "is outside the config's folder")
