@@ -204,8 +204,11 @@ class Sandbox:
 
         if inp is None and filename is not None:
             path = os.path.join(xacro.root_dir, filename)
-            with self.open(path, "rb") as file:
-                refusal = prolog_refusal(file.read())
+            try:
+                with self.open(path, "rb") as file:
+                    refusal = prolog_refusal(file.read())
+            except OSError:  # a file that cannot be opened: xacro's own parse says so, as it always did
+                refusal = None
             if refusal is not None:
                 raise Refused(f"xacro file {self.name(path)}:{refusal}")
         return self.original_parse(inp, filename)
