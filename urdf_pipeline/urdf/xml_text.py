@@ -22,6 +22,8 @@ from xml.parsers.expat import ExpatError, ParserCreate
 from ..errors import quoted, shown
 
 MAX_DEPTH = 100  # element nesting; a URDF needs about six levels
+MAX_URDF_BYTES = 16 << 20  # one URDF text (a file, xacro's output, a bag's); real ones are at most a few MB
+MAX_ELEMENTS = 200_000  # elements of one URDF: a 20,000-link chain has 120,000; parsed in about 3 s and 150 MB
 XACRO_NAMESPACE = "ros.org/wiki/xacro"  # http://www.ros.org/wiki/xacro, with or without www, http or https
 # Extensions that hold elements named <joint> (a transmission's joint, ros2_control's interfaces) or SDF of their own.
 FOREIGN_CONTAINERS = frozenset({"transmission", "gazebo", "ros2_control"})
@@ -145,6 +147,7 @@ class _Scan:
         self.xacro_prefixes = {"xacro"}
         self.open: list[tuple[str, int]] = []  # the elements enclosing this one: tag, line
         self.foreign = 0  # how many enclosing elements are FOREIGN_CONTAINERS
+        self.elements = 0
 
     def at(self, line: int) -> str:
         return f"{self.origin}:{line}" if self.source_lines else f"{self.origin} (line {line} of the expanded text)"
@@ -152,6 +155,11 @@ class _Scan:
     def start(self, tag: str, attributes: dict[str, str], line: int) -> None:
         if len(self.open) >= MAX_DEPTH:  # a URDF is a few levels deep; thousands would exhaust recursion further on
             raise UrdfParseError(f"{self.at(line)}: elements nested more than {MAX_DEPTH} levels deep")
+        self.elements += 1
+        if self.elements > MAX_ELEMENTS:  # each one costs a few hundred bytes in the tree and the model
+            raise UrdfParseError(
+                f"{self.at(line)}: more than {MAX_ELEMENTS:,} elements (<{shown(tag)}> crosses the bound); no robot needs so many"
+            )
         self._xacro(tag, attributes, line)
         if tag in ("link", "joint") and len(self.open) > 1 and not self.foreign:  # depth 1 is <robot>'s own
             parent, parent_line = self.open[-1]
@@ -185,6 +193,8 @@ def parse_root(text: str, origin: str, source_lines: bool = True) -> tuple[ET.El
     """The <robot> element and the line of each element (by id). Like ROS's parser (tinyxml2), namespace-unaware:
     `<robot xmlns="...">` is a <robot>. UrdfParseError (XacroContent for xacro) for what no URDF reader reads;
     `source_lines` says whether the text is the file itself (else lines are named as the expanded text's)."""
+    if len(text) > MAX_URDF_BYTES:  # a backstop: each form reads at most this much (a file, xacro's output, a bag's)
+        raise UrdfParseError(f"{origin} holds more than {MAX_URDF_BYTES >> 20} MB of URDF text; real robots need at most a few MB")
     builder, lines = ET.TreeBuilder(), {}
     parser = ParserCreate()
     scan = _Scan(origin, source_lines)
