@@ -150,11 +150,10 @@ class Sandbox:
 
     def install(self) -> None:
         import xacro
-
-        self.original_parse = xacro.parse
         import xacro.substitution_args as substitution
 
         current = self.current
+        self.original_parse = xacro.parse
 
         def safe_eval(expr: str, globals: dict[str, Any], locals: Mapping[str, Any] | None = None) -> Any:
             code = checked_code(expr, current)
