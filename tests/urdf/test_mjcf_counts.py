@@ -4,6 +4,8 @@ test_mjcf_sweep.py, is every model dm_control ships)."""
 
 from __future__ import annotations
 
+import struct
+import zlib
 from pathlib import Path
 
 import pytest
@@ -114,3 +116,34 @@ def test_asset_sizes_are_bounded(tmp_path: Path, run_cli, asset: str, expected: 
 def test_declared_rows_are_bounded(tmp_path: Path, run_cli) -> None:
     robot = '<mujoco>\n<size nuser_geom="20000000"/>\n<worldbody><geom size="1"/></worldbody>\n</mujoco>\n'
     _refused(tmp_path, run_cli, {"robot.xml": robot}, "robot.xml:2: <size nuser_geom='20000000'> asks for more than 1,000 rows")
+
+
+def _png(width: int, height: int) -> bytes:
+    """A grey PNG of `width` x `height` whose rows are all zero: a few hundred KB that decode to width x height bytes."""
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    packer = zlib.compressobj(9)
+    rows = b"".join(packer.compress(b"\0" * (width + 1)) for _ in range(height)) + packer.flush()
+    header = struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0)
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", rows) + chunk(b"IEND", b"")
+
+
+@pytest.mark.parametrize(
+    ("element", "expected"),
+    [
+        (
+            '<texture name="t" type="2d" file="big.png"/>',
+            "<texture file='big.png'> is a PNG of 20,000 x 20,000, which brings the model's texture pixels",
+        ),
+        (
+            '<hfield name="h" file="big.png" size="1 1 1 1"/>',
+            "<hfield file='big.png'> is a PNG of 20,000 x 20,000, which brings the model's height field",
+        ),
+    ],
+)
+def test_a_png_is_counted_by_the_size_it_states(tmp_path: Path, run_cli, element: str, expected: str) -> None:
+    """MuJoCo decoded this 400 KB PNG into 2.4 GB in 4 s, within its child's bounds: the scan reads its header."""
+    (tmp_path / "big.png").write_bytes(_png(20_000, 20_000))
+    _refused(tmp_path, run_cli, {"robot.xml": f"<mujoco>\n<asset>\n{element}\n</asset>\n</mujoco>\n"}, f"robot.xml:3: {expected}")

@@ -142,6 +142,23 @@ class MjcfCounts:
         self.attaches.append((multiplier, element.at))
         return multiplier
 
+    def image(self, tag: str, file: str, size: tuple[int, int], at: str, where: Where) -> None:
+        """A texture's or height field's PNG file: its stated width x height, counted as the builtin ones are (a 400 KB
+        PNG of 20000 x 20000 took MuJoCo 2.4 GB and 4 s to decode)."""
+        pixels = size[0] * size[1]
+        if tag == "texture":
+            self.pixels += pixels
+        else:
+            self.samples += pixels
+        bound = MAX_TEXTURE_PIXELS if tag == "texture" else MAX_HFIELD_SAMPLES
+        if (self.pixels if tag == "texture" else self.samples) > bound:
+            what = "texture pixels" if tag == "texture" else "height field samples"
+            raise UserError(
+                f"MJCF file {at}: <{tag} file={quoted(file)}> is a PNG of {size[0]:,} x {size[1]:,}, which brings the "
+                f"model's {what} to more than {bound:,}; {TOO_LARGE}",
+                where,
+            )
+
     def add_model(self, model: MjcfCounts) -> None:
         self.models.append(model)
 

@@ -34,6 +34,7 @@ MAX_FILES = 1000  # included files of one model
 MAX_DEPTH = 64  # includes within includes
 _FOLDERS = ("meshdir", "texturedir", "assetdir")
 _CHUNK = 1 << 20
+_PNG = b"\x89PNG\r\n\x1a\n"
 _RAW_TAG = re.compile(rb"""<[^\s/>]+(?:\s+[^\s=/>]+\s*=\s*(?:"[^"]*"|'[^']*'))*\s*/?>""")
 _RAW_ATTRIBUTE = re.compile(rb"""([^\s=/>]+)\s*=\s*("[^"]*"|'[^']*')""")
 
@@ -151,6 +152,19 @@ class _FileScan:
                 )
 
 
+def _png_size(path: Path) -> tuple[int, int]:
+    """The width and height a PNG's header states (what MuJoCo's decoder allocates, whatever the compressed bytes),
+    (0, 0) for another format: MuJoCo's own texture and height field formats hold every value they state."""
+    try:
+        with path.open("rb") as file:
+            head = file.read(24)
+    except OSError:
+        return (0, 0)  # MuJoCo says why it cannot read it
+    if len(head) < 24 or not head.startswith(_PNG) or head[12:16] != b"IHDR":
+        return (0, 0)
+    return (int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big"))
+
+
 def _scan(files: MjcfFiles, path: Path, depth: int, nesting: int = 1, multiplier: int = 1) -> None:
     """One XML file and its includes, depth first, as MuJoCo inlines them."""
     if depth > MAX_DEPTH:
@@ -203,5 +217,8 @@ def scan_mjcf(
             for candidate in dict.fromkeys(c for c in candidates if c.is_file() and c not in files.xml_files):
                 model = scan_mjcf(candidate, confinement, where, files.xml_files, depth + 1, files.budget)
                 files.counts.add_model(model.counts)
+        elif tag in ("texture", "hfield"):
+            found = [_png_size(candidate) for candidate in dict.fromkeys(candidates) if candidate.is_file()]
+            files.counts.image(tag, name, max(found, default=(0, 0)), at, where)
     files.counts.attach_models(where)
     return files
