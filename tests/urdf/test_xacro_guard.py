@@ -309,7 +309,7 @@ def validate_in_a_bounded_process(config: Path, **environment: str) -> subproces
         ('<xacro:include filename="bomb.urdf.xacro"/>', "expansion nested too deep"),  # includes itself
         (_laughs(), "needs more than 1024 MB of memory"),
         ('<link name="${python.list(python.range(10**9))}"/>', "needs more than 1024 MB of memory"),
-        (_big_output(), "is larger than 64 MB of URDF text"),
+        (_big_output(), "is larger than 16 MB of URDF text"),
     ],
     ids=["repeat", "power", "recursive-macro", "recursive-include", "property-laughs", "big-list", "big-output"],
 )

@@ -22,6 +22,7 @@ from ..confine import Confinement, refuse_url
 from ..errors import UserError, Where
 from .mjcf import load_mjcf
 from .xacro_guard import XacroBudget, XacroRequest, expand_xacro
+from .xml_text import MAX_URDF_BYTES
 
 
 @dataclass(frozen=True)
@@ -58,8 +59,13 @@ def load_urdf_source(
 
 
 def _read(path: Path, where: Where) -> str:
+    """The URDF text of a file, at most MAX_URDF_BYTES of it read."""
     try:
-        return path.read_text(encoding="utf-8")
+        with path.open("rb") as file:
+            data = file.read(MAX_URDF_BYTES + 1)
+        if len(data) > MAX_URDF_BYTES:
+            raise UserError(f"{path} is larger than {MAX_URDF_BYTES >> 20} MB: no robot's URDF is so large", where)
+        return data.decode("utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise UserError(f"cannot read {path}: {exc}", where) from None
 

@@ -27,6 +27,7 @@ from urllib.parse import unquote
 from ..confine import Confinement, file_state
 from ..errors import UserError, Where
 from .model import MeshRef
+from .xml_text import doctype_line
 
 _MESH_FILENAME = re.compile(r"""(<mesh\b[^>]*?\bfilename\s*=\s*)(["'])(.*?)\2""", re.DOTALL)
 _PACKAGE_SCHEMES = ("package", "model")
@@ -218,7 +219,7 @@ def _dae(file: BinaryIO, size: int) -> str | None:
         if not chunk:
             break
         seen += chunk
-        if b"<!doctype" in seen.lower():
+        if doctype_line(seen) is not None:
             return "is not a COLLADA file (it declares a DOCTYPE, which COLLADA files do not)"
         try:
             parser.feed(chunk)

@@ -2,7 +2,7 @@
 
 MuJoCo itself compiles the model (defaults classes, every orientation form, angle units, includes, frames), in a child
 process bounded in memory, CPU and wall-clock time (mjcf_sandbox), after every file the model names passed the
-config's read rule (mjcf_files); the child writes the URDF from the compiled model (mjcf_urdf). `mujoco` is an optional
+config's read rule, read as MuJoCo reads it (mjcf_files), and what it would build was counted (mjcf_counts); the child writes the URDF from the compiled model (mjcf_urdf). `mujoco` is an optional
 dependency: without it the form is refused, saying how to install it.
 """
 

@@ -32,12 +32,13 @@ from typing import IO, Any
 
 from ..confine import Confinement
 from ..errors import UserError, Where, listing, neutral_text
+from .xml_text import MAX_URDF_BYTES
 
 MEMORY_ENV = "URDF_PIPELINE_XACRO_MEMORY_MB"  # the runner may raise the bounds for a huge robot; a config cannot
 TIMEOUT_ENV = "URDF_PIPELINE_XACRO_TIMEOUT"
 DEFAULT_MEMORY_MB = 1024
 DEFAULT_TIMEOUT_S = 60.0
-OUTPUT_BYTES = 64 << 20  # the expanded URDF text, at most
+OUTPUT_BYTES = MAX_URDF_BYTES  # the expanded URDF text, at most: what any URDF text may be
 SHOWN_STDERR = 16 << 10  # xacro's own warnings passed on, at most
 _PASSED_ENV = ("ROS_PACKAGE_PATH", "AMENT_PREFIX_PATH", "LD_LIBRARY_PATH", "DYLD_LIBRARY_PATH", "SYSTEMROOT")
 _BOOTSTRAP = "import sys; sys.path[:0] = sys.argv[1:]; from urdf_pipeline.urdf.xacro_sandbox import main; main()"

@@ -153,6 +153,7 @@ class Sandbox:
         import xacro.substitution_args as substitution
 
         current = self.current
+        self.original_parse = xacro.parse
 
         def safe_eval(expr: str, globals: dict[str, Any], locals: Mapping[str, Any] | None = None) -> Any:
             code = checked_code(expr, current)
@@ -191,6 +192,25 @@ class Sandbox:
         dict.__setitem__(xacro._global_symbols["python"], "vars", vars_refused)
         xacro.open = self.open  # parse() and load_yaml() open files through it
         xacro.glob = _Glob(self)  # xacro:include filename="dir/*.xacro"
+        xacro.parse = self.parse  # the xacro file and every xacro:include
+
+    def parse(self, inp: Any, filename: str | None = None) -> Any:
+        """xacro's `parse`, after the file's prolog is checked: a DOCTYPE declaring entities or naming a DTD is refused
+        before minidom reads it (minidom would expand the entities; ROS's URDF parser, reading xacro's output, none)."""
+        import xacro
+
+        from .xml_text import prolog_refusal  # here: the import lines are child_limits' and the sandbox's own
+
+        if inp is None and filename is not None:
+            path = os.path.join(xacro.root_dir, filename)
+            try:
+                with self.open(path, "rb") as file:
+                    refusal = prolog_refusal(file.read())
+            except OSError:  # a file that cannot be opened: xacro's own parse says so, as it always did
+                refusal = None
+            if refusal is not None:
+                raise Refused(f"xacro file {self.name(path)}:{refusal}")
+        return self.original_parse(inp, filename)
 
     def find(self, package: str) -> str:
         """`$(find PKG)` from the robot's package_paths, then ROS_PACKAGE_PATH / AMENT_PREFIX_PATH (no ament_index)."""

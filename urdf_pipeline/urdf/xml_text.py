@@ -6,6 +6,11 @@
   reader keeps only what lies outside the xacro elements, often just the root link, and says nothing.
 - A `<link>` or `<joint>` that is not a direct child of `<robot>` is refused: URDF readers drop it silently. Only the
   extensions that hold their own `<joint>` elements (`<transmission>`, `<gazebo>`, `<ros2_control>`) may nest them.
+- A DOCTYPE that declares entities (an internal subset) or names an external DTD is refused, not expanded: ROS's
+  parser (urdfdom on TinyXML2) reads no DTD and skips a DOCTYPE to its first `>`, so an entity expat expands, or an
+  element hidden in the subset, would make the robot differ from ROS's. A bare `<!DOCTYPE robot>` means the same to
+  both and is read. The xacro sandbox applies the same rule to every xacro file (`doctype_refusal`); MJCF and COLLADA
+  files, read by other tools again, refuse any DOCTYPE from their bytes (`doctype_line`).
 """
 
 from __future__ import annotations
@@ -14,7 +19,11 @@ import re
 import xml.etree.ElementTree as ET
 from xml.parsers.expat import ExpatError, ParserCreate
 
+from ..errors import quoted, shown
+
 MAX_DEPTH = 100  # element nesting; a URDF needs about six levels
+MAX_URDF_BYTES = 16 << 20  # one URDF text (a file, xacro's output, a bag's); real ones are at most a few MB
+MAX_ELEMENTS = 200_000  # elements of one URDF: a 20,000-link chain has 120,000; parsed in about 3 s and 150 MB
 XACRO_NAMESPACE = "ros.org/wiki/xacro"  # http://www.ros.org/wiki/xacro, with or without www, http or https
 # Extensions that hold elements named <joint> (a transmission's joint, ros2_control's interfaces) or SDF of their own.
 FOREIGN_CONTAINERS = frozenset({"transmission", "gazebo", "ros2_control"})
@@ -23,6 +32,30 @@ _LEADING = re.compile(r"\ufeff?[ \t\r\n]+(?=<\?xml[ \t\r\n?])")
 _DECLARATION_END = "?>"
 # xacro's substitutions in attribute values: ${expression} and $(arg|find|eval|env|optenv|dirname|cwd ...).
 _XACRO_EXPRESSION = re.compile(r"\$\{|\$\((?:arg|find|eval|env|optenv|dirname|cwd)\b")
+_DOCTYPE = re.compile(rb"<!doctype", re.IGNORECASE)
+
+
+def doctype_line(data: bytes) -> int | None:
+    """The line of the first `<!DOCTYPE` in `data` (the raw bytes, before any XML parser reads them; NUL bytes are
+    skipped, so UTF-16 and UTF-32 text is searched too), else None. One search for every file type that may hold no
+    DOCTYPE at all (MJCF, COLLADA): the text `<!DOCTYPE` anywhere, a comment included, refuses the file."""
+    plain = data.replace(b"\0", b"") if b"\0" in data else data
+    match = _DOCTYPE.search(plain)
+    return None if match is None else plain.count(b"\n", 0, match.start()) + 1
+
+
+def doctype_refusal(name: str, system_id: str | None, public_id: str | None, has_internal_subset: bool) -> str | None:
+    """Why a URDF's or xacro file's `<!DOCTYPE>` is refused (what expat reports of it), or None for a bare one."""
+    if has_internal_subset:
+        found = f"<!DOCTYPE {shown(name)} [...]> declares entities (an internal subset)"
+    elif system_id is not None or public_id is not None:
+        found = f"<!DOCTYPE {shown(name)} ... {quoted(system_id or public_id or '')}> names an external DTD"
+    else:
+        return None
+    return (
+        f"{found}: ROS's URDF parser (urdfdom, TinyXML2) reads no DTD and expands no entity, so the robot would mean "
+        f"something else to ROS than here; write the entities' text in place and keep at most a bare <!DOCTYPE {shown(name)}>"
+    )
 
 
 class UrdfParseError(Exception):
@@ -52,6 +85,35 @@ def without_leading_space(text: str) -> str:
     """`text` without the blank lines and spaces (and byte order mark) before its `<?xml ...?>`, else `text` itself."""
     match = _LEADING.match(text)
     return text[match.end() :] if match else text
+
+
+class _PrologRead(Exception):
+    """The root element started: the prolog, where a DOCTYPE may stand, has been read."""
+
+
+def prolog_refusal(data: bytes) -> str | None:
+    """`LINE: why` when the prolog of `data` holds a DOCTYPE `doctype_refusal` refuses, else None; expat reads only up
+    to the root element (no entity is declared or expanded). For a file another parser reads next (xacro's minidom,
+    which would expand the entities): malformed XML is left for that parser to report."""
+    parser = ParserCreate()
+    found: list[str] = []
+
+    def doctype(name: str, system_id: str | None, public_id: str | None, has_internal_subset: int) -> None:
+        refusal = doctype_refusal(name, system_id, public_id, bool(has_internal_subset))
+        if refusal is not None:
+            found.append(f"{parser.CurrentLineNumber}: {refusal}")
+        raise _PrologRead
+
+    def root(*_: object) -> None:
+        raise _PrologRead
+
+    parser.StartDoctypeDeclHandler = doctype
+    parser.StartElementHandler = root
+    try:
+        parser.Parse(data, True)
+    except (_PrologRead, ExpatError):
+        pass
+    return found[0] if found else None
 
 
 def _blank_leading_declaration(text: str) -> str:
@@ -85,6 +147,7 @@ class _Scan:
         self.xacro_prefixes = {"xacro"}
         self.open: list[tuple[str, int]] = []  # the elements enclosing this one: tag, line
         self.foreign = 0  # how many enclosing elements are FOREIGN_CONTAINERS
+        self.elements = 0
 
     def at(self, line: int) -> str:
         return f"{self.origin}:{line}" if self.source_lines else f"{self.origin} (line {line} of the expanded text)"
@@ -92,6 +155,11 @@ class _Scan:
     def start(self, tag: str, attributes: dict[str, str], line: int) -> None:
         if len(self.open) >= MAX_DEPTH:  # a URDF is a few levels deep; thousands would exhaust recursion further on
             raise UrdfParseError(f"{self.at(line)}: elements nested more than {MAX_DEPTH} levels deep")
+        self.elements += 1
+        if self.elements > MAX_ELEMENTS:  # each one costs a few hundred bytes in the tree and the model
+            raise UrdfParseError(
+                f"{self.at(line)}: more than {MAX_ELEMENTS:,} elements (<{shown(tag)}> crosses the bound); no robot needs so many"
+            )
         self._xacro(tag, attributes, line)
         if tag in ("link", "joint") and len(self.open) > 1 and not self.foreign:  # depth 1 is <robot>'s own
             parent, parent_line = self.open[-1]
@@ -125,6 +193,8 @@ def parse_root(text: str, origin: str, source_lines: bool = True) -> tuple[ET.El
     """The <robot> element and the line of each element (by id). Like ROS's parser (tinyxml2), namespace-unaware:
     `<robot xmlns="...">` is a <robot>. UrdfParseError (XacroContent for xacro) for what no URDF reader reads;
     `source_lines` says whether the text is the file itself (else lines are named as the expanded text's)."""
+    if len(text) > MAX_URDF_BYTES:  # a backstop: each form reads at most this much (a file, xacro's output, a bag's)
+        raise UrdfParseError(f"{origin} holds more than {MAX_URDF_BYTES >> 20} MB of URDF text; real robots need at most a few MB")
     builder, lines = ET.TreeBuilder(), {}
     parser = ParserCreate()
     scan = _Scan(origin, source_lines)
@@ -138,6 +208,12 @@ def parse_root(text: str, origin: str, source_lines: bool = True) -> tuple[ET.El
         scan.end(tag)
         builder.end(tag)
 
+    def doctype(name: str, system_id: str | None, public_id: str | None, has_internal_subset: int) -> None:
+        refusal = doctype_refusal(name, system_id, public_id, bool(has_internal_subset))
+        if refusal is not None:  # raised as expat starts the DOCTYPE: no entity of it is ever declared
+            raise UrdfParseError(f"{scan.at(parser.CurrentLineNumber)}: {refusal}")
+
+    parser.StartDoctypeDeclHandler = doctype
     parser.StartElementHandler = start
     parser.EndElementHandler = end
     parser.CharacterDataHandler = builder.data
