@@ -231,7 +231,7 @@ def first_chunk(data: bytes) -> int:
 
 def _huge_record(data: bytes) -> tuple[bytes, int, str]:
     at = records(data)[1][0]  # after the header
-    return data[:at] + struct.pack("<BQ", 0x06, 1 << 40), at, "of 1099511627776 bytes, beyond 256 MiB"
+    return data[:at] + struct.pack("<BQ", 0x06, 1 << 40), at, "of 1,099,511,627,776 bytes, beyond 17 MiB"
 
 
 def _short_channel(data: bytes) -> tuple[bytes, int, str]:
@@ -242,20 +242,20 @@ def _short_channel(data: bytes) -> tuple[bytes, int, str]:
 def _garbled_zstd(data: bytes) -> tuple[bytes, int, str]:
     at = first_chunk(data)
     body = at + 9 + 8 + 8 + 8 + 4 + 4 + len(b"zstd") + 8  # the compressed bytes, after the chunk's fields
-    return data[:body] + bytes(b ^ 0x5A for b in data[body : body + 40]) + data[body + 40 :], at, "a damaged record (opcode 0x06): zstd"
+    return data[:body] + bytes(b ^ 0x5A for b in data[body : body + 40]) + data[body + 40 :], at, "a zstd chunk that does not inflate ("
 
 
 def _garbled_records(data: bytes) -> tuple[bytes, int, str]:
     """An uncompressed chunk's records changed: its CRC says so."""
     at = first_chunk(data)
     body = at + 9 + 8 + 8 + 8 + 4 + 4 + 8 + 40
-    return data[:body] + bytes(b ^ 0x5A for b in data[body : body + 8]) + data[body + 8 :], at, "crc validation failed in Chunk"
+    return data[:body] + bytes(b ^ 0x5A for b in data[body : body + 8]) + data[body + 8 :], at, "a chunk whose records do not match its CRC"
 
 
 def _chunk_too_large(data: bytes) -> tuple[bytes, int, str]:
     at = first_chunk(data)
     size = at + 9 + 16  # uncompressed_size, after the start and end times
-    return data[:size] + struct.pack("<Q", 1 << 50) + data[size + 8 :], at, "bytes uncompressed, beyond 256 MiB"
+    return data[:size] + struct.pack("<Q", 1 << 50) + data[size + 8 :], at, "bytes uncompressed, beyond the 16 MiB a chunk may hold"
 
 
 def _chunk_larger_than_stated(data: bytes) -> tuple[bytes, int, str]:

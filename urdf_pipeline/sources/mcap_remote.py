@@ -2,6 +2,8 @@
 reader takes local paths only): the summary at the file's end (its footer, then the summary section: two or three
 requests), and, when the config gives no `names`, the first message of the topic, from the one chunk that holds it,
 its names decoded from the CDR bytes. All of it within METADATA_BYTES; the data is read by `run`, once downloaded.
+The summary and every chunk are read by mcap_chunks.py (no chunk in the summary, each chunk inflated within its bounds,
+whatever it states), never by the `mcap` library's readers, which inflate a chunk whole as big as it says.
 """
 
 from __future__ import annotations
@@ -14,6 +16,8 @@ from typing import IO, Any
 
 from ..errors import UserError, Where
 from ..plan import RemoteObject
+from .mcap_chunks import McapRefused, chunk_records, read_chunk_at, read_summary, refusal
+from .mcap_probe import topic_entity
 
 METADATA_BYTES = 64 << 20  # the summary and the first message's chunk, at most (a chunk is a few MB by default)
 METADATA_BLOCK = 64 << 10  # bytes a ranged GET fetches at least: the magic, the footer, the summary's pieces
@@ -43,25 +47,34 @@ class SummaryInfo:
 
 
 def late_messages(stream: IO[bytes], topic: str, start: int) -> int:
-    """How many messages of `topic` are logged at or after `start`: the mcap library reads only the chunks whose
-    time range reaches it (from the summary's chunk index)."""
-    from mcap.reader import make_reader
+    """How many messages of `topic` are logged at or after `start`: only the chunks whose time range reaches it and
+    that may hold the topic (the summary's chunk index) are read, each inflated within its bounds (McapRefused)."""
+    from mcap.records import Message
 
-    return sum(1 for _ in make_reader(stream).iter_messages(topics=[topic], starting_at=start))
+    summary = read_summary(stream)
+    if summary is None or not summary.chunk_indexes:
+        raise ValueError("no chunk index to find the late messages by")
+    channels = {key for key, channel in summary.channels.items() if topic_entity(channel.topic) == topic_entity(topic)}
+    count = 0
+    for index in summary.chunk_indexes:
+        if index.message_end_time < start or (index.message_index_offsets and not channels & index.message_index_offsets.keys()):
+            continue
+        records = chunk_records(read_chunk_at(stream, index.chunk_start_offset), index.chunk_start_offset)
+        count += sum(1 for record in records if isinstance(record, Message) and record.channel_id in channels and record.log_time >= start)
+    return count
 
 
 class RemoteMcap:
     """One remote MCAP file, open for its metadata: the summary, read once, and the first message of a topic."""
 
     def __init__(self, remote: RemoteObject, stream: IO[bytes], where: Where | None) -> None:
-        from mcap.reader import SeekingReader
-
         self.remote = remote
         self.stream = stream
         self.where = where
         try:
-            self.reader = SeekingReader(stream)
-            self.summary = self.reader.get_summary()
+            self.summary = read_summary(stream)
+        except McapRefused as error:
+            raise refusal(remote.url, error, where) from None
         except UserError:
             raise
         except Exception as exc:  # noqa: BLE001 - the mcap library's errors on a file that is no MCAP, or a damaged one
@@ -104,6 +117,8 @@ class RemoteMcap:
         try:
             data = self._first_message(topics)
             return None if data is None else joint_state_names(data)
+        except McapRefused as error:
+            raise refusal(self.remote.url, error, self.where) from None
         except OverBudget:
             raise UserError(
                 f"the first message on {topics[0]} of MCAP file {self.remote.url} is not within its first {METADATA_BYTES >> 20} MB "
@@ -116,24 +131,24 @@ class RemoteMcap:
             raise UserError(f"MCAP file {self.remote.url} is corrupt: {_reason(exc)} (reading topic '{topics[0]}')", self.where) from None
 
     def _first_message(self, topics: list[str]) -> bytes | None:
-        from mcap.data_stream import ReadDataStream
-        from mcap.records import Chunk, Message
-        from mcap.stream_reader import breakup_chunk
+        from mcap.records import Message
 
         assert self.summary is not None
         channels = {channel_id for channel_id, channel in self.summary.channels.items() if channel.topic in topics}
         for index in sorted(self.summary.chunk_indexes, key=lambda chunk: chunk.chunk_start_offset):  # one per chunk
             if index.message_index_offsets and not channels & index.message_index_offsets.keys():
                 continue  # its message index says it holds none of the topic's messages
-            self.stream.seek(index.chunk_start_offset + 1 + 8)  # past the record's opcode and length
-            chunk = Chunk.read(ReadDataStream(self.stream))
-            for record in breakup_chunk(chunk, validate_crc=True):
+            at = index.chunk_start_offset
+            for record in chunk_records(read_chunk_at(self.stream, at), at):
                 if isinstance(record, Message) and record.channel_id in channels:
                     return bytes(record.data)
         return None
 
     def late_messages(self, topic: str, start: int) -> int:
-        return late_messages(self.stream, topic, start)
+        try:
+            return late_messages(self.stream, topic, start)
+        except McapRefused as error:
+            raise refusal(self.remote.url, error, self.where) from None
 
 
 @contextmanager
