@@ -122,7 +122,7 @@ def write_robot_bag(
     return stamps
 
 
-def _packed(compression: str, pieces: Iterator[bytes], size: int) -> bytes:
+def packed(compression: str, pieces: Iterator[bytes], size: int) -> bytes:
     """`pieces` compressed as one zstd or lz4 frame (or kept), a piece at a time: a GiB of zeros never sits in memory."""
     if compression == "zstd":
         packer = zstandard.ZstdCompressor().compressobj(size=size)
@@ -168,7 +168,7 @@ def write_bomb_bag(
     log_time = triples[0][2].log_time
     bomb = Chunk(
         compression=compression,
-        data=_packed(compression, _zero_message(target_channel.id, log_time, inflated), inflated),
+        data=packed(compression, _zero_message(target_channel.id, log_time, inflated), inflated),
         message_start_time=log_time,
         message_end_time=log_time,
         uncompressed_crc=0,
@@ -191,7 +191,7 @@ def write_bomb_bag(
             records = content.end()
             chunk = Chunk(
                 compression=compression,
-                data=_packed(compression, iter([records]), len(records)),
+                data=packed(compression, iter([records]), len(records)),
                 message_start_time=message.log_time,
                 message_end_time=message.log_time,
                 uncompressed_crc=zlib.crc32(records),

@@ -37,7 +37,9 @@ BASE_SECONDS = 60.0
 SECONDS_PER_BYTE = 1 / 10e6  # 10 MB/s: far below Rerun's decoding speed, so a slow machine is not mistaken for a loop
 ANSI = re.compile(r"\x1b\[[0-9;]*m")
 READ_ERROR = re.compile(r"\bERROR\b.*\b(re_mcap|mcap)\b", re.IGNORECASE)
-OUT_OF_MEMORY = re.compile(r"MemoryError|memory allocation of|unable to allocate|out of memory|bad_alloc|Cannot allocate", re.IGNORECASE)
+OUT_OF_MEMORY = re.compile(
+    r"MemoryError|memory allocation of|unable to allocate|out of memory|bad_alloc|cannot allocate|failed to map segment", re.IGNORECASE
+)
 MEMORY_ENV = "URDF_PIPELINE_MCAP_MEMORY_MB"  # the runner may change the child's bounds for a huge bag; a config cannot
 TIMEOUT_ENV = "URDF_PIPELINE_MCAP_TIMEOUT"
 DEFAULT_MEMORY_MB = 1024  # address space, as xacro's: Rerun's reader needs about 600 MB of it with CHILD_ENVIRONMENT
@@ -150,7 +152,7 @@ def in_child(
         )
     if timed_out or child.returncode in (-signal.SIGXCPU, -signal.SIGKILL):
         raise UserError(
-            f"{reading} did not finish within {budget:.0f} s and was stopped; the file is probably corrupt (the person running the "
+            f"{reading} did not finish within {budget:g} s and was stopped; the file is probably corrupt (the person running the "
             f"tool can raise the bound with {TIMEOUT_ENV})",
             where,
         )
