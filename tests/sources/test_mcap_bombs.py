@@ -12,7 +12,6 @@ leaves no child behind. No timed assertion: each bomb is refused before anything
 from __future__ import annotations
 
 import io
-import os
 import signal
 import subprocess
 import sys
@@ -29,7 +28,9 @@ from urdf_pipeline.sources import mcap_chunks  # noqa: E402
 from urdf_pipeline.sources.mcap_chunks import McapRefused  # noqa: E402
 
 from ..bag_inputs import packed, write_bomb_bag, write_robot_bag  # noqa: E402
+from ..conftest import S3  # noqa: E402
 from ..edge_helpers import RIG_URDF, write_config  # noqa: E402
+from .conftest import cached_files  # noqa: E402
 
 GIB = 1 << 30
 MOUNT = ("cam", "camera_optical", (0.01, -0.02, 0.05), (-0.5, 0.5, -0.5, 0.5))
@@ -44,8 +45,11 @@ def good_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return path
 
 
-def _config(directory: Path, bag: str, names: bool = False, urdf: bool = False, tf_static: bool = False, tf: bool = False) -> Path:
-    source: dict[str, Any] = {"mcap": f"data/{bag}", "topic": "/joint_states", **({"names": ["shoulder"]} if names else {})}
+def _config(
+    directory: Path, bag: str, names: bool = False, urdf: bool = False, tf_static: bool = False, tf: bool = False, url: str = ""
+) -> Path:
+    """A config reading `data/BAG` (or `url`) for its joint source, and for its robot, /tf_static and /tf edges when asked."""
+    source: dict[str, Any] = {"mcap": url or f"data/{bag}", "topic": "/joint_states", **({"names": ["shoulder"]} if names else {})}
     edges = [{"parent": "cam", "child": "camera_optical", "tf_static": f"data/{bag}"}] if tf_static else []
     edges += [{"parent": "odom", "child": "base", "tf": "js"}] if tf else []
     (directory / "rig.urdf").write_text(RIG_URDF, encoding="utf-8")
@@ -231,11 +235,33 @@ def test_the_reader_child_ends_with_the_command(good_bag: Path, tmp_path: Path, 
     assert b"Traceback" not in err
 
 
-def test_a_bomb_in_a_chunk_read_by_ranged_reads_is_refused(good_bag: Path, tmp_path: Path) -> None:
-    """The reader of a remote file's summary and first message (mcap_remote), on a bomb: refused, never inflated."""
+@pytest.mark.parametrize(
+    "options, why",
+    [
+        ({"stated": 64}, STATES_LESS),  # the first message's chunk, read for its names
+        ({}, TOO_BIG),
+        ({"in_summary": True}, "a chunk in the summary section, where none belongs"),  # the summary, read by ranged GETs
+    ],
+)
+def test_a_bomb_on_s3_is_refused_from_its_ranged_reads(
+    good_bag: Path, tmp_path: Path, s3: S3, cache: Path, run_cli, options: dict[str, Any], why: str
+) -> None:
+    bag = _bomb(good_bag, tmp_path, "/joint_states", "lz4" if options.get("stated") else "zstd", **options)
+    s3.client().upload_file(str(bag), s3.bucket, "bombs/bomb.mcap")
+    url = s3.url("bombs/bomb.mcap")
+    result = run_cli("validate", str(_config(tmp_path, "bomb.mcap", url=url)))
+    errors = [line for line in result.err.splitlines() if line.startswith("error: ")]
+    assert result.code == 1 and len(errors) == 1, result.err
+    assert f"MCAP file {url}, byte " in errors[0] and why in errors[0], errors[0]
+    assert cached_files(cache) == []
+
+
+def test_late_log_times_are_counted_from_bounded_chunks(good_bag: Path, tmp_path: Path) -> None:
+    """The late-message count behind a log time beyond 2262 (local and remote files) reads chunks through the same bound."""
     from urdf_pipeline.sources.mcap_remote import late_messages
 
     bag = _bomb(good_bag, tmp_path, "/joint_states", "zstd", stated=64)
     with pytest.raises(McapRefused, match="inflates to more bytes"), io.BytesIO(bag.read_bytes()) as stream:
         late_messages(stream, "/joint_states", 0)
-    assert os.path.getsize(bag) < 1 << 20
+    with good_bag.open("rb") as stream:
+        assert late_messages(stream, "/joint_states", 0) == ROWS
