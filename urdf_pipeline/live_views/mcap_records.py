@@ -3,8 +3,8 @@ are not all there yet waits for the next piece. The framing (the magic, then rec
 little-endian length) is read here; each record's content is parsed by the `mcap` library's record classes, a chunk's
 records by the sources' `chunk_records`, which every MCAP chunk the tool reads goes through.
 
-Everything is bounded before it is allocated: a record longer than MAX_RECORD_BYTES is refused from its length, before
-its bytes are kept, and a chunk is inflated only within MAX_CHUNK_BYTES (a quarter of what a finished file's chunk may
+Everything is bounded before it is allocated: a record longer than FOLLOWED_RECORD_BYTES is refused from its length, before
+its bytes are kept, and a chunk is inflated only within FOLLOWED_CHUNK_BYTES (a quarter of what a finished file's chunk may
 hold: every message of a chunk is decoded in one step, at about twelve bytes of memory per byte of small JointStates,
 so 16 MiB keeps `live` within 400 MB) and its stated size, checked on the bytes it produces (a zstd frame header or an lz4 stream that says more is no reason to allocate
 more; a chunk stating less than it holds is refused after one byte more), so a damaged or hostile file costs a located
@@ -18,15 +18,13 @@ from io import BytesIO
 from typing import TYPE_CHECKING
 
 from ..errors import UserError, Where, shown
-from ..sources import McapRefused, chunk_records, parsed_chunk, refusal
+from ..sources import HEAD, MAGIC, McapRefused, chunk_records, parsed_chunk, refusal, short_reason
 
 if TYPE_CHECKING:
     from mcap.records import McapRecord
 
-MAGIC = b"\x89MCAP0\r\n"
-HEAD = struct.Struct("<BQ")  # a record's opcode and content length
-MAX_CHUNK_BYTES = 16 << 20  # recorders write chunks of 768 KiB (ros2 bag) to 4 MiB, bigger only around one big message
-MAX_RECORD_BYTES = MAX_CHUNK_BYTES + (1 << 20)  # a chunk's compressed bytes are a little over its size, at worst
+FOLLOWED_CHUNK_BYTES = 16 << 20  # recorders write chunks of 768 KiB (ros2 bag) to 4 MiB, bigger only around one big message
+FOLLOWED_RECORD_BYTES = FOLLOWED_CHUNK_BYTES + (1 << 20)  # a chunk's compressed bytes are a little over its size, at worst
 
 
 class RecordSplitter:
@@ -51,9 +49,10 @@ class RecordSplitter:
         while not self.footer and len(pending) - position >= HEAD.size:
             opcode, length = HEAD.unpack_from(pending, position)
             at = self.offset + position
-            if length > MAX_RECORD_BYTES:
+            if length > FOLLOWED_RECORD_BYTES:
                 raise self.refused(
-                    at, f"a record (opcode {opcode:#04x}) of {length:,} bytes, beyond {MAX_RECORD_BYTES >> 20} MiB: the file is damaged"
+                    at,
+                    f"a record (opcode {opcode:#04x}) of {length:,} bytes, beyond {FOLLOWED_RECORD_BYTES >> 20} MiB: the file is damaged",
                 )
             end = position + HEAD.size + length
             if end > len(pending):
@@ -90,7 +89,7 @@ class RecordSplitter:
         stream = ReadDataStream(BytesIO(content))
         try:
             if opcode == Opcode.CHUNK:
-                return chunk_records(parsed_chunk(content, at), at, MAX_CHUNK_BYTES)
+                return chunk_records(parsed_chunk(content, at), at, FOLLOWED_CHUNK_BYTES)
             if opcode == Opcode.MESSAGE:
                 return [Message.read(stream, len(content))]
             if opcode == Opcode.FOOTER:
@@ -108,9 +107,4 @@ class RecordSplitter:
                 at, f"a record (opcode {opcode:#04x}) whose content ends before its fields do: the file is damaged"
             ) from None
         except Exception as exc:  # noqa: BLE001 - the mcap library's and the decompressors' assorted errors on damage
-            raise self.refused(at, f"a damaged record (opcode {opcode:#04x}): {shown(_reason(exc))}") from None
-
-
-def _reason(exc: BaseException) -> str:
-    text = str(exc).strip().splitlines()
-    return text[0] if text else type(exc).__name__
+            raise self.refused(at, f"a damaged record (opcode {opcode:#04x}): {short_reason(exc)}") from None

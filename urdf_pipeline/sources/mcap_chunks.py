@@ -81,7 +81,7 @@ def chunk_content(chunk: Chunk, at: int, limit: int = MAX_CHUNK_BYTES) -> bytes:
     try:
         data = inflate(chunk.compression, chunk.data, stated)
     except Exception as exc:  # noqa: BLE001 - zstandard's and lz4's errors on bytes that are no frame
-        raise McapRefused(at, f"a {chunk.compression} chunk that does not inflate ({_reason(exc)}): the file is damaged") from None
+        raise McapRefused(at, f"a {chunk.compression} chunk that does not inflate ({short_reason(exc)}): the file is damaged") from None
     if len(data) != stated:
         produced = "more" if len(data) > stated else f"{len(data):,}"
         raise McapRefused(at, f"a chunk stating {stated:,} bytes uncompressed inflates to {produced} bytes: the file is damaged")
@@ -98,7 +98,7 @@ def chunk_records(chunk: Chunk, at: int, limit: int = MAX_CHUNK_BYTES) -> list[M
     try:
         return breakup_chunk(replace(chunk, compression="", data=content, uncompressed_crc=0))
     except Exception as exc:  # noqa: BLE001 - the mcap library's errors on records that end before their fields
-        raise McapRefused(at, f"a chunk whose records are damaged ({_reason(exc)})") from None
+        raise McapRefused(at, f"a chunk whose records are damaged ({short_reason(exc)})") from None
 
 
 def read_record(stream: IO[bytes], at: int, opcodes: tuple[int, ...] = ()) -> tuple[int, bytes]:
@@ -128,7 +128,9 @@ def parsed_chunk(content: bytes | memoryview, at: int) -> Chunk:
     try:
         return Chunk.read(ReadDataStream(io.BytesIO(content)))
     except Exception as exc:  # noqa: BLE001 - a field read past the record's end
-        raise McapRefused(at, f"a chunk record whose content ends before its fields do ({_reason(exc)}): the file is damaged") from None
+        raise McapRefused(
+            at, f"a chunk record whose content ends before its fields do ({short_reason(exc)}): the file is damaged"
+        ) from None
 
 
 def read_chunk_at(stream: IO[bytes], at: int) -> Chunk:
@@ -179,7 +181,7 @@ def read_summary(stream: IO[bytes]) -> Summary | None:
                 record = read(ReadDataStream(io.BytesIO(content)))
             except Exception as exc:  # noqa: BLE001 - a field read past the record's end
                 raise McapRefused(
-                    at, f"a summary record (opcode {opcode:#04x}) whose content ends before its fields do ({_reason(exc)})"
+                    at, f"a summary record (opcode {opcode:#04x}) whose content ends before its fields do ({short_reason(exc)})"
                 ) from None
             _keep(summary, record)
         at += HEAD.size + len(content)
@@ -256,6 +258,7 @@ def require_library(where: Where | None) -> None:
         ) from None
 
 
-def _reason(exc: BaseException) -> str:
+def short_reason(exc: BaseException) -> str:
+    """The first line of a library's error, as a message shows it (escaped, bounded)."""
     text = str(exc).strip().splitlines()
     return shown(text[0]) if text else type(exc).__name__

@@ -16,7 +16,7 @@ from typing import IO, Any
 
 from ..errors import UserError, Where
 from ..plan import RemoteObject
-from .mcap_chunks import McapRefused, chunk_records, read_chunk_at, read_summary, refusal
+from .mcap_chunks import McapRefused, chunk_records, read_chunk_at, read_summary, refusal, require_library, short_reason
 from .mcap_probe import topic_entity
 
 METADATA_BYTES = 64 << 20  # the summary and the first message's chunk, at most (a chunk is a few MB by default)
@@ -78,7 +78,7 @@ class RemoteMcap:
         except UserError:
             raise
         except Exception as exc:  # noqa: BLE001 - the mcap library's errors on a file that is no MCAP, or a damaged one
-            raise UserError(f"cannot read MCAP file {remote.url}: {_reason(exc)}", where) from None
+            raise UserError(f"cannot read MCAP file {remote.url}: {short_reason(exc)}", where) from None
         if self.summary is None:
             raise UserError(
                 f"MCAP file {remote.url} has no summary section (the index at its end, which a finished recording has): it cannot be "
@@ -128,7 +128,9 @@ class RemoteMcap:
         except UserError:
             raise
         except Exception as exc:  # noqa: BLE001 - a chunk that does not decompress, a message that is no JointState
-            raise UserError(f"MCAP file {self.remote.url} is corrupt: {_reason(exc)} (reading topic '{topics[0]}')", self.where) from None
+            raise UserError(
+                f"MCAP file {self.remote.url} is corrupt: {short_reason(exc)} (reading topic '{topics[0]}')", self.where
+            ) from None
 
     def _first_message(self, topics: list[str]) -> bytes | None:
         from mcap.records import Message
@@ -154,19 +156,11 @@ class RemoteMcap:
 @contextmanager
 def remote_mcap(remote: RemoteObject, where: Where | None) -> Iterator[RemoteMcap]:
     """The file's metadata through ranged GETs (at most METADATA_BYTES in all)."""
-    try:
-        import mcap.reader  # noqa: F401 - the library this needs, said before any request
-    except ImportError:
-        raise UserError("s3:// MCAP files are read with the mcap library: pip install 'urdf-pipeline[s3]'", where) from None
+    require_library(where)  # said before any request
     from ..remote import open_range
 
     with open_range(remote, where, block=METADATA_BLOCK, max_bytes=METADATA_BYTES) as stream:
         yield RemoteMcap(remote, stream, where)
-
-
-def _reason(exc: BaseException) -> str:
-    text = str(exc).strip().splitlines()
-    return text[0] if text else type(exc).__name__
 
 
 def joint_state_names(data: bytes | memoryview) -> tuple[str, ...]:
