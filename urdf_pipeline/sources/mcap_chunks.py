@@ -19,7 +19,7 @@ import zlib
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
-from typing import IO, TYPE_CHECKING
+from typing import IO, TYPE_CHECKING, cast
 
 from ..errors import UserError, Where, quoted, shown
 
@@ -34,7 +34,6 @@ HEAD = struct.Struct("<BQ")  # a record's opcode and content length
 CHUNK, FOOTER = 0x06, 0x02
 FOOTER_BYTES = HEAD.size + 20  # the footer record: summary start, summary offset start, summary CRC
 COMPRESSIONS = ("", "zstd", "lz4")
-READ_PIECE = 4 << 20  # bytes a zstd reader produces per call
 INSTALL = "pip install mcap"
 
 
@@ -47,27 +46,30 @@ class McapRefused(ValueError):
         self.at, self.why = at, why
 
 
-def inflate(compression: str, data: bytes | memoryview, limit: int) -> bytes:
+def inflate(compression: str, data: bytes | memoryview, limit: int) -> bytes | bytearray:
     """`data` inflated, at most `limit` + 1 bytes of it (so a longer one is seen, never allocated)."""
     if compression == "zstd":
         import zstandard
 
-        decompressor = zstandard.ZstdDecompressor(max_window_size=MAX_CHUNK_BYTES)
-        with decompressor.stream_reader(data, read_across_frames=True) as reader:
-            pieces, size = [], 0
-            while size <= limit and (piece := reader.read(min(limit + 1 - size, READ_PIECE))):
-                pieces.append(piece)
-                size += len(piece)
-            return b"".join(pieces)
+        inflated = bytearray(limit + 1)  # zstd's own one-shot call would allocate what the frame header says
+        size = 0
+        with (
+            memoryview(inflated) as view,
+            zstandard.ZstdDecompressor(max_window_size=MAX_CHUNK_BYTES).stream_reader(data, read_across_frames=True) as reader,
+        ):
+            while size <= limit and (count := reader.readinto(view[size:])):
+                size += count
+        del inflated[size:]
+        return inflated
     if compression == "lz4":
         import lz4.frame  # type: ignore[import-untyped]  # no stubs; the mcap library depends on it
 
-        inflated: bytes = lz4.frame.LZ4FrameDecompressor().decompress(data, max_length=limit + 1)
-        return inflated
+        framed: bytes = lz4.frame.LZ4FrameDecompressor().decompress(data, max_length=limit + 1)
+        return framed
     return bytes(data[: limit + 1])
 
 
-def chunk_content(chunk: Chunk, at: int, limit: int = MAX_CHUNK_BYTES) -> bytes:
+def chunk_content(chunk: Chunk, at: int, limit: int = MAX_CHUNK_BYTES) -> bytes | bytearray:
     """The records of the chunk whose record starts at byte `at`: inflated within `limit` and its stated size, which
     it must fill exactly; its CRC checked when it states one."""
     if chunk.compression not in COMPRESSIONS:
@@ -96,7 +98,8 @@ def chunk_records(chunk: Chunk, at: int, limit: int = MAX_CHUNK_BYTES) -> list[M
 
     content = chunk_content(chunk, at, limit)
     try:
-        return breakup_chunk(replace(chunk, compression="", data=content, uncompressed_crc=0))
+        records = cast(bytes, content)  # a bytearray reads as bytes do here (BytesIO), without a copy
+        return breakup_chunk(replace(chunk, compression="", data=records, uncompressed_crc=0))
     except Exception as exc:  # noqa: BLE001 - the mcap library's errors on records that end before their fields
         raise McapRefused(at, f"a chunk whose records are damaged ({short_reason(exc)})") from None
 
