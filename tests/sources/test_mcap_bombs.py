@@ -265,3 +265,11 @@ def test_late_log_times_are_counted_from_bounded_chunks(good_bag: Path, tmp_path
         late_messages(stream, "/joint_states", 0)
     with good_bag.open("rb") as stream:
         assert late_messages(stream, "/joint_states", 0) == ROWS
+
+
+def test_a_robot_description_longer_than_a_pipe_holds_is_read(tmp_path: Path, run_cli) -> None:
+    """The child's answer (a 300 KB description) is read while the child writes it: a pipe holds 64 KiB."""
+    urdf = RIG_URDF.replace("</robot>", "<!--" + "x" * 300_000 + "--></robot>")
+    write_robot_bag(tmp_path / "data" / "long.mcap", [urdf], [], ["shoulder"], np.zeros((3, 1)))
+    result = run_cli("validate", str(_config(tmp_path, "long.mcap", urdf=True)))
+    assert result.code == 0, result.err

@@ -24,7 +24,7 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING, Any
 
 from ..child_process import bound_from_environment, die_with_parent, limit_this_process
 from ..errors import UserError, Where, shown
@@ -99,6 +99,15 @@ def _watch(stream: object, errors: list[str], others: list[str], failed: threadi
             others.append(line)
 
 
+def _drain(stream: IO[bytes] | None, answer: list[bytes]) -> None:
+    """Keep what the child prints, up to OUTPUT_BYTES (then read on, keeping nothing, so the child is never blocked)."""
+    kept = 0
+    for piece in iter(lambda: stream.read(1 << 16) if stream else b"", b""):
+        if kept + len(piece) <= OUTPUT_BYTES:
+            answer.append(piece)
+            kept += len(piece)
+
+
 def probe(path: Path, topic: str, first_only: bool, where: Where | None, shown_as: str | None = None) -> tuple[str, ...] | None:
     """Read `topic` in a child: the first message's names (`first_only`), else None once every message decoded.
     `shown_as` names the file in messages (a remote file's URL; its path by default)."""
@@ -130,6 +139,9 @@ def in_child(
     failed = threading.Event()
     watcher = threading.Thread(target=_watch, args=(child.stderr, errors, others, failed), daemon=True)
     watcher.start()
+    answer: list[bytes] = []  # drained while the child runs: an answer over a pipe's 64 KiB would block it forever
+    drainer = threading.Thread(target=_drain, args=(child.stdout, answer), daemon=True)
+    drainer.start()
     deadline = time.monotonic() + budget
     timed_out = False
     try:
@@ -142,9 +154,10 @@ def in_child(
             child.kill()
         child.wait()
         watcher.join(timeout=5)
-    output = child.stdout.read(OUTPUT_BYTES).decode("utf-8", errors="replace") if child.stdout else ""
-    if child.stdout:
-        child.stdout.close()
+        drainer.join(timeout=5)
+        if child.stdout:
+            child.stdout.close()
+    output = b"".join(answer).decode("utf-8", errors="replace")
     reading = f"reading topic '{shown(topic)}' of MCAP file {shown(name)}"
     if errors:
         raise UserError(
@@ -152,7 +165,7 @@ def in_child(
         )
     if timed_out or child.returncode in (-signal.SIGXCPU, -signal.SIGKILL):
         raise UserError(
-            f"{reading} did not finish within {budget:g} s and was stopped; the file is probably corrupt (the person running the "
+            f"{reading} did not finish within {budget:.4g} s and was stopped; the file is probably corrupt (the person running the "
             f"tool can raise the bound with {TIMEOUT_ENV})",
             where,
         )
@@ -167,7 +180,12 @@ def in_child(
     if child.returncode != 0:
         reason = others[-1] if others else f"exit status {child.returncode}"
         raise UserError(f"cannot read MCAP file {shown(name)} (topic '{shown(topic)}'): {shown(reason)}", where)
-    result: dict[str, Any] = json.loads(output.strip().splitlines()[-1]) if output.strip() else {}
+    try:
+        result = json.loads(output.strip().splitlines()[-1]) if output.strip() else {}
+    except ValueError:
+        result = None
+    if not isinstance(result, dict):  # an answer cut at OUTPUT_BYTES, or no answer at all
+        raise UserError(f"cannot read MCAP file {shown(name)} (topic '{shown(topic)}'): its reader gave no readable answer", where)
     return result
 
 
