@@ -273,3 +273,15 @@ def test_a_robot_description_longer_than_a_pipe_holds_is_read(tmp_path: Path, ru
     write_robot_bag(tmp_path / "data" / "long.mcap", [urdf], [], ["shoulder"], np.zeros((3, 1)))
     result = run_cli("validate", str(_config(tmp_path, "long.mcap", urdf=True)))
     assert result.code == 0, result.err
+
+
+@pytest.mark.parametrize("compression", ["zstd", "lz4", ""])
+def test_a_chunk_stating_more_than_it_holds_is_refused_without_allocating_it(good_bag: Path, tmp_path: Path, compression: str) -> None:
+    """Stating 32 MiB (within the bound) and holding 4 KiB: refused from the bytes it produced, at the chunk's offset."""
+    bag = _bomb(good_bag, tmp_path, "/joint_states", compression, inflated=4096, stated=32 << 20)
+    with pytest.raises(McapRefused) as refused:
+        mcap_chunks.check_chunks(bag)
+    assert "a chunk stating 33,554,432 bytes uncompressed inflates to 4,096 bytes" in refused.value.why
+    with bag.open("rb") as stream:
+        summary = mcap_chunks.read_summary(stream)
+    assert summary is not None and refused.value.at in {index.chunk_start_offset for index in summary.chunk_indexes}
