@@ -152,11 +152,13 @@ def write_bomb_bag(
     stated: int | None = None,
     before: int = 0,
     in_summary: bool = False,
+    count: int = 1,
 ) -> None:
     """`source`'s messages again (read with the mcap library, written with its record writer, one chunk per message,
     `compression`, a full summary), with one more chunk on `topic`: a message of zeros that inflates to `inflated`
     bytes, stating `stated` (its true size by default: lying low or high otherwise), before the topic's message number
-    `before` (after them all when there are fewer), or, `in_summary`, in the summary section where no chunk belongs."""
+    `before` (after them all when there are fewer), or, `in_summary`, in the summary section where no chunk belongs;
+    `count` such chunks in a row."""
     with source.open("rb") as stream:
         triples = list(make_reader(stream).iter_messages(log_time_order=False))
     schemas = {schema.id: schema for schema, _, _ in triples if schema is not None}
@@ -164,7 +166,8 @@ def write_bomb_bag(
     target_channel = next(channel for channel in channels.values() if channel.topic == topic)
     messages: list[Message | None] = [message for _, _, message in triples]
     on_topic = [row for row, message in enumerate(messages) if message is not None and message.channel_id == target_channel.id]
-    messages.insert(on_topic[before] if before < len(on_topic) else len(messages), None)  # None: the bomb
+    at = on_topic[before] if before < len(on_topic) else len(messages)
+    messages[at:at] = [None] * count  # None: a bomb
     log_time = triples[0][2].log_time
     bomb = Chunk(
         compression=compression,

@@ -452,3 +452,32 @@ def test_live_from_a_bomb_is_one_error_line_and_saves_nothing(rig_bag: Path, tmp
     assert len(errors) == 1 and f"MCAP file {bag}, byte " in errors[0] and "beyond the 16 MiB a chunk may hold" in errors[0], result.err
     assert "Traceback" not in result.err
     assert {p.name for p in tmp_path.iterdir()} == {"bomb.mcap", "rig.urdf", "live.yaml"}
+
+
+def test_a_followed_file_inflates_in_proportion_to_its_bytes(rig_bag: Path, tmp_path: Path) -> None:
+    """Chunks of 1 KB that each inflate to 16 MiB of zeros, within the bound one by one: refused once the reading has
+    inflated 256 MiB plus 1000 times the compressed bytes read."""
+    path = tmp_path / "run.mcap"
+    write_bomb_bag(rig_bag, path, "/joint_states", "zstd", 16 << 20, count=40, before=12)
+    with pytest.raises(UserError) as raised:
+        follow(McapFollowFeed(path, {"/joint_states": None}))
+    assert raised.value.message.startswith(f"MCAP file {path}, byte ")
+    assert "more than 1000 times their size beyond the first 256 MiB: a decompression bomb" in raised.value.message
+
+
+def test_one_step_gives_one_big_chunk_at_most(rig_bag: Path, tmp_path: Path) -> None:
+    """Three chunks of 16 MiB each, fed at once: one step gives the first's messages and says a backlog waits; the
+    next steps (no new bytes) give the others, each once, in order."""
+    from mcap.records import Message
+
+    path = tmp_path / "run.mcap"
+    write_bomb_bag(rig_bag, path, "/joint_states", "zstd", 16 << 20, count=3, before=12)
+    splitter = RecordSplitter("run.mcap", None)
+    big: list[int] = []
+    records = splitter.feed(path.read_bytes())
+    while True:
+        big.append(sum(1 for _, record in records if isinstance(record, Message) and len(record.data) > 1 << 20))
+        if not splitter.backlog:
+            break
+        records = splitter.feed(b"")
+    assert big[:3] == [1, 1, 1] and sum(big) == 3 and splitter.footer

@@ -285,3 +285,14 @@ def test_a_chunk_stating_more_than_it_holds_is_refused_without_allocating_it(goo
     with bag.open("rb") as stream:
         summary = mcap_chunks.read_summary(stream)
     assert summary is not None and refused.value.at in {index.chunk_start_offset for index in summary.chunk_indexes}
+
+
+def test_many_chunks_of_zeros_each_within_the_bound_are_refused_in_proportion_to_the_file(good_bag: Path, tmp_path: Path, run_cli) -> None:
+    """200 chunks of 2 KB, each honestly 64 MiB of zeros (12.5 GiB from a 450 KB file): refused once the file has
+    inflated 256 MiB plus 1000 times the compressed bytes read, at the fifth."""
+    bag = _bomb(good_bag, tmp_path, "/joint_states", "zstd", inflated=64 << 20, count=200, before=ROWS)
+    config = _config(tmp_path, "bomb.mcap", names=True)
+    assert run_cli("validate", str(config)).code == 0  # the summary only
+    result = run_cli("run", str(config))
+    _one_refusal(result, bag, "more than 1000 times their size beyond the first 256 MiB: a decompression bomb")
+    assert not (tmp_path / "out").exists()

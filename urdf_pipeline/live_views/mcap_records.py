@@ -18,7 +18,7 @@ from io import BytesIO
 from typing import TYPE_CHECKING
 
 from ..errors import UserError, Where, shown
-from ..sources import HEAD, MAGIC, McapRefused, chunk_records, parsed_chunk, refusal, short_reason
+from ..sources import HEAD, MAGIC, InflationBudget, McapRefused, chunk_records, parsed_chunk, refusal, short_reason
 
 if TYPE_CHECKING:
     from mcap.records import McapRecord
@@ -37,16 +37,24 @@ class RecordSplitter:
         self.pending = bytearray()  # bytes read but not yet part of a complete record
         self.offset = 0  # the file offset of pending[0]
         self.footer = False
+        self.budget = InflationBudget()  # what this reading of the file may inflate in all
+        self.backlog = False  # whole records wait in `pending`: feed again before reading more
 
     def feed(self, data: bytes) -> list[tuple[int, McapRecord]]:
+        """The records `data` completes, from the first not yet given; at most FOLLOWED_CHUNK_BYTES of them inflated
+        (then `backlog` says more are waiting), so one step never holds more than one big chunk's messages."""
+        self.backlog = False
         if self.footer:
             return []
         self.pending += data
         if self.offset == 0 and not self._past_magic():
             return []
         records: list[tuple[int, McapRecord]] = []
-        position, pending = 0, self.pending
+        position, pending, inflated = 0, self.pending, self.budget.inflated
         while not self.footer and len(pending) - position >= HEAD.size:
+            if self.budget.inflated - inflated >= FOLLOWED_CHUNK_BYTES:
+                self.backlog = True
+                break
             opcode, length = HEAD.unpack_from(pending, position)
             at = self.offset + position
             if length > FOLLOWED_RECORD_BYTES:
@@ -89,7 +97,7 @@ class RecordSplitter:
         stream = ReadDataStream(BytesIO(content))
         try:
             if opcode == Opcode.CHUNK:
-                return chunk_records(parsed_chunk(content, at), at, FOLLOWED_CHUNK_BYTES)
+                return chunk_records(parsed_chunk(content, at), at, self.budget, FOLLOWED_CHUNK_BYTES)
             if opcode == Opcode.MESSAGE:
                 return [Message.read(stream, len(content))]
             if opcode == Opcode.FOOTER:

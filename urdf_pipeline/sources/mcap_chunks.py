@@ -2,7 +2,9 @@
 index or its zstd or lz4 frame states: a few KB of either can state anything, and be gigabytes of zeros.
 
 A chunk is inflated to at most min(its stated size, MAX_CHUNK_BYTES) + 1 bytes and refused unless it produced exactly
-its stated size (and its CRC, when it states one, matches). The `mcap` library's readers (`make_reader`,
+its stated size (and its CRC, when it states one, matches). And one reading of a file inflates at most FREE_BYTES plus
+RATIO times the compressed bytes of the chunks it read (`InflationBudget`): a real bag inflates 3 to 150 times, a few
+KB of zstd can be 64 MiB of zeros chunk after chunk, and the time a file costs stays in proportion to its bytes. The `mcap` library's readers (`make_reader`,
 `iter_messages`, `get_summary`, `StreamReader`) inflate a chunk whole, as big as it says; Rerun's reader inflates every
 chunk of a file whatever topic it is asked for, and even one its summary section holds. So neither ever gets a chunk
 this module has not inflated first: the summary is read here (`read_summary`: a chunk in it is refused), a chunk's
@@ -29,6 +31,8 @@ if TYPE_CHECKING:
 
 MAX_CHUNK_BYTES = 64 << 20  # writers' chunks are 1-4 MiB (ros2 bag: 768 KiB), bigger only around one big message
 MAX_RECORD_BYTES = MAX_CHUNK_BYTES + (1 << 20)  # a chunk's record: its compressed bytes (a little over its size, at worst)
+RATIO = 1000  # a bag of a 30-joint robot at rest, its values all zero, sent at 1 kHz: 135
+FREE_BYTES = 256 << 20  # inflated before RATIO applies
 MAGIC = b"\x89MCAP0\r\n"
 HEAD = struct.Struct("<BQ")  # a record's opcode and content length
 CHUNK, FOOTER = 0x06, 0x02
@@ -69,9 +73,28 @@ def inflate(compression: str, data: bytes | memoryview, limit: int) -> bytes | b
     return bytes(data[: limit + 1])
 
 
-def chunk_content(chunk: Chunk, at: int, limit: int = MAX_CHUNK_BYTES) -> bytes | bytearray:
-    """The records of the chunk whose record starts at byte `at`: inflated within `limit` and its stated size, which
-    it must fill exactly; its CRC checked when it states one."""
+class InflationBudget:
+    """What one reading of a file may inflate in all: FREE_BYTES, plus RATIO times the compressed chunk bytes it read.
+    Counted on the sizes chunks state, before each is inflated: each must then produce exactly that."""
+
+    def __init__(self) -> None:
+        self.compressed = 0
+        self.inflated = 0
+
+    def take(self, chunk: Chunk, at: int) -> None:
+        self.compressed += len(chunk.data)
+        self.inflated += chunk.uncompressed_size
+        if self.inflated > FREE_BYTES + RATIO * self.compressed:
+            raise McapRefused(
+                at,
+                f"chunks that inflate to {self.inflated:,} bytes from {self.compressed:,}, more than {RATIO} times their size beyond "
+                f"the first {FREE_BYTES >> 20} MiB: a decompression bomb",
+            )
+
+
+def chunk_content(chunk: Chunk, at: int, budget: InflationBudget, limit: int = MAX_CHUNK_BYTES) -> bytes | bytearray:
+    """The records of the chunk whose record starts at byte `at`: inflated within `limit`, its stated size, which it
+    must fill exactly, and what is left of the reading's `budget`; its CRC checked when it states one."""
     if chunk.compression not in COMPRESSIONS:
         raise McapRefused(at, f"a chunk compressed with {quoted(chunk.compression)}; MCAP chunks are zstd, lz4 or uncompressed")
     stated = chunk.uncompressed_size
@@ -80,6 +103,7 @@ def chunk_content(chunk: Chunk, at: int, limit: int = MAX_CHUNK_BYTES) -> bytes 
             at,
             f"a chunk stating {stated:,} bytes uncompressed, beyond the {limit >> 20} MiB a chunk may hold: a damaged file, or a decompression bomb",
         )
+    budget.take(chunk, at)
     try:
         data = inflate(chunk.compression, chunk.data, stated)
     except Exception as exc:  # noqa: BLE001 - zstandard's and lz4's errors on bytes that are no frame
@@ -92,11 +116,11 @@ def chunk_content(chunk: Chunk, at: int, limit: int = MAX_CHUNK_BYTES) -> bytes 
     return data
 
 
-def chunk_records(chunk: Chunk, at: int, limit: int = MAX_CHUNK_BYTES) -> list[McapRecord]:
-    """The Schema, Channel and Message records of the chunk at byte `at`, inflated by `chunk_content` within `limit`."""
+def chunk_records(chunk: Chunk, at: int, budget: InflationBudget, limit: int = MAX_CHUNK_BYTES) -> list[McapRecord]:
+    """The Schema, Channel and Message records of the chunk at byte `at`, inflated by `chunk_content`."""
     from mcap.stream_reader import breakup_chunk
 
-    content = chunk_content(chunk, at, limit)
+    content = chunk_content(chunk, at, budget, limit)
     try:
         records = cast(bytes, content)  # a bytearray reads as bytes do here (BytesIO), without a copy
         return breakup_chunk(replace(chunk, compression="", data=records, uncompressed_crc=0))
@@ -222,6 +246,7 @@ def check_chunks(path: Path) -> None:
     with path.open("rb") as stream:
         summary = read_summary(stream)
         chunks: dict[int, tuple[str, int]] = {}
+        budget = InflationBudget()
         at = len(MAGIC)
         stream.seek(at)
         while (head := stream.read(HEAD.size)) and len(head) == HEAD.size:
@@ -230,7 +255,7 @@ def check_chunks(path: Path) -> None:
                 break
             if opcode == CHUNK:
                 chunk = parsed_chunk(read_record(stream, at)[1], at)
-                chunk_content(chunk, at)
+                chunk_content(chunk, at, budget)
                 chunks[at] = (chunk.compression, chunk.uncompressed_size)
             at += HEAD.size + length
             stream.seek(at)

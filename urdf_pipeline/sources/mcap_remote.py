@@ -16,7 +16,7 @@ from typing import IO, Any
 
 from ..errors import UserError, Where
 from ..plan import RemoteObject
-from .mcap_chunks import McapRefused, chunk_records, read_chunk_at, read_summary, refusal, require_library, short_reason
+from .mcap_chunks import InflationBudget, McapRefused, chunk_records, read_chunk_at, read_summary, refusal, require_library, short_reason
 from .mcap_probe import topic_entity
 
 METADATA_BYTES = 64 << 20  # the summary and the first message's chunk, at most (a chunk is a few MB by default)
@@ -55,11 +55,11 @@ def late_messages(stream: IO[bytes], topic: str, start: int) -> int:
     if summary is None or not summary.chunk_indexes:
         raise ValueError("no chunk index to find the late messages by")
     channels = {key for key, channel in summary.channels.items() if topic_entity(channel.topic) == topic_entity(topic)}
-    count = 0
+    count, budget = 0, InflationBudget()
     for index in summary.chunk_indexes:
         if index.message_end_time < start or (index.message_index_offsets and not channels & index.message_index_offsets.keys()):
             continue
-        records = chunk_records(read_chunk_at(stream, index.chunk_start_offset), index.chunk_start_offset)
+        records = chunk_records(read_chunk_at(stream, index.chunk_start_offset), index.chunk_start_offset, budget)
         count += sum(1 for record in records if isinstance(record, Message) and record.channel_id in channels and record.log_time >= start)
     return count
 
@@ -136,12 +136,13 @@ class RemoteMcap:
         from mcap.records import Message
 
         assert self.summary is not None
+        budget = InflationBudget()
         channels = {channel_id for channel_id, channel in self.summary.channels.items() if channel.topic in topics}
         for index in sorted(self.summary.chunk_indexes, key=lambda chunk: chunk.chunk_start_offset):  # one per chunk
             if index.message_index_offsets and not channels & index.message_index_offsets.keys():
                 continue  # its message index says it holds none of the topic's messages
             at = index.chunk_start_offset
-            for record in chunk_records(read_chunk_at(self.stream, at), at):
+            for record in chunk_records(read_chunk_at(self.stream, at), at, budget):
                 if isinstance(record, Message) and record.channel_id in channels:
                     return bytes(record.data)
         return None
