@@ -17,6 +17,7 @@ import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -26,6 +27,8 @@ from urdf_pipeline.live_views.joint_state import JointStateSample
 from urdf_pipeline.live_views.mcap_follow import McapFollowFeed
 from urdf_pipeline.live_views.mcap_records import MAGIC, RecordSplitter
 
+from ..bag_inputs import write_bomb_bag, write_robot_bag
+from ..edge_helpers import RIG_URDF, write_config
 from .follow_motion import TOPIC, header_ns, log_time_ns, names, position, publish_time_ns
 
 REPO = Path(__file__).resolve().parents[2]
@@ -231,7 +234,7 @@ def first_chunk(data: bytes) -> int:
 
 def _huge_record(data: bytes) -> tuple[bytes, int, str]:
     at = records(data)[1][0]  # after the header
-    return data[:at] + struct.pack("<BQ", 0x06, 1 << 40), at, "of 1099511627776 bytes, beyond 256 MiB"
+    return data[:at] + struct.pack("<BQ", 0x06, 1 << 40), at, "of 1,099,511,627,776 bytes, beyond 17 MiB"
 
 
 def _short_channel(data: bytes) -> tuple[bytes, int, str]:
@@ -242,20 +245,20 @@ def _short_channel(data: bytes) -> tuple[bytes, int, str]:
 def _garbled_zstd(data: bytes) -> tuple[bytes, int, str]:
     at = first_chunk(data)
     body = at + 9 + 8 + 8 + 8 + 4 + 4 + len(b"zstd") + 8  # the compressed bytes, after the chunk's fields
-    return data[:body] + bytes(b ^ 0x5A for b in data[body : body + 40]) + data[body + 40 :], at, "a damaged record (opcode 0x06): zstd"
+    return data[:body] + bytes(b ^ 0x5A for b in data[body : body + 40]) + data[body + 40 :], at, "a zstd chunk that does not inflate ("
 
 
 def _garbled_records(data: bytes) -> tuple[bytes, int, str]:
     """An uncompressed chunk's records changed: its CRC says so."""
     at = first_chunk(data)
     body = at + 9 + 8 + 8 + 8 + 4 + 4 + 8 + 40
-    return data[:body] + bytes(b ^ 0x5A for b in data[body : body + 8]) + data[body + 8 :], at, "crc validation failed in Chunk"
+    return data[:body] + bytes(b ^ 0x5A for b in data[body : body + 8]) + data[body + 8 :], at, "a chunk whose records do not match its CRC"
 
 
 def _chunk_too_large(data: bytes) -> tuple[bytes, int, str]:
     at = first_chunk(data)
     size = at + 9 + 16  # uncompressed_size, after the start and end times
-    return data[:size] + struct.pack("<Q", 1 << 50) + data[size + 8 :], at, "bytes uncompressed, beyond 256 MiB"
+    return data[:size] + struct.pack("<Q", 1 << 50) + data[size + 8 :], at, "bytes uncompressed, beyond the 16 MiB a chunk may hold"
 
 
 def _chunk_larger_than_stated(data: bytes) -> tuple[bytes, int, str]:
@@ -397,3 +400,84 @@ def test_close_while_waiting_for_the_file(tmp_path: Path) -> None:
             threading.Thread(target=feed.close).start()
 
     assert follow(feed, step) == []
+
+
+@pytest.fixture(scope="module")
+def rig_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("rig") / "good.mcap"
+    write_robot_bag(path, [RIG_URDF], [], ["shoulder"], np.linspace(0.0, 1.0, 12)[:, None])
+    return path
+
+
+@pytest.mark.parametrize(
+    "compression, options, why",
+    [
+        ("zstd", {}, "a chunk stating 1,073,741,824 bytes uncompressed, beyond the 16 MiB a chunk may hold"),
+        ("lz4", {"stated": 64}, "a chunk stating 64 bytes uncompressed inflates to more bytes"),
+        ("zstd", {"before": 6, "inflated": 17 << 20}, "a chunk stating 17,825,792 bytes uncompressed, beyond the 16 MiB"),
+        ("zstd", {"in_summary": True}, "a chunk stating 1,073,741,824 bytes uncompressed, beyond the 16 MiB"),
+    ],
+)
+def test_a_decompression_bomb_in_a_followed_file_is_refused_at_its_offset(
+    rig_bag: Path, tmp_path: Path, compression: str, options: dict[str, Any], why: str
+) -> None:
+    """A chunk of a few KB that inflates to a GiB of zeros (or just past the 16 MiB a followed chunk may hold), stating it
+    or stating 64 bytes, wherever it is (among the messages, in the summary section): refused after inflating at most
+    the bound plus one byte."""
+    path = tmp_path / "run.mcap"
+    write_bomb_bag(rig_bag, path, "/joint_states", compression, options.pop("inflated", 1 << 30), **options)
+    with pytest.raises(UserError) as raised:
+        follow(McapFollowFeed(path, {"/joint_states": None}))
+    assert raised.value.message.startswith(f"MCAP file {path}, byte ") and why in raised.value.message, raised.value.message
+    assert "\n" not in raised.value.message
+
+
+def test_live_from_a_bomb_is_one_error_line_and_saves_nothing(rig_bag: Path, tmp_path: Path, run_cli) -> None:
+    bag, saved = tmp_path / "bomb.mcap", tmp_path / "take.rrd"
+    write_bomb_bag(rig_bag, bag, "/joint_states", "zstd", 1 << 30)
+    (tmp_path / "rig.urdf").write_text(RIG_URDF, encoding="utf-8")
+    config = write_config(
+        tmp_path,
+        "live",
+        {
+            "version": 1,
+            "sources": {"js": {"mcap": "bomb.mcap", "topic": "/joint_states", "names": ["shoulder"]}},
+            "robots": {"rig": {"urdf": "rig.urdf", "joints": {"source": "js", "unit": "rad", "map": {"shoulder": "shoulder"}}}},
+            "output": {"path": "out/{segment}.rrd", "application_id": "bomb", "segment": "live"},
+        },
+    )
+    result = run_cli("live", str(config), "--from", str(bag), "--save", str(saved))
+    assert result.code == 1, result.err
+    errors = [line for line in result.err.splitlines() if line.startswith("error: ")]
+    assert len(errors) == 1 and f"MCAP file {bag}, byte " in errors[0] and "beyond the 16 MiB a chunk may hold" in errors[0], result.err
+    assert "Traceback" not in result.err
+    assert {p.name for p in tmp_path.iterdir()} == {"bomb.mcap", "rig.urdf", "live.yaml"}
+
+
+def test_a_followed_file_inflates_in_proportion_to_its_bytes(rig_bag: Path, tmp_path: Path) -> None:
+    """Chunks of 1 KB that each inflate to 16 MiB of zeros, within the bound one by one: refused once the reading has
+    inflated 256 MiB plus 1000 times the compressed bytes read."""
+    path = tmp_path / "run.mcap"
+    write_bomb_bag(rig_bag, path, "/joint_states", "zstd", 16 << 20, count=40, before=12)
+    with pytest.raises(UserError) as raised:
+        follow(McapFollowFeed(path, {"/joint_states": None}))
+    assert raised.value.message.startswith(f"MCAP file {path}, byte ")
+    assert "more than 1000 times their size beyond the first 256 MiB: a decompression bomb" in raised.value.message
+
+
+def test_one_step_gives_one_big_chunk_at_most(rig_bag: Path, tmp_path: Path) -> None:
+    """Three chunks of 16 MiB each, fed at once: one step gives the first's messages and says a backlog waits; the
+    next steps (no new bytes) give the others, each once, in order."""
+    from mcap.records import Message
+
+    path = tmp_path / "run.mcap"
+    write_bomb_bag(rig_bag, path, "/joint_states", "zstd", 16 << 20, count=3, before=12)
+    splitter = RecordSplitter("run.mcap", None)
+    big: list[int] = []
+    records = splitter.feed(path.read_bytes())
+    while True:
+        big.append(sum(1 for _, record in records if isinstance(record, Message) and len(record.data) > 1 << 20))
+        if not splitter.backlog:
+            break
+        records = splitter.feed(b"")
+    assert big[:3] == [1, 1, 1] and sum(big) == 3 and splitter.footer

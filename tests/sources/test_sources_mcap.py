@@ -114,7 +114,7 @@ def test_validate_checks_topic_and_schema(examples_dir: Path, run_cli) -> None:
 
     (examples_dir / "data" / "not.mcap").write_text("not an mcap file")
     broken = run_cli("validate", str(panda_config(examples_dir, "mcap_broken", {"mcap": "data/not.mcap", "topic": "/joint_states"})))
-    assert broken.code == 1 and "cannot read MCAP file" in broken.err and "Traceback" not in broken.err
+    assert broken.code == 1 and "data/not.mcap, byte 0: not an MCAP file" in broken.err and "Traceback" not in broken.err
 
 
 def test_config_names_must_cover_the_joints_mapped(examples_dir: Path, run_cli) -> None:

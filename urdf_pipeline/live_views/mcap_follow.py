@@ -171,14 +171,16 @@ class McapFollowFeed:
             if self._closed.is_set() or self._file is None:
                 return None
             file = self._file = self._current(self._file)
-            data = file.read()
+            data = b"" if file.records.backlog else file.read()  # the records read already first
             received = time.monotonic_ns()
         samples = self._samples(file, file.records.feed(data), received)
-        return samples, len(data) == READ_BYTES
+        return samples, len(data) == READ_BYTES or file.records.backlog
 
     def _current(self, file: _Reading) -> _Reading:
         """The file to read from: this one, or, when the recorder restarted, the new one at the path (once this one's
         last bytes are read), or this one from its start (when it shrank or was rewritten in place)."""
+        if file.records.backlog:
+            return file  # records read but not yet given come first
         try:
             info = os.stat(self.path)
         except FileNotFoundError:

@@ -1,31 +1,30 @@
 """The complete records of an MCAP file that is still being written: its bytes come in pieces, a record whose bytes
 are not all there yet waits for the next piece. The framing (the magic, then records of a uint8 opcode and a uint64
 little-endian length) is read here; each record's content is parsed by the `mcap` library's record classes, a chunk's
-records by its `breakup_chunk`.
+records by the sources' `chunk_records`, which every MCAP chunk the tool reads goes through.
 
-Everything is bounded before it is allocated: a record longer than MAX_RECORD_BYTES, or a chunk stating more than
-MAX_CHUNK_BYTES uncompressed, is refused as damage, and a chunk is inflated at most to its stated size (a zstd frame
-header or an lz4 stream that says more is no reason to allocate more), so a damaged or hostile file costs a located
+Everything is bounded before it is allocated: a record longer than FOLLOWED_RECORD_BYTES is refused from its length, before
+its bytes are kept, and a chunk is inflated only within FOLLOWED_CHUNK_BYTES (a quarter of what a finished file's chunk may
+hold: every message of a chunk is decoded in one step, at about twelve bytes of memory per byte of small JointStates,
+so 16 MiB keeps `live` within 400 MB) and its stated size, checked on the bytes it produces (a zstd frame header or an lz4 stream that says more is no reason to allocate
+more; a chunk stating less than it holds is refused after one byte more), so a damaged or hostile file costs a located
 error, never a traceback or the machine's memory.
 """
 
 from __future__ import annotations
 
 import struct
-from dataclasses import replace
 from io import BytesIO
 from typing import TYPE_CHECKING
 
 from ..errors import UserError, Where, shown
+from ..sources import HEAD, MAGIC, InflationBudget, McapRefused, chunk_records, parsed_chunk, refusal, short_reason
 
 if TYPE_CHECKING:
-    from mcap.records import Chunk, McapRecord
+    from mcap.records import McapRecord
 
-MAGIC = b"\x89MCAP0\r\n"
-HEAD = struct.Struct("<BQ")  # a record's opcode and content length
-MAX_RECORD_BYTES = 256 << 20  # a chunk is a few MB (the writers' defaults are 1 MiB and less); a JointState far less
-MAX_CHUNK_BYTES = 256 << 20
-COMPRESSIONS = ("", "zstd", "lz4")
+FOLLOWED_CHUNK_BYTES = 16 << 20  # recorders write chunks of 768 KiB (ros2 bag) to 4 MiB, bigger only around one big message
+FOLLOWED_RECORD_BYTES = FOLLOWED_CHUNK_BYTES + (1 << 20)  # a chunk's compressed bytes are a little over its size, at worst
 
 
 class RecordSplitter:
@@ -38,26 +37,37 @@ class RecordSplitter:
         self.pending = bytearray()  # bytes read but not yet part of a complete record
         self.offset = 0  # the file offset of pending[0]
         self.footer = False
+        self.budget = InflationBudget()  # what this reading of the file may inflate in all
+        self.backlog = False  # whole records wait in `pending`: feed again before reading more
 
     def feed(self, data: bytes) -> list[tuple[int, McapRecord]]:
+        """The records `data` completes, from the first not yet given; at most FOLLOWED_CHUNK_BYTES of them inflated
+        (then `backlog` says more are waiting), so one step never holds more than one big chunk's messages."""
+        self.backlog = False
         if self.footer:
             return []
         self.pending += data
         if self.offset == 0 and not self._past_magic():
             return []
         records: list[tuple[int, McapRecord]] = []
-        position, pending = 0, self.pending
+        position, pending, inflated = 0, self.pending, self.budget.inflated
         while not self.footer and len(pending) - position >= HEAD.size:
+            if self.budget.inflated - inflated >= FOLLOWED_CHUNK_BYTES:
+                self.backlog = True
+                break
             opcode, length = HEAD.unpack_from(pending, position)
             at = self.offset + position
-            if length > MAX_RECORD_BYTES:
+            if length > FOLLOWED_RECORD_BYTES:
                 raise self.refused(
-                    at, f"a record (opcode {opcode:#04x}) of {length} bytes, beyond {MAX_RECORD_BYTES >> 20} MiB: the file is damaged"
+                    at,
+                    f"a record (opcode {opcode:#04x}) of {length:,} bytes, beyond {FOLLOWED_RECORD_BYTES >> 20} MiB: the file is damaged",
                 )
             end = position + HEAD.size + length
             if end > len(pending):
                 break  # its bytes are not all written yet
-            records.extend((at, record) for record in self._parsed(opcode, bytes(pending[position + HEAD.size : end]), at))
+            with memoryview(pending) as view:  # one copy of the record's bytes, not two
+                content = bytes(view[position + HEAD.size : end])
+            records.extend((at, record) for record in self._parsed(opcode, content, at))
             position = end
         del pending[:position]
         self.offset += position
@@ -65,7 +75,7 @@ class RecordSplitter:
 
     def refused(self, at: int, why: str, where: Where | None = None) -> UserError:
         """The error of the record at file offset `at` (`where`: the config's place, when not the file's source)."""
-        return UserError(f"MCAP file {shown(self.name)}, byte {at}: {why}", where or self.where)
+        return refusal(self.name, McapRefused(at, why), where or self.where)
 
     def _past_magic(self) -> bool:
         """Whether the magic is complete and right (then it is dropped); refused as soon as a byte of it is wrong."""
@@ -82,12 +92,12 @@ class RecordSplitter:
         from mcap.data_stream import ReadDataStream
         from mcap.exceptions import EndOfFile
         from mcap.opcode import Opcode
-        from mcap.records import Channel, Chunk, Footer, Message, Schema
+        from mcap.records import Channel, Footer, Message, Schema
 
         stream = ReadDataStream(BytesIO(content))
         try:
             if opcode == Opcode.CHUNK:
-                return self._chunk_records(Chunk.read(stream), at)
+                return chunk_records(parsed_chunk(content, at), at, self.budget, FOLLOWED_CHUNK_BYTES)
             if opcode == Opcode.MESSAGE:
                 return [Message.read(stream, len(content))]
             if opcode == Opcode.FOOTER:
@@ -98,53 +108,11 @@ class RecordSplitter:
             if opcode == Opcode.CHANNEL:
                 return [Channel.read(stream)]
             return []  # the header, indexes, statistics, attachments, metadata: nothing a live view reads
-        except UserError:
-            raise
+        except McapRefused as error:
+            raise self.refused(error.at, error.why) from None
         except (EndOfFile, struct.error):  # a field read past the record's end
             raise self.refused(
                 at, f"a record (opcode {opcode:#04x}) whose content ends before its fields do: the file is damaged"
             ) from None
         except Exception as exc:  # noqa: BLE001 - the mcap library's and the decompressors' assorted errors on damage
-            raise self.refused(at, f"a damaged record (opcode {opcode:#04x}): {shown(_reason(exc))}") from None
-
-    def _chunk_records(self, chunk: Chunk, at: int) -> list[McapRecord]:
-        from mcap.stream_reader import breakup_chunk
-
-        if chunk.compression not in COMPRESSIONS:
-            raise self.refused(at, f"a chunk compressed with {shown(repr(chunk.compression))}; MCAP chunks are zstd, lz4 or uncompressed")
-        if chunk.uncompressed_size > MAX_CHUNK_BYTES:
-            raise self.refused(
-                at, f"a chunk of {chunk.uncompressed_size} bytes uncompressed, beyond {MAX_CHUNK_BYTES >> 20} MiB: the file is damaged"
-            )
-        data = _inflated(chunk)
-        if len(data) != chunk.uncompressed_size:
-            more = "more" if len(data) > chunk.uncompressed_size else f"{len(data)}"
-            raise self.refused(
-                at, f"a chunk stating {chunk.uncompressed_size} bytes uncompressed inflates to {more} bytes: the file is damaged"
-            )
-        return breakup_chunk(replace(chunk, compression="", data=data), validate_crc=True)
-
-
-def _inflated(chunk: Chunk) -> bytes:
-    """The chunk's records, at most one byte more than its stated size (so a longer one is seen, not allocated)."""
-    limit = chunk.uncompressed_size + 1
-    if chunk.compression == "zstd":
-        import zstandard
-
-        with zstandard.ZstdDecompressor().stream_reader(chunk.data, read_across_frames=True) as reader:
-            pieces, size = [], 0
-            while size < limit and (piece := reader.read(limit - size)):
-                pieces.append(piece)
-                size += len(piece)
-            return b"".join(pieces)
-    if chunk.compression == "lz4":
-        import lz4.frame  # type: ignore[import-untyped]  # no stubs; the mcap library depends on it
-
-        data: bytes = lz4.frame.LZ4FrameDecompressor().decompress(chunk.data, max_length=limit)
-        return data
-    return chunk.data
-
-
-def _reason(exc: BaseException) -> str:
-    text = str(exc).strip().splitlines()
-    return text[0] if text else type(exc).__name__
+            raise self.refused(at, f"a damaged record (opcode {opcode:#04x}): {short_reason(exc)}") from None

@@ -3,15 +3,14 @@ its static transforms (`tf2_msgs/msg/TFMessage` on /tf_static), so a bag is self
 
 Both are metadata-sized and read at compile, so `validate` refuses what `run` would. The summary is checked here
 (topic, schema, the size of the chunks that hold the topic: a 2 GB description is refused before any of it is read);
-the messages are decoded by Rerun's MCAP reader (ros2_reflection) in a child process (`mcap_probe.in_child`), as a
-joint-state topic's first message is, so a corrupt file cannot hang this process. Strings from the bag are strangers'
+the messages are decoded by Rerun's MCAP reader (ros2_reflection) in a bounded child process (`mcap_probe.in_child`,
+after every chunk of the file was inflated within its bounds), as a joint-state topic's first message is, so a corrupt
+file or a decompression bomb cannot hang this process or take its memory. Strings from the bag are strangers'
 text: the child bounds them, messages show them through `errors.shown`.
 """
 
 from __future__ import annotations
 
-import json
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -19,7 +18,8 @@ from typing import TYPE_CHECKING, Any
 import pyarrow as pa
 
 from ..errors import UserError, Where, listing, shown
-from .mcap_probe import in_child, topic_entity, topic_messages
+from .mcap_chunks import McapRefused, read_summary
+from .mcap_probe import child_main, in_child, summary_info, topic_entity, topic_messages
 
 if TYPE_CHECKING:
     from rerun.chunk import LazyChunkStream
@@ -91,13 +91,9 @@ def tf_messages(path: Path, topic: str, where: Where, shown_as: str) -> LazyChun
 
 def _checked_channels(path: Path, topic: str, schema: str, cap: int | None, where: Where) -> None:
     """From the summary: the topic exists, carries `schema` in CDR, holds messages, and the chunks that hold it are
-    within `cap` bytes uncompressed (so no message beyond the cap is ever decoded)."""
-    from rerun.chunk import McapReader
-
-    try:
-        info = McapReader(path).info()
-    except (ValueError, OSError, RuntimeError) as exc:
-        raise UserError(f"cannot read MCAP file {path}: {shown(str(exc))}", where) from None
+    within `cap` bytes uncompressed (so no message beyond the cap is ever decoded; each chunk's size is checked on
+    the bytes it inflates to, before the child reads it)."""
+    info = summary_info(path, where)
     entity = topic_entity(topic)
     channels = [c for c in info.channels if topic_entity(c.topic) == entity]
     if not channels:
@@ -125,13 +121,12 @@ def _checked_channels(path: Path, topic: str, schema: str, cap: int | None, wher
 
 
 def _topic_bytes(path: Path, channel_ids: set[int]) -> int:
-    """The uncompressed size of the chunks holding these channels (the summary's chunk index), else the file's size."""
-    from mcap.reader import make_reader
-
+    """The uncompressed size of the chunks holding these channels (the summary's chunk index, read by `summary_info`
+    already), else the file's size."""
     try:
         with path.open("rb") as stream:
-            summary = make_reader(stream).get_summary()
-    except Exception:  # noqa: BLE001 - the mcap library's errors on a damaged summary: bound by the file itself
+            summary = read_summary(stream)
+    except (McapRefused, OSError):  # summary_info said so already; bound by the file itself
         summary = None
     if summary is None or not summary.chunk_indexes:
         return path.stat().st_size
@@ -208,4 +203,4 @@ def _pairs(path: Path, topic: str) -> dict[str, Any]:
 
 
 if __name__ == "__main__":
-    print(json.dumps(child_read(Path(sys.argv[1]), sys.argv[2], sys.argv[3])))
+    child_main(child_read)

@@ -22,7 +22,8 @@ from ..errors import UserError, Where, listing, shown
 from ..plan import McapSourcePlan
 from ..remote import is_remote
 from .base import EntryField, SourceDescription, file_input, resolve_input, shown_file
-from .mcap_probe import MESSAGE_COMPONENT, probe, topic_entity, topic_messages
+from .mcap_chunks import McapRefused, refusal
+from .mcap_probe import MESSAGE_COMPONENT, probe, summary_info, topic_entity, topic_messages
 from .mcap_remote import late_messages, remote_mcap
 from .named_rows import NAME_FIELD, NAMED_COMPONENT, VALUE_FIELD, named_rows_column
 from .ordering import in_time_order, with_duplicates
@@ -63,12 +64,7 @@ def _channels(path: Path, where: Where | None) -> list[McapChannelInfo]:
 
 
 def _info(path: Path, where: Where | None) -> Any:
-    from rerun.chunk import McapReader
-
-    try:
-        return McapReader(path).info()
-    except (ValueError, OSError, RuntimeError) as exc:
-        raise UserError(f"cannot read MCAP file {path}: {exc}", where) from None
+    return summary_info(path, where)
 
 
 def _check_log_times(late: Callable[[str, int], int], file_name: str, topic: str, info: Any, where: Where) -> None:
@@ -85,6 +81,8 @@ def _check_log_times(late: Callable[[str, int], int], file_name: str, topic: str
         if not beyond:
             return  # another topic's messages are the late ones
         row = f" at row {total - beyond} (counting from 0, in log-time order) and after"
+    except UserError:
+        raise  # a chunk refused on the way (mcap_chunks): that is the file's first fault
     except Exception:  # noqa: BLE001 - the mcap library's errors on a damaged file: the summary's value is refused anyway
         pass
     raise UserError(
@@ -94,10 +92,13 @@ def _check_log_times(late: Callable[[str, int], int], file_name: str, topic: str
     )
 
 
-def _local_late(path: Path) -> Callable[[str, int], int]:
+def _local_late(path: Path, where: Where) -> Callable[[str, int], int]:
     def late(topic: str, start: int) -> int:
-        with path.open("rb") as stream:
-            return late_messages(stream, topic, start)
+        try:
+            with path.open("rb") as stream:
+                return late_messages(stream, topic, start)
+        except McapRefused as error:
+            raise refusal(str(path), error, where) from None
 
     return late
 
@@ -142,7 +143,7 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
     topic = topic_entity(spec["topic"])
     timeline = TIMELINES[spec.get("timeline", "header")]
     if timeline == TIMELINES["log_time"]:
-        _check_log_times(_local_late(path), path.name, topic, info, document.where(*here, "timeline"))
+        _check_log_times(_local_late(path, document.where(*here, "mcap")), path.name, topic, info, document.where(*here, "timeline"))
     names = tuple(spec["names"]) if "names" in spec else _first_message_names(path, topic, document.where(*here, "topic"))
     return with_duplicates(McapSourcePlan(name, path, topic, timeline, names, document.where(*here)), spec)
 
@@ -234,7 +235,7 @@ def _named_rows(plan: McapSourcePlan, chunk: Chunk) -> list[Chunk]:
 
 def open_stream(plan: McapSourcePlan) -> SourceStream:
     # the whole topic, in a child, before Rerun reads it here
-    probe(plan.path, plan.topic, first_only=False, where=plan.where, shown=shown_file(plan))
+    probe(plan.path, plan.topic, first_only=False, where=plan.where, shown_as=shown_file(plan))
     stream = in_time_order(
         topic_messages(plan.path, plan.topic).flat_map(partial(_named_rows, plan)), plan.timeline, plan, shown_file(plan)
     )

@@ -1,10 +1,15 @@
-"""An MCAP topic is first read in a child process, which is killed at Rerun's first read error or past a time limit.
+"""An MCAP topic is first read in a child process, bounded in memory, CPU and wall-clock time, and killed at Rerun's
+first read error.
 
 Rerun's MCAP reader (native code) logs "Failed to read message from MCAP file" for a chunk that does not decompress
 and then spins at 100% CPU forever, deaf to Ctrl-C; for a chunk whose CRC fails it logs the same line and decodes
-garbage. The file's summary does not show either. So the child decodes the topic exactly as a run does, the parent
+garbage. The file's summary does not show either. So, before any of it reaches Rerun's reader, every chunk of the file
+is inflated once within its bounds (`mcap_chunks.check_chunks`: Rerun's reader inflates every chunk, trusting the size
+it states); then the child decodes the topic exactly as a run does, under the limits every child reading a stranger's
+file sets on itself (`child_process.limit_this_process`: address space, CPU seconds, output size, no core), the parent
 watches the child's log and stops it at the first such line (or after BASE_SECONDS plus SECONDS_PER_BYTE per byte),
-and only a file the child read cleanly reaches Rerun in this process. Run as a module, this file is the child.
+and only a file the child read cleanly reaches Rerun in this process. The child dies with this process (SIGTERM when it
+ends, however it ends). Run as a module, this file is the child.
 """
 
 from __future__ import annotations
@@ -12,14 +17,18 @@ from __future__ import annotations
 import json
 import os
 import re
+import signal
 import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING, Any
 
-from ..errors import UserError, Where
+from ..child_process import bound_from_environment, die_with_parent, limit_this_process
+from ..errors import UserError, Where, shown
+from .mcap_chunks import McapRefused, check_chunks, read_summary, refusal, require_library
 
 if TYPE_CHECKING:
     from rerun.chunk import LazyChunkStream
@@ -28,6 +37,20 @@ BASE_SECONDS = 60.0
 SECONDS_PER_BYTE = 1 / 10e6  # 10 MB/s: far below Rerun's decoding speed, so a slow machine is not mistaken for a loop
 ANSI = re.compile(r"\x1b\[[0-9;]*m")
 READ_ERROR = re.compile(r"\bERROR\b.*\b(re_mcap|mcap)\b", re.IGNORECASE)
+OUT_OF_MEMORY = re.compile(
+    r"MemoryError|memory allocation of|unable to allocate|out of memory|bad_alloc|cannot allocate|failed to map segment", re.IGNORECASE
+)
+MEMORY_ENV = "URDF_PIPELINE_MCAP_MEMORY_MB"  # the runner may change the child's bounds for a huge bag; a config cannot
+TIMEOUT_ENV = "URDF_PIPELINE_MCAP_TIMEOUT"
+DEFAULT_MEMORY_MB = 1024  # address space, as xacro's: Rerun's reader needs about 600 MB of it with CHILD_ENVIRONMENT
+OUTPUT_BYTES = 256 << 20  # of any file the child writes: it writes none (its answer goes to a pipe)
+CHILD_ENVIRONMENT = {
+    "RUST_LOG": "warn",  # the read errors are what the parent watches for
+    "MIMALLOC_ARENA_RESERVE": "64MiB",  # Rerun's allocator reserves 1 GiB of address space up front by default
+    "MALLOC_ARENA_MAX": "2",  # each thread's malloc arena reserves 64 MB of it
+    "TOKIO_WORKER_THREADS": "2",  # one runtime thread per core otherwise: address space that grows with the machine
+    "OPENBLAS_NUM_THREADS": "1",
+}
 
 
 MESSAGE_COMPONENT = "sensor_msgs.msg.JointState:message"  # what the ros2_reflection decoder emits per message
@@ -35,6 +58,26 @@ MESSAGE_COMPONENT = "sensor_msgs.msg.JointState:message"  # what the ros2_reflec
 
 def topic_entity(topic: str) -> str:
     return topic if topic.startswith("/") else f"/{topic}"
+
+
+def summary_info(path: Path, where: Where | None, name: str | None = None) -> Any:
+    """Rerun's view of the file's summary (its channels and statistics), once the summary section has been read here
+    and holds no chunk (Rerun's reader would spin on one for minutes). `name` names the file in messages."""
+    from rerun.chunk import McapReader
+
+    name = name or str(path)
+    require_library(where)
+    try:
+        with path.open("rb") as stream:
+            read_summary(stream)
+    except McapRefused as error:
+        raise refusal(name, error, where) from None
+    except OSError as exc:
+        raise UserError(f"cannot read MCAP file {shown(name)}: {shown(exc.strerror or exc)}", where) from None
+    try:
+        return McapReader(path).info()
+    except (ValueError, OSError, RuntimeError) as exc:
+        raise UserError(f"cannot read MCAP file {shown(name)}: {shown(str(exc))}", where) from None
 
 
 def topic_messages(path: Path, topic: str, component: str = MESSAGE_COMPONENT) -> LazyChunkStream:
@@ -56,28 +99,49 @@ def _watch(stream: object, errors: list[str], others: list[str], failed: threadi
             others.append(line)
 
 
-def probe(path: Path, topic: str, first_only: bool, where: Where | None, shown: str | None = None) -> tuple[str, ...] | None:
+def _drain(stream: IO[bytes] | None, answer: list[bytes]) -> None:
+    """Keep what the child prints, up to OUTPUT_BYTES (then read on, keeping nothing, so the child is never blocked)."""
+    kept = 0
+    for piece in iter(lambda: stream.read(1 << 16) if stream else b"", b""):
+        if kept + len(piece) <= OUTPUT_BYTES:
+            answer.append(piece)
+            kept += len(piece)
+
+
+def probe(path: Path, topic: str, first_only: bool, where: Where | None, shown_as: str | None = None) -> tuple[str, ...] | None:
     """Read `topic` in a child: the first message's names (`first_only`), else None once every message decoded.
-    `shown` names the file in messages (a remote file's URL; its path by default)."""
-    names = in_child(path, topic, "first" if first_only else "all", where, shown).get("names")
+    `shown_as` names the file in messages (a remote file's URL; its path by default)."""
+    names = in_child(path, topic, "first" if first_only else "all", where, shown_as).get("names")
     return tuple(names) if names is not None else None
 
 
 def in_child(
-    path: Path, topic: str, mode: str, where: Where | None, shown: str | None = None, module: str = "urdf_pipeline.sources.mcap_probe"
+    path: Path, topic: str, mode: str, where: Where | None, shown_as: str | None = None, module: str = "urdf_pipeline.sources.mcap_probe"
 ) -> dict[str, Any]:
-    """Read `topic` in a child process (`python -m MODULE PATH TOPIC MODE`) and return the JSON it printed: this
-    module's modes are "first" and "all" (JointState names); `bag_contents` has its own."""
-    shown = shown or str(path)
-    budget = BASE_SECONDS + path.stat().st_size * SECONDS_PER_BYTE
-    command = [sys.executable, "-m", module, str(path), topic, mode]
-    env = {**os.environ, "RUST_LOG": "warn"}  # the read errors are what the parent watches for
-    child = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    """Read `topic` in a child process (`python -m MODULE PATH TOPIC MODE LIMITS`, which calls `child_main`) and return
+    the JSON it printed: this module's modes are "first" and "all" (JointState names); `bag_contents` has its own. Every
+    chunk of the file is inflated here first, within its bounds (`check_chunks`)."""
+    name = shown_as or str(path)
+    require_library(where)
+    try:
+        check_chunks(path)
+    except McapRefused as error:
+        raise refusal(name, error, where) from None
+    memory_mb, budget = _bounds(path, where)
+    limits = {"memory_bytes": memory_mb << 20, "cpu_seconds": int(budget) + 1, "output_bytes": OUTPUT_BYTES}
+    command = [sys.executable, "-m", module, str(path), topic, mode, json.dumps(limits)]
+    env = {**os.environ, **CHILD_ENVIRONMENT}
+    child = subprocess.Popen(
+        command, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, preexec_fn=die_with_parent()
+    )
     errors: list[str] = []
     others: list[str] = []
     failed = threading.Event()
     watcher = threading.Thread(target=_watch, args=(child.stderr, errors, others, failed), daemon=True)
     watcher.start()
+    answer: list[bytes] = []  # drained while the child runs: an answer over a pipe's 64 KiB would block it forever
+    drainer = threading.Thread(target=_drain, args=(child.stdout, answer), daemon=True)
+    drainer.start()
     deadline = time.monotonic() + budget
     timed_out = False
     try:
@@ -90,37 +154,75 @@ def in_child(
             child.kill()
         child.wait()
         watcher.join(timeout=5)
-    output = child.stdout.read().decode("utf-8", errors="replace") if child.stdout else ""
-    if child.stdout:
-        child.stdout.close()
+        drainer.join(timeout=5)
+        if child.stdout:
+            child.stdout.close()
+    output = b"".join(answer).decode("utf-8", errors="replace")
+    reading = f"reading topic '{shown(topic)}' of MCAP file {shown(name)}"
     if errors:
-        raise UserError(f"MCAP file {shown} is corrupt: {errors[0]} (reading topic '{topic}'); repair or re-record the file", where)
-    if timed_out:
         raise UserError(
-            f"reading topic '{topic}' of MCAP file {shown} did not finish within {budget:.0f} s; the file is probably corrupt", where
+            f"MCAP file {shown(name)} is corrupt: {shown(errors[0])} (reading topic '{shown(topic)}'); repair or re-record the file", where
+        )
+    if timed_out or child.returncode in (-signal.SIGXCPU, -signal.SIGKILL):
+        raise UserError(
+            f"{reading} did not finish within {budget:.4g} s and was stopped; the file is probably corrupt (the person running the "
+            f"tool can raise the bound with {TIMEOUT_ENV})",
+            where,
+        )
+    if child.returncode != 0 and (
+        child.returncode in (-signal.SIGABRT, -signal.SIGSEGV, -signal.SIGBUS) or any(map(OUT_OF_MEMORY.search, others))
+    ):
+        raise UserError(
+            f"{reading} needs more than {memory_mb} MB of memory and was stopped (the person running the tool can raise the bound "
+            f"with {MEMORY_ENV})",
+            where,
         )
     if child.returncode != 0:
         reason = others[-1] if others else f"exit status {child.returncode}"
-        raise UserError(f"cannot read MCAP file {shown} (topic '{topic}'): {reason}", where)
-    result: dict[str, Any] = json.loads(output.strip().splitlines()[-1]) if output.strip() else {}
+        raise UserError(f"cannot read MCAP file {shown(name)} (topic '{shown(topic)}'): {shown(reason)}", where)
+    try:
+        result = json.loads(output.strip().splitlines()[-1]) if output.strip() else {}
+    except ValueError:
+        result = None
+    if not isinstance(result, dict):  # an answer cut at OUTPUT_BYTES, or no answer at all
+        raise UserError(f"cannot read MCAP file {shown(name)} (topic '{shown(topic)}'): its reader gave no readable answer", where)
     return result
 
 
-def _child(path: str, topic: str, mode: str) -> None:
+def _bounds(path: Path, where: Where | None) -> tuple[int, float]:
+    """The child's address space (MB) and seconds: the environment's, else the defaults (the seconds grow with the file)."""
+    try:
+        memory_mb = int(bound_from_environment(MEMORY_ENV, DEFAULT_MEMORY_MB))
+        budget = bound_from_environment(TIMEOUT_ENV, BASE_SECONDS + path.stat().st_size * SECONDS_PER_BYTE)
+    except ValueError as exc:
+        raise UserError(str(exc), where) from None
+    return memory_mb, budget
+
+
+def child_main(read: Callable[[Path, str, str], dict[str, Any]]) -> None:
+    """The child: bound this process (`limit_this_process`; Rerun's reader runs threads of its own), then print what
+    `read(PATH, TOPIC, MODE)` answers, as one JSON line."""
+    path, topic, mode, limits = sys.argv[1:5]
+    limit_this_process(json.loads(limits), threads=True)
+    print(json.dumps(read(Path(path), topic, mode)))
+
+
+def _names(path: Path, topic: str, mode: str) -> dict[str, Any]:
+    """The first message's names (`first`), after every message decoded (`all`)."""
     import pyarrow.compute as pc
 
     from .named_rows import NAME_FIELD
 
     names: list[str] | None = None
-    for chunk in topic_messages(Path(path), topic):
+    for chunk in topic_messages(path, topic):
         batch = chunk.to_record_batch()
         rows = batch.column(batch.schema.get_field_index(MESSAGE_COMPONENT)).flatten()
         if len(rows) and names is None:
             names = [str(n) for n in (pc.struct_field(rows, NAME_FIELD)[0].as_py() or [])]
             if mode == "first":
                 break
-    print(json.dumps({"names": names}))
+    return {"names": names}
 
 
 if __name__ == "__main__":
-    _child(*sys.argv[1:4])
+    child_main(_names)

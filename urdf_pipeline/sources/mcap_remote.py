@@ -2,6 +2,8 @@
 reader takes local paths only): the summary at the file's end (its footer, then the summary section: two or three
 requests), and, when the config gives no `names`, the first message of the topic, from the one chunk that holds it,
 its names decoded from the CDR bytes. All of it within METADATA_BYTES; the data is read by `run`, once downloaded.
+The summary and every chunk are read by mcap_chunks.py (no chunk in the summary, each chunk inflated within its bounds,
+whatever it states), never by the `mcap` library's readers, which inflate a chunk whole as big as it says.
 """
 
 from __future__ import annotations
@@ -14,6 +16,8 @@ from typing import IO, Any
 
 from ..errors import UserError, Where
 from ..plan import RemoteObject
+from .mcap_chunks import InflationBudget, McapRefused, chunk_records, read_chunk_at, read_summary, refusal, require_library, short_reason
+from .mcap_probe import topic_entity
 
 METADATA_BYTES = 64 << 20  # the summary and the first message's chunk, at most (a chunk is a few MB by default)
 METADATA_BLOCK = 64 << 10  # bytes a ranged GET fetches at least: the magic, the footer, the summary's pieces
@@ -43,29 +47,38 @@ class SummaryInfo:
 
 
 def late_messages(stream: IO[bytes], topic: str, start: int) -> int:
-    """How many messages of `topic` are logged at or after `start`: the mcap library reads only the chunks whose
-    time range reaches it (from the summary's chunk index)."""
-    from mcap.reader import make_reader
+    """How many messages of `topic` are logged at or after `start`: only the chunks whose time range reaches it and
+    that may hold the topic (the summary's chunk index) are read, each inflated within its bounds (McapRefused)."""
+    from mcap.records import Message
 
-    return sum(1 for _ in make_reader(stream).iter_messages(topics=[topic], starting_at=start))
+    summary = read_summary(stream)
+    if summary is None or not summary.chunk_indexes:
+        raise ValueError("no chunk index to find the late messages by")
+    channels = {key for key, channel in summary.channels.items() if topic_entity(channel.topic) == topic_entity(topic)}
+    count, budget = 0, InflationBudget()
+    for index in summary.chunk_indexes:
+        if index.message_end_time < start or (index.message_index_offsets and not channels & index.message_index_offsets.keys()):
+            continue
+        records = chunk_records(read_chunk_at(stream, index.chunk_start_offset), index.chunk_start_offset, budget)
+        count += sum(1 for record in records if isinstance(record, Message) and record.channel_id in channels and record.log_time >= start)
+    return count
 
 
 class RemoteMcap:
     """One remote MCAP file, open for its metadata: the summary, read once, and the first message of a topic."""
 
     def __init__(self, remote: RemoteObject, stream: IO[bytes], where: Where | None) -> None:
-        from mcap.reader import SeekingReader
-
         self.remote = remote
         self.stream = stream
         self.where = where
         try:
-            self.reader = SeekingReader(stream)
-            self.summary = self.reader.get_summary()
+            self.summary = read_summary(stream)
+        except McapRefused as error:
+            raise refusal(remote.url, error, where) from None
         except UserError:
             raise
         except Exception as exc:  # noqa: BLE001 - the mcap library's errors on a file that is no MCAP, or a damaged one
-            raise UserError(f"cannot read MCAP file {remote.url}: {_reason(exc)}", where) from None
+            raise UserError(f"cannot read MCAP file {remote.url}: {short_reason(exc)}", where) from None
         if self.summary is None:
             raise UserError(
                 f"MCAP file {remote.url} has no summary section (the index at its end, which a finished recording has): it cannot be "
@@ -104,6 +117,8 @@ class RemoteMcap:
         try:
             data = self._first_message(topics)
             return None if data is None else joint_state_names(data)
+        except McapRefused as error:
+            raise refusal(self.remote.url, error, self.where) from None
         except OverBudget:
             raise UserError(
                 f"the first message on {topics[0]} of MCAP file {self.remote.url} is not within its first {METADATA_BYTES >> 20} MB "
@@ -113,45 +128,40 @@ class RemoteMcap:
         except UserError:
             raise
         except Exception as exc:  # noqa: BLE001 - a chunk that does not decompress, a message that is no JointState
-            raise UserError(f"MCAP file {self.remote.url} is corrupt: {_reason(exc)} (reading topic '{topics[0]}')", self.where) from None
+            raise UserError(
+                f"MCAP file {self.remote.url} is corrupt: {short_reason(exc)} (reading topic '{topics[0]}')", self.where
+            ) from None
 
     def _first_message(self, topics: list[str]) -> bytes | None:
-        from mcap.data_stream import ReadDataStream
-        from mcap.records import Chunk, Message
-        from mcap.stream_reader import breakup_chunk
+        from mcap.records import Message
 
         assert self.summary is not None
+        budget = InflationBudget()
         channels = {channel_id for channel_id, channel in self.summary.channels.items() if channel.topic in topics}
         for index in sorted(self.summary.chunk_indexes, key=lambda chunk: chunk.chunk_start_offset):  # one per chunk
             if index.message_index_offsets and not channels & index.message_index_offsets.keys():
                 continue  # its message index says it holds none of the topic's messages
-            self.stream.seek(index.chunk_start_offset + 1 + 8)  # past the record's opcode and length
-            chunk = Chunk.read(ReadDataStream(self.stream))
-            for record in breakup_chunk(chunk, validate_crc=True):
+            at = index.chunk_start_offset
+            for record in chunk_records(read_chunk_at(self.stream, at), at, budget):
                 if isinstance(record, Message) and record.channel_id in channels:
                     return bytes(record.data)
         return None
 
     def late_messages(self, topic: str, start: int) -> int:
-        return late_messages(self.stream, topic, start)
+        try:
+            return late_messages(self.stream, topic, start)
+        except McapRefused as error:
+            raise refusal(self.remote.url, error, self.where) from None
 
 
 @contextmanager
 def remote_mcap(remote: RemoteObject, where: Where | None) -> Iterator[RemoteMcap]:
     """The file's metadata through ranged GETs (at most METADATA_BYTES in all)."""
-    try:
-        import mcap.reader  # noqa: F401 - the library this needs, said before any request
-    except ImportError:
-        raise UserError("s3:// MCAP files are read with the mcap library: pip install 'urdf-pipeline[s3]'", where) from None
+    require_library(where)  # said before any request
     from ..remote import open_range
 
     with open_range(remote, where, block=METADATA_BLOCK, max_bytes=METADATA_BYTES) as stream:
         yield RemoteMcap(remote, stream, where)
-
-
-def _reason(exc: BaseException) -> str:
-    text = str(exc).strip().splitlines()
-    return text[0] if text else type(exc).__name__
 
 
 def joint_state_names(data: bytes | memoryview) -> tuple[str, ...]:
