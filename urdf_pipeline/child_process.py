@@ -12,6 +12,8 @@ import subprocess
 import sys
 from collections.abc import Callable, Mapping
 
+from .errors import UserError, Where, shown
+
 
 def die_with_parent() -> Callable[[], None] | None:
     """A `preexec_fn` for Linux: the child gets SIGTERM when this process dies, even by SIGKILL (prctl
@@ -66,9 +68,9 @@ def limit_this_process(limits: Mapping[str, int], threads: bool = False) -> None
             resource.setrlimit(kind, (value, value))
 
 
-def bound_from_environment(name: str, default: float) -> float:
+def bound_from_environment(name: str, default: float, where: Where | None = None) -> float:
     """A positive number the person running the tool may set in the environment variable `name` to raise (or lower) a
-    child's bound; `default` when unset. ValueError, naming the variable, for anything else."""
+    child's bound; `default` when unset. A UserError at `where`, naming the variable, for anything else (NaN too)."""
     text = os.environ.get(name, "").strip()
     if not text:
         return default
@@ -77,5 +79,5 @@ def bound_from_environment(name: str, default: float) -> float:
     except ValueError:
         value = -1.0
     if not value > 0 or value == float("inf"):
-        raise ValueError(f"{name}={text!r} must be a positive number")
+        raise UserError(f"{name}='{shown(text)}' must be a positive number", where)
     return value

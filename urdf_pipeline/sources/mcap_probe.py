@@ -191,12 +191,8 @@ def in_child(
 
 def _bounds(path: Path, where: Where | None) -> tuple[int, float]:
     """The child's address space (MB) and seconds: the environment's, else the defaults (the seconds grow with the file)."""
-    try:
-        memory_mb = int(bound_from_environment(MEMORY_ENV, DEFAULT_MEMORY_MB))
-        budget = bound_from_environment(TIMEOUT_ENV, BASE_SECONDS + path.stat().st_size * SECONDS_PER_BYTE)
-    except ValueError as exc:
-        raise UserError(str(exc), where) from None
-    return memory_mb, budget
+    memory_mb = int(bound_from_environment(MEMORY_ENV, DEFAULT_MEMORY_MB, where))
+    return memory_mb, bound_from_environment(TIMEOUT_ENV, BASE_SECONDS + path.stat().st_size * SECONDS_PER_BYTE, where)
 
 
 def child_main(read: Callable[[Path, str, str], dict[str, Any]]) -> None:

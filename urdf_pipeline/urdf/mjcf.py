@@ -18,6 +18,7 @@ import tempfile
 from pathlib import Path
 from typing import IO, Any
 
+from ..child_process import bound_from_environment
 from ..confine import Confinement, refuse_url
 from ..errors import UserError, Where, listing, warn
 from .mjcf_files import scan_mjcf
@@ -30,17 +31,6 @@ OUTPUT_BYTES = 64 << 20
 INSTALL = "pip install 'urdf-pipeline[mjcf]'"
 _BOOTSTRAP = "import sys; sys.path[:0] = sys.argv[1:]; from urdf_pipeline.urdf.mjcf_sandbox import main; main()"
 _PASSED_ENV = ("LD_LIBRARY_PATH", "DYLD_LIBRARY_PATH", "SYSTEMROOT")
-
-
-def _bound(name: str, default: float, where: Where) -> float:
-    text = os.environ.get(name, "")
-    try:
-        value = float(text) if text else default
-    except ValueError:
-        value = -1.0
-    if value <= 0:
-        raise UserError(f"{name}={text!r} must be a positive number", where)
-    return value
 
 
 def _search_path() -> list[str]:
@@ -66,8 +56,8 @@ def load_mjcf(spec: dict[str, Any], config_dir: Path, confinement: Confinement, 
         search = _search_path()
     except ImportError as exc:
         raise UserError(f"MJCF robots need the {exc.args[0]} package: {INSTALL}", where) from None
-    memory_mb = int(_bound(MEMORY_ENV, DEFAULT_MEMORY_MB, where))
-    timeout = _bound(TIMEOUT_ENV, DEFAULT_TIMEOUT_S, where)
+    memory_mb = int(bound_from_environment(MEMORY_ENV, DEFAULT_MEMORY_MB, where))
+    timeout = bound_from_environment(TIMEOUT_ENV, DEFAULT_TIMEOUT_S, where)
     request = {
         "file": str(path),
         "shown": written,

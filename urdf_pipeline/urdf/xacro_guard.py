@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
+from ..child_process import bound_from_environment
 from ..confine import Confinement
 from ..errors import UserError, Where, listing, neutral_text
 from .xml_text import MAX_URDF_BYTES
@@ -63,17 +64,9 @@ class Limits:
 
     @staticmethod
     def from_environment(where: Where | None) -> Limits:
-        def number(name: str, default: float) -> float:
-            text = os.environ.get(name, "")
-            try:
-                value = float(text) if text else default
-            except ValueError:
-                value = -1.0
-            if value <= 0:
-                raise UserError(f"{name}={text!r} must be a positive number", where)
-            return value
-
-        return Limits(int(number(MEMORY_ENV, DEFAULT_MEMORY_MB)), number(TIMEOUT_ENV, DEFAULT_TIMEOUT_S))
+        return Limits(
+            int(bound_from_environment(MEMORY_ENV, DEFAULT_MEMORY_MB, where)), bound_from_environment(TIMEOUT_ENV, DEFAULT_TIMEOUT_S, where)
+        )
 
 
 @dataclass
