@@ -16,16 +16,8 @@ from mcap_ros2._dynamic import serialize_dynamic
 from urdf_pipeline.errors import UserError, Where, has_control_character
 from urdf_pipeline.examples import JOINT_STATE_MSGDEF
 from urdf_pipeline.live_views import McapFollowFeed
-from urdf_pipeline.live_views.joint_state import (
-    JOINT_STATE,
-    MAX_NAME_BYTES,
-    MAX_NAME_ORDERS,
-    MAX_NAMES,
-    MAX_ORDER_BYTES,
-    JointStateDecoder,
-    NameOrders,
-    definition_differs,
-)
+from urdf_pipeline.live_views.joint_state import MAX_NAME_ORDERS, MAX_ORDER_BYTES, JointStateDecoder, NameOrders
+from urdf_pipeline.sources.joint_state_cdr import JOINT_STATE, MAX_NAME_BYTES, MAX_NAMES, definition_differs
 
 WHERE = Where(Path("live.yaml"), 3, "sources.js.topic", 5)
 

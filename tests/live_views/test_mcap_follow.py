@@ -180,7 +180,7 @@ def test_a_message_that_is_no_joint_state_is_refused_at_its_offset(tmp_path: Pat
     from mcap_ros2._dynamic import serialize_dynamic
 
     from urdf_pipeline.examples import JOINT_STATE_MSGDEF
-    from urdf_pipeline.live_views.joint_state import JOINT_STATE
+    from urdf_pipeline.sources import JOINT_STATE
 
     from .follow_motion import message
 

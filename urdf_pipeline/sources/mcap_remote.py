@@ -8,14 +8,14 @@ whatever it states), never by the `mcap` library's readers, which inflate a chun
 
 from __future__ import annotations
 
-import struct
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import IO, Any
+from typing import IO
 
 from ..errors import UserError, Where
 from ..plan import RemoteObject
+from .joint_state_cdr import read_joint_state
 from .mcap_chunks import InflationBudget, McapRefused, chunk_records, read_chunk_at, read_summary, refusal, require_library, short_reason
 from .mcap_probe import topic_entity
 
@@ -116,7 +116,7 @@ class RemoteMcap:
             )
         try:
             data = self._first_message(topics)
-            return None if data is None else joint_state_names(data)
+            return None if data is None else read_joint_state(bytes(data))[1]
         except McapRefused as error:
             raise refusal(self.remote.url, error, self.where) from None
         except OverBudget:
@@ -162,40 +162,3 @@ def remote_mcap(remote: RemoteObject, where: Where | None) -> Iterator[RemoteMca
 
     with open_range(remote, where, block=METADATA_BLOCK, max_bytes=METADATA_BYTES) as stream:
         yield RemoteMcap(remote, stream, where)
-
-
-def joint_state_names(data: bytes | memoryview) -> tuple[str, ...]:
-    """The `name` field of a CDR-encoded sensor_msgs/msg/JointState: after the header (stamp, frame_id), a sequence
-    of strings. CDR aligns each 4-byte length to 4 bytes from the end of the 4-byte encapsulation header."""
-    view = memoryview(data)
-    if len(view) < 4 or view[0] != 0 or view[1] not in (0, 1):
-        raise ValueError("the message is not plain CDR (encapsulation CDR_BE or CDR_LE)")
-    reader = _Cdr(view[4:], "<" if view[1] == 1 else ">")
-    reader.uint32()  # header.stamp.sec
-    reader.uint32()  # header.stamp.nanosec
-    reader.string()  # header.frame_id
-    count = reader.uint32()
-    if count > len(view):  # each name takes at least 4 bytes: a count beyond the message's size is not one
-        raise ValueError(f"the message names {count} joints in {len(view)} bytes")
-    return tuple(reader.string() for _ in range(count))
-
-
-class _Cdr:
-    def __init__(self, body: memoryview, order: str) -> None:
-        self.body = body
-        self.order = order
-        self.position = 0
-
-    def uint32(self) -> int:
-        self.position = (self.position + 3) & ~3
-        value: Any = struct.unpack_from(self.order + "I", self.body, self.position)[0]
-        self.position += 4
-        return int(value)
-
-    def string(self) -> str:
-        length = self.uint32()  # with the terminating NUL
-        if self.position + length > len(self.body):
-            raise ValueError("a string runs past the end of the message")
-        text = bytes(self.body[self.position : self.position + max(length - 1, 0)]).decode("utf-8")
-        self.position += length
-        return text
