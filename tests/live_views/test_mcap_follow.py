@@ -200,6 +200,26 @@ def test_a_message_that_is_no_joint_state_is_refused_at_its_offset(tmp_path: Pat
     assert raised.value.where == where
 
 
+def test_a_file_defining_endless_schemas_and_channels_is_refused_at_the_record(tmp_path: Path) -> None:
+    """What a followed file defines is kept within bounds: schemas past DEFINITIONS_KEPT are refused at the record that
+    crosses it, before the file's memory grows with them (a schema of another type keeps no text at all)."""
+    from mcap.writer import Writer
+
+    from urdf_pipeline.live_views.mcap_follow import DEFINITIONS_KEPT
+
+    path = tmp_path / "run.mcap"
+    with path.open("wb") as stream:
+        writer = Writer(stream, use_chunking=False)
+        writer.start(profile="ros2")
+        for index in range(DEFINITIONS_KEPT + 1):
+            writer.register_schema(f"pkg/msg/T{index}", "ros2msg", b"string s\n")
+        writer.finish()
+    with pytest.raises(UserError) as raised:
+        follow(McapFollowFeed(path, {TOPIC: None}))
+    assert raised.value.message.startswith(f"MCAP file {path}, byte ")
+    assert f": it defines more than {DEFINITIONS_KEPT:,} schemas or channels" in raised.value.message
+
+
 def test_a_file_without_the_topic_ends_saying_which_it_has(
     tmp_path: Path, appender: Callable[..., subprocess.Popen[bytes]], caplog: pytest.LogCaptureFixture
 ) -> None:

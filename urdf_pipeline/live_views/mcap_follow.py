@@ -15,12 +15,13 @@ import stat
 import threading
 import time
 from collections.abc import Generator, Iterator, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, TYPE_CHECKING
+from typing import IO, TYPE_CHECKING, Any
 
 from ..errors import UserError, Where, shown
 from ..progress import say
+from ..sources import JOINT_STATE, MAX_SCHEMA_BYTES
 from .joint_state import POLL_SECONDS, JointStateDecoder, JointStateSample, same_topic
 from .mcap_records import RecordSplitter
 
@@ -30,18 +31,17 @@ if TYPE_CHECKING:
 POLL_INTERVAL = 0.03  # seconds between looks at the file's size: a recorder's chunk lands within one
 READ_BYTES = 1 << 20  # read and decoded per step, so a backlog (a long file followed late) still yields and stops often
 TAIL_BYTES = 16  # the last bytes read, checked again: a file rewritten in place past where it was read shows there
-NAMES_KEPT = 4096  # distinct name orders kept per channel (a robot sends one; past this the cache starts again)
+DEFINITIONS_KEPT = 4096  # Schema and Channel records a followed file may define (a bag has one per type and topic)
+OTHERS_SHOWN = 20  # the other topics a line names
 
 
 @dataclass
 class _Topic:
-    """A channel of a wanted topic: its decoder, and its name tuples (one object per distinct list of names, so the
-    consumer can cache by identity)."""
+    """A channel of a wanted topic and its decoder (which interns the name tuples, within its bounds)."""
 
     topic: str  # as the config writes it
     key: tuple[str, int, str]  # the channel's topic, schema id and encoding: a repeated Channel record keeps its decoder
     decode: JointStateDecoder
-    names: dict[tuple[str, ...], tuple[str, ...]] = field(default_factory=dict)
 
 
 class _Reading:
@@ -214,8 +214,11 @@ class McapFollowFeed:
                 if topic is not None:
                     samples.append(self._sample(file, topic, record, at, received))
             elif isinstance(record, Schema):
-                file.schemas[record.id] = (record.name, record.encoding, record.data.decode("utf-8", "replace"))
+                self._room(file, at, record.id, file.schemas)
+                text = record.data[: MAX_SCHEMA_BYTES + 1] if record.name == JOINT_STATE else b""  # only JointState's is read
+                file.schemas[record.id] = (record.name[:256], record.encoding[:64], text.decode("utf-8", "replace"))
             elif isinstance(record, Channel):
+                self._room(file, at, record.id, file.channels)
                 file.channels[record.id] = self._topic(file, record, at)
         file.messages += len(samples)
         return samples
@@ -225,18 +228,23 @@ class McapFollowFeed:
             header_ns, names, positions = topic.decode(message.data)
         except UserError as error:  # the decoder names the topic; the file and the record's offset said here
             raise file.records.refused(at, error.message, error.where) from None
-        kept = topic.names.get(names)
-        if kept is None:
-            if len(topic.names) >= NAMES_KEPT:
-                topic.names.clear()
-            kept = topic.names[names] = names
-        return JointStateSample(topic.topic, kept, positions, header_ns, message.log_time, message.publish_time, received)
+        return JointStateSample(topic.topic, names, positions, header_ns, message.log_time, message.publish_time, received)
+
+    @staticmethod
+    def _room(file: _Reading, at: int, key: int, kept: dict[int, Any]) -> None:
+        """A file's Schema and Channel records are kept (a channel names its schema by id): up to DEFINITIONS_KEPT
+        each, a stranger's file defining more is refused at the record."""
+        if key not in kept and len(kept) >= DEFINITIONS_KEPT:
+            raise file.records.refused(
+                at, f"it defines more than {DEFINITIONS_KEPT:,} schemas or channels; a bag has one per type and topic"
+            )
 
     def _topic(self, file: _Reading, channel: Channel, at: int) -> _Topic | None:
         """The decoder of a channel of a wanted topic (a wrong schema refused by name); None for another topic."""
         wanted = next((topic for topic in self.topics if same_topic(topic, channel.topic)), None)
         if wanted is None:
-            file.others.add(channel.topic)
+            if len(file.others) < OTHERS_SHOWN:
+                file.others.add(channel.topic[:256])
             return None
         key = (channel.topic, channel.schema_id, channel.message_encoding)
         known = file.channels.get(channel.id)
@@ -257,5 +265,5 @@ class McapFollowFeed:
         if any(file.channels.values()):
             return ""
         wanted = ", ".join(f"'{shown(topic)}'" for topic in self.topics)
-        others = ", ".join(f"'{shown(topic)}'" for topic in sorted(file.others)[:20]) or "none"
+        others = ", ".join(f"'{shown(topic)}'" for topic in sorted(file.others)) or "none"
         return f"; it has no channel on {wanted} (its topics: {others})"

@@ -19,7 +19,7 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
     from .bag_contents import BagTransform, robot_description, static_transforms, tf_messages, tf_pairs
     from .base import GLOB, EntryField, SourceDescription, SourceKind, refuse_control_characters, resolve_input
     from .callbacks import CallbackErrors
-    from .joint_state_cdr import JOINT_STATE, MAX_NAMES, JointStateUnreadable, definition_differs, read_joint_state
+    from .joint_state_cdr import JOINT_STATE, MAX_NAMES, MAX_SCHEMA_BYTES, JointStateUnreadable, definition_differs, read_joint_state
     from .joint_values import ChannelStats, JointValueMapper, RobotStats, raw_matrix, wrapped
     from .lerobot import local_dataset
     from .mcap import checked_first_names
