@@ -99,7 +99,7 @@ def loop(variant: str, config: Path, samples: int, out: Path) -> dict[str, float
     return {"push_us": spent / samples * 1e6, "cpu_us_per_sample": busy / samples * 1e6, "late_share": late / samples}
 
 
-def make_push(variant: str, config: Path, names: list[str], out: Path):  # noqa: ANN201 - a closure per variant
+def make_push(variant: str, config: Path, names: list[str], out: Path):  # a closure per variant
     import numpy as np
     import rerun as rr
 

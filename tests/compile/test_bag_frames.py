@@ -11,10 +11,10 @@ import pytest
 
 pytest.importorskip("mcap_ros2", reason="writing ROS 2 bags needs mcap-ros2-support (a test dependency)")
 
-from ..bag_inputs import write_robot_bag  # noqa: E402
-from ..edge_helpers import RIG_URDF, matrix, write_config  # noqa: E402
-from ..reference_fk import PinocchioRobot  # noqa: E402
-from ..rrd_frames import read_frames, rotation_angle  # noqa: E402
+from ..bag_inputs import write_robot_bag
+from ..edge_helpers import RIG_URDF, matrix, write_config
+from ..reference_fk import PinocchioRobot
+from ..rrd_frames import read_frames, rotation_angle
 
 MOUNT = ("cam", "camera_optical", (0.01, -0.02, 0.05), (-0.5, 0.5, -0.5, 0.5))  # a camera's optical frame on its mount
 LIDAR_MOUNT = ("lidar", "lidar_scan", (0.0, 0.0, 0.03), (0.0, 0.0, 0.3826834, 0.9238795))

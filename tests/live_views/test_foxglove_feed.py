@@ -183,7 +183,7 @@ def _consume_in_a_thread(feed: FoxgloveFeed) -> tuple[threading.Thread, threadin
             for batch in feed.batches():
                 if batch:
                     first.set()
-        except BaseException as exc:  # noqa: BLE001 - handed to the test
+        except BaseException as exc:  # handed to the test
             errors.append(exc)
 
     thread = threading.Thread(target=consume, daemon=True)

@@ -209,7 +209,7 @@ def _consuming(feed: FoxgloveFeed) -> tuple[threading.Thread, threading.Event, l
         try:
             for _ in feed.batches():
                 pass
-        except BaseException as exc:  # noqa: BLE001 - handed to the test
+        except BaseException as exc:  # handed to the test
             errors.append(exc)
         ended.set()
 

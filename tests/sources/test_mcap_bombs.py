@@ -24,13 +24,13 @@ import pytest
 
 pytest.importorskip("mcap_ros2", reason="writing ROS 2 bags needs mcap-ros2-support (a test dependency)")
 
-from urdf_pipeline.sources import mcap_chunks  # noqa: E402
-from urdf_pipeline.sources.mcap_chunks import McapRefused  # noqa: E402
+from urdf_pipeline.sources import mcap_chunks
+from urdf_pipeline.sources.mcap_chunks import McapRefused
 
-from ..bag_inputs import packed, write_bomb_bag, write_robot_bag  # noqa: E402
-from ..conftest import S3  # noqa: E402
-from ..edge_helpers import RIG_URDF, write_config  # noqa: E402
-from .conftest import cached_files  # noqa: E402
+from ..bag_inputs import packed, write_bomb_bag, write_robot_bag
+from ..conftest import S3
+from ..edge_helpers import RIG_URDF, write_config
+from .conftest import cached_files
 
 GIB = 1 << 30
 MOUNT = ("cam", "camera_optical", (0.01, -0.02, 0.05), (-0.5, 0.5, -0.5, 0.5))

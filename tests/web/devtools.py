@@ -91,7 +91,7 @@ class Browser:
         if found is None:
             raise FileNotFoundError("no chromium on PATH (apt-get install chromium; make test installs it when run as root)")
         self._profile = Path(tempfile.mkdtemp(prefix="urdf-pipeline-chromium-"))
-        self._log = open(self._profile / "chromium.log", "wb")  # noqa: SIM115 (closed in close())
+        self._log = open(self._profile / "chromium.log", "wb")  # (closed in close())
         self._process = subprocess.Popen(
             [found, *FLAGS, f"--user-data-dir={self._profile}", "about:blank"],
             stdin=subprocess.DEVNULL,

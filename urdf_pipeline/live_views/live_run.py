@@ -239,7 +239,7 @@ class _Session:
 def _closing(step: Callable[[], Any], problems: list[BaseException]) -> None:
     try:
         step()
-    except BaseException as exc:  # noqa: BLE001 - every view and the recording are closed; the first failure is raised
+    except BaseException as exc:  # every view and the recording are closed; the first failure is raised
         problems.append(exc)
 
 

@@ -175,7 +175,7 @@ class LiveView:
             try:
                 with self._sending:
                     self._send(*self._take())
-            except BaseException as exc:  # noqa: BLE001 - given to the caller's next call, never lost
+            except BaseException as exc:  # given to the caller's next call, never lost
                 self._failure = exc
                 return
 

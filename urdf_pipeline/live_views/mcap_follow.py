@@ -141,7 +141,7 @@ class McapFollowFeed:
                 )
             if not stat.S_ISREG(info.st_mode):
                 raise UserError(f"{shown(self.path)} is not a regular file; name the .mcap file the recorder writes", self.where)
-            handle = open(self.path, "rb", buffering=0)  # noqa: SIM115 - held across polls, closed by _drop
+            handle = open(self.path, "rb", buffering=0)  # held across polls, closed by _drop
         except FileNotFoundError:
             return None
         except OSError as exc:

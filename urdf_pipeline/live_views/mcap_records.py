@@ -114,5 +114,5 @@ class RecordSplitter:
             raise self.refused(
                 at, f"a record (opcode {opcode:#04x}) whose content ends before its fields do: the file is damaged"
             ) from None
-        except Exception as exc:  # noqa: BLE001 - the mcap library's and the decompressors' assorted errors on damage
+        except Exception as exc:  # the mcap library's and the decompressors' assorted errors on damage
             raise self.refused(at, f"a damaged record (opcode {opcode:#04x}): {short_reason(exc)}") from None

@@ -116,7 +116,7 @@ class Prefetched:
             for batch in self.feed.batches():
                 if batch:
                     self._put(batch)
-        except BaseException as exc:  # noqa: BLE001 - handed to the reader of batches(), which raises it
+        except BaseException as exc:  # handed to the reader of batches(), which raises it
             self._failure = exc
         finally:
             with self._ready:

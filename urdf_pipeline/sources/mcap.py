@@ -83,7 +83,7 @@ def _check_log_times(late: Callable[[str, int], int], file_name: str, topic: str
         row = f" at row {total - beyond} (counting from 0, in log-time order) and after"
     except UserError:
         raise  # a chunk refused on the way (mcap_chunks): that is the file's first fault
-    except Exception:  # noqa: BLE001 - the mcap library's errors on a damaged file: the summary's value is refused anyway
+    except Exception:  # the mcap library's errors on a damaged file: the summary's value is refused anyway
         pass
     raise UserError(
         f"messages of {file_name} are logged at up to {end} ns{row}: beyond a timeline's range ({INT64_MAX} ns, in 2262); "

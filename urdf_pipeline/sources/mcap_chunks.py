@@ -108,7 +108,7 @@ def chunk_content(chunk: Chunk, at: int, budget: InflationBudget, limit: int = M
     budget.take(chunk, at)
     try:
         data = inflate(chunk.compression, chunk.data, stated)
-    except Exception as exc:  # noqa: BLE001 - zstandard's and lz4's errors on bytes that are no frame
+    except Exception as exc:  # zstandard's and lz4's errors on bytes that are no frame
         raise McapRefused(at, f"a {chunk.compression} chunk that does not inflate ({short_reason(exc)}): the file is damaged") from None
     if len(data) != stated:
         produced = "more" if len(data) > stated else f"{len(data):,}"
@@ -126,7 +126,7 @@ def chunk_records(chunk: Chunk, at: int, budget: InflationBudget, limit: int = M
     try:
         records = cast(bytes, content)  # a bytearray reads as bytes do here (BytesIO), without a copy
         return breakup_chunk(replace(chunk, compression="", data=records, uncompressed_crc=0))
-    except Exception as exc:  # noqa: BLE001 - the mcap library's errors on records that end before their fields
+    except Exception as exc:  # the mcap library's errors on records that end before their fields
         raise McapRefused(at, f"a chunk whose records are damaged ({short_reason(exc)})") from None
 
 
@@ -156,7 +156,7 @@ def parsed_chunk(content: bytes | memoryview, at: int) -> Chunk:
 
     try:
         return Chunk.read(ReadDataStream(io.BytesIO(content)))
-    except Exception as exc:  # noqa: BLE001 - a field read past the record's end
+    except Exception as exc:  # a field read past the record's end
         raise McapRefused(
             at, f"a chunk record whose content ends before its fields do ({short_reason(exc)}): the file is damaged"
         ) from None
@@ -208,7 +208,7 @@ def read_summary(stream: IO[bytes]) -> Summary | None:
         if read is not None:
             try:
                 record = read(ReadDataStream(io.BytesIO(content)))
-            except Exception as exc:  # noqa: BLE001 - a field read past the record's end
+            except Exception as exc:  # a field read past the record's end
                 raise McapRefused(
                     at, f"a summary record (opcode {opcode:#04x}) whose content ends before its fields do ({short_reason(exc)})"
                 ) from None

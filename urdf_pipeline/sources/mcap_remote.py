@@ -77,7 +77,7 @@ class RemoteMcap:
             raise refusal(remote.url, error, where) from None
         except UserError:
             raise
-        except Exception as exc:  # noqa: BLE001 - the mcap library's errors on a file that is no MCAP, or a damaged one
+        except Exception as exc:  # the mcap library's errors on a file that is no MCAP, or a damaged one
             raise UserError(f"cannot read MCAP file {remote.url}: {short_reason(exc)}", where) from None
         if self.summary is None:
             raise UserError(
@@ -127,7 +127,7 @@ class RemoteMcap:
             ) from None
         except UserError:
             raise
-        except Exception as exc:  # noqa: BLE001 - a chunk that does not decompress, a message that is no JointState
+        except Exception as exc:  # a chunk that does not decompress, a message that is no JointState
             raise UserError(
                 f"MCAP file {self.remote.url} is corrupt: {short_reason(exc)} (reading topic '{topics[0]}')", self.where
             ) from None

@@ -285,7 +285,7 @@ class _Handler(SimpleHTTPRequestHandler):
         self.send_header("X-Content-Type-Options", "nosniff")
         super().end_headers()
 
-    def log_message(self, format: str, *args: object) -> None:  # noqa: A002 (the base class's parameter name)
+    def log_message(self, format: str, *args: object) -> None:  # (the base class's parameter name)
         detail(f"serve: {self.address_string()} {format % args}")
 
 
