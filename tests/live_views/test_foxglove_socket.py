@@ -49,6 +49,11 @@ def endless_line(peer: Peer) -> None:
         peer.send(b"a" * 65536)
 
 
+def small_error_body(peer: Peer) -> None:
+    peer.request()
+    peer.send(b"HTTP/1.1 500 Oops\r\nContent-Length: 4\r\n\r\noops")
+
+
 def huge_error_body(peer: Peer) -> None:
     peer.request()
     peer.send(f"HTTP/1.1 500 Oops\r\nContent-Length: {GB8}\r\n\r\n".encode())
@@ -59,9 +64,13 @@ def huge_error_body(peer: Peer) -> None:
 @pytest.mark.parametrize(
     ("behaviour", "says"),
     [
-        (endless_headers, "its answer to the WebSocket handshake has no end within 16,384 bytes and 100 lines"),
-        (endless_line, "its answer to the WebSocket handshake has no end within 16,384 bytes and 100 lines"),
-        (huge_error_body, "it answered the WebSocket handshake with HTTP 500 Oops;"),
+        (endless_headers, "it answered the WebSocket handshake beyond the client's bounds (too many headers,"),
+        (endless_line, "it answered the WebSocket handshake beyond the client's bounds (too many headers, a line too long"),
+        (
+            huge_error_body,
+            "it answered the WebSocket handshake beyond the client's bounds (too many headers, a line too long or a body too large);",
+        ),
+        (small_error_body, "it answered the WebSocket handshake with HTTP 500 Oops;"),
     ],
 )
 def test_a_handshake_answer_is_read_only_as_far_as_its_bound(behaviour: Callable[[Peer], None], says: str) -> None:
@@ -77,6 +86,10 @@ def wrong_accept(peer: Peer) -> None:
 
 
 def no_subprotocol(peer: Peer) -> None:
+    peer.upgrade(protocol="chat")
+
+
+def control_character(peer: Peer) -> None:
     peer.upgrade(protocol="chat\x1b[31m")
 
 
@@ -84,10 +97,8 @@ def no_subprotocol(peer: Peer) -> None:
     ("behaviour", "says"),
     [
         (wrong_accept, "did not complete the WebSocket upgrade as RFC 6455 says"),
-        (
-            no_subprotocol,
-            "did not accept the Foxglove WebSocket subprotocol (foxglove.sdk.v1 or foxglove.websocket.v1; it chose 'chat\\x1b[31m')",
-        ),
+        (no_subprotocol, "did not accept the Foxglove WebSocket subprotocol (foxglove.sdk.v1 or foxglove.websocket.v1)"),
+        (control_character, "answered the WebSocket handshake with something other than HTTP/1.1"),
     ],
 )
 def test_an_upgrade_that_is_not_foxgloves_is_refused(behaviour: Callable[[Peer], None], says: str) -> None:
@@ -124,10 +135,12 @@ def trickled_frame(peer: Peer) -> None:
 def test_a_message_trickled_a_byte_at_a_time_is_given_up_and_retried(
     caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(foxglove_socket, "MESSAGE_SECONDS", 1.0)
+    """A frame on its way blocks the answer to a ping: the connection falls silent, and is lost."""
+    monkeypatch.setattr(foxglove_socket, "PING_AFTER_SECONDS", 0.2)
+    monkeypatch.setattr(foxglove_socket, "SILENT_SECONDS", 1.0)
     with raw_server(trickled_frame) as server:
         error = refused(server.url, reconnects=1)
-    reason = "a message did not arrive whole within 1 s of its first byte"
+    reason = "no frame, and no answer to pings, for 1 s"
     assert error.message.startswith(f"lost {server.url} after 1 reconnect: {reason};"), error.message
     assert lines(caplog)[0] == f"urdf-pipeline: live: lost {server.url} ({reason}); reconnecting in 0.25 s (1 of 1)"
     assert server.connections == 2
@@ -156,6 +169,11 @@ def huge_ping(peer: Peer) -> None:
         peer.send(b"p" * 65536)
 
 
+def long_ping(peer: Peer) -> None:
+    peer.upgrade()
+    peer.send(frame(9, b"p" * 126))
+
+
 def fragmented_ping(peer: Peer) -> None:
     peer.upgrade()
     peer.send(frame(9, b"ping", fin=False))
@@ -164,6 +182,16 @@ def fragmented_ping(peer: Peer) -> None:
 def huge_text(peer: Peer) -> None:
     peer.upgrade()
     peer.send(frame(1, b"", length=GB8))
+
+
+def large_text(peer: Peer) -> None:
+    peer.upgrade()
+    peer.send(frame(1, b" " * (MAX_TEXT_BYTES + 1)))
+
+
+def not_utf8(peer: Peer) -> None:
+    peer.upgrade()
+    peer.send(frame(1, b"{\xff}"))
 
 
 def masked_frame(peer: Peer) -> None:
@@ -184,13 +212,16 @@ def deep_json(peer: Peer) -> None:
 @pytest.mark.parametrize(
     ("behaviour", "says"),
     [
-        (endless_empty_fragments, "sent a malformed WebSocket frame (a message in more than 1,024 frames)"),
+        (endless_empty_fragments, "sent a malformed WebSocket frame (a message in more frames than the client takes)"),
         (fragments_beyond_the_bound, f"sent a message of {MAX_FRAME_BYTES + 1024 * 1024:,} bytes (at most {MAX_FRAME_BYTES:,})"),
-        (huge_ping, "sent a malformed WebSocket frame (a control frame of 8,589,934,592 bytes (at most 125, whole))"),
-        (fragmented_ping, "sent a malformed WebSocket frame (a control frame of 4 bytes, fragmented (at most 125, whole))"),
-        (huge_text, f"sent a text message of {GB8:,} bytes (at most {MAX_TEXT_BYTES:,})"),
+        (huge_ping, f"sent a message of {GB8:,} bytes (at most {MAX_FRAME_BYTES:,})"),
+        (long_ping, "sent a malformed WebSocket frame (a control frame over 125 bytes (at most 125, whole))"),
+        (fragmented_ping, "sent a malformed WebSocket frame (a control frame fragmented (at most 125 bytes, whole))"),
+        (huge_text, f"sent a message of {GB8:,} bytes (at most {MAX_FRAME_BYTES:,})"),
+        (large_text, f"sent a text message of {MAX_TEXT_BYTES + 1:,} bytes (at most {MAX_TEXT_BYTES:,})"),
+        (not_utf8, "sent a malformed WebSocket frame (text that is not UTF-8)"),
         (masked_frame, "a frame with reserved bits set or a mask"),
-        (unknown_opcode, "a frame of opcode 3, which WebSocket does not define"),
+        (unknown_opcode, "a frame of an opcode WebSocket does not define"),
         (deep_json, "does not speak the Foxglove WebSocket protocol: it sent a text frame of JSON nested too deep"),
     ],
 )
@@ -303,8 +334,8 @@ def three_then_a_stalled_frame(peer: Peer) -> None:
 
 def test_samples_before_a_stalled_frame_are_given_at_once(monkeypatch: pytest.MonkeyPatch) -> None:
     """A drain reads on only while a whole message is here: the three samples are not held for the half frame after
-    them (which would take MESSAGE_SECONDS, set here beyond the test's own guard)."""
-    monkeypatch.setattr(foxglove_socket, "MESSAGE_SECONDS", 10 * HANG_GUARD)
+    them (which would take SILENT_SECONDS, set here beyond the test's own guard)."""
+    monkeypatch.setattr(foxglove_socket, "SILENT_SECONDS", 10 * HANG_GUARD)
     with raw_server(three_then_a_stalled_frame) as server:
         feed = FoxgloveFeed(server.url, {"/joint_states": WHERE})
         batches = feed.batches()
