@@ -5,14 +5,22 @@ as documented (bounded), or refuses a server that is no Foxglove server, naming 
 from __future__ import annotations
 
 import contextlib
+import datetime
+import ipaddress
 import json
 import logging
 import socket
+import ssl
 import threading
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import pytest
+from cryptography import x509
+from cryptography.hazmat.primitives import hashes, serialization
+from cryptography.hazmat.primitives.asymmetric import ec
+from cryptography.x509.oid import NameOID
 from mcap_ros2._dynamic import serialize_dynamic
 
 from urdf_pipeline.errors import UserError, has_control_character
@@ -383,3 +391,76 @@ def test_close_ends_a_connect_under_way() -> None:
         assert ended.wait(HANG_GUARD) and not errors
         for filler in fillers:
             filler.close()
+
+
+def _certificate(folder: Path) -> tuple[Path, Path]:
+    """A self-signed certificate for 127.0.0.1, made here (certificate and key files)."""
+    key = ec.generate_private_key(ec.SECP256R1())
+    name = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, "127.0.0.1")])
+    now = datetime.datetime.now(datetime.UTC)
+    certificate = (
+        x509.CertificateBuilder()
+        .subject_name(name)
+        .issuer_name(name)
+        .public_key(key.public_key())
+        .serial_number(x509.random_serial_number())
+        .not_valid_before(now - datetime.timedelta(minutes=5))
+        .not_valid_after(now + datetime.timedelta(days=1))
+        .add_extension(x509.SubjectAlternativeName([x509.IPAddress(ipaddress.ip_address("127.0.0.1"))]), critical=False)
+        .add_extension(x509.BasicConstraints(ca=True, path_length=None), critical=True)
+        .sign(key, hashes.SHA256())
+    )
+    cert_file, key_file = folder / "server.pem", folder / "server.key"
+    cert_file.write_bytes(certificate.public_bytes(serialization.Encoding.PEM))
+    key_file.write_bytes(key.private_bytes(serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8, serialization.NoEncryption()))
+    return cert_file, key_file
+
+
+def _tls(tmp_path: Path) -> tuple[ssl.SSLContext, Path]:
+    cert_file, key_file = _certificate(tmp_path)
+    context = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
+    context.load_cert_chain(cert_file, key_file)
+    return context, cert_file
+
+
+def test_a_wss_server_is_read_over_tls(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """wss://: TLS with the system's certificate authorities (here the test's own, through SSL_CERT_FILE, which
+    OpenSSL reads), then the same protocol: the samples before the server's close frame are given whole."""
+    context, cert_file = _tls(tmp_path)
+    monkeypatch.setenv("SSL_CERT_FILE", str(cert_file))
+    with raw_server(serve_then_close, tls=context) as server:
+        assert server.url.startswith("wss://")
+        batches = FoxgloveFeed(server.url, {"/joint_states": WHERE}, reconnects=0).batches()
+        assert [s.log_time_ns for s in collect(batches, at_least(3))] == [0, 1, 2]
+        with pytest.raises(UserError) as error:
+            collect(batches, at_least(1))
+    assert error.value.message.startswith(f"lost {server.url} after 0 reconnects: the server closed the connection: 1000 bye\\x1b;")
+
+
+def test_a_wss_server_with_an_untrusted_certificate_is_refused(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    context, _ = _tls(tmp_path)
+    monkeypatch.setenv("SSL_CERT_FILE", str(tmp_path / "none.pem"))  # no authority trusts the server's certificate
+    with raw_server(serve_then_close, tls=context) as server:
+        error = refused(server.url, reconnects=3)
+    assert (
+        error.message.startswith(f"{server.url}: the TLS connection failed (")
+        and "needs a certificate this machine trusts" in error.message
+    )
+    assert server.connections == 1
+
+
+def test_close_ends_a_wss_read_under_way(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """close() from another thread ends a read over TLS too (the library's TLS socket wraps the one we shut down)."""
+    context, cert_file = _tls(tmp_path)
+    monkeypatch.setenv("SSL_CERT_FILE", str(cert_file))
+    with raw_server(stalled_mid_frame, tls=context) as server:
+        feed = FoxgloveFeed(server.url, {"/joint_states": WHERE})
+        _, ended, errors = _consuming(feed)
+        deadline = time.monotonic() + HANG_GUARD
+        while server.connections == 0:
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        time.sleep(0.5)
+        feed.close()
+        assert ended.wait(HANG_GUARD) and not errors
+    assert server.connections == 1
