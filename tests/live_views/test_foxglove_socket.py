@@ -464,3 +464,29 @@ def test_close_ends_a_wss_read_under_way(tmp_path: Path, monkeypatch: pytest.Mon
         feed.close()
         assert ended.wait(HANG_GUARD) and not errors
     assert server.connections == 1
+
+
+def pings_never_reading(peer: Peer) -> None:
+    """Pings without end, and never a read of the client's pongs: the client's sends stall (its buffer full)."""
+    peer.upgrade()
+    peer.subscribed()
+    peer.sock.settimeout(None)  # its own sends wait as long as the client reads
+    while True:
+        peer.send(frame(9, b"x" * 125) * 100)
+
+
+def test_a_server_that_reads_nothing_is_given_up() -> None:
+    """The library's sends (its pongs, our pings) have no deadline of their own: the socket's send timeout is one."""
+    with raw_server(pings_never_reading) as server:
+        error = refused(server.url)
+    reason = f"sending timed out after {foxglove_socket.SEND_SECONDS:g} s"
+    assert error.message.startswith(f"lost {server.url} after 0 reconnects: {reason};"), error.message
+
+
+def test_close_ends_a_feed_whose_sends_are_stalled() -> None:
+    with raw_server(pings_never_reading) as server:
+        feed = FoxgloveFeed(server.url, {"/joint_states": WHERE})
+        _, ended, errors = _consuming(feed)
+        time.sleep(1.5)  # the client's sends are stalled now (its buffer full)
+        feed.close()
+        assert ended.wait(HANG_GUARD) and not errors

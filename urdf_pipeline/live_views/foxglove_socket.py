@@ -50,7 +50,7 @@ from .foxglove_protocol import MAX_FRAME_BYTES, MAX_TEXT_BYTES, SUBPROTOCOLS
 CONNECT_SECONDS = 5.0  # TCP connect, TLS and the WebSocket handshake together; the server's first message again
 PING_AFTER_SECONDS = 2.0  # a connection silent this long is pinged (servers answer pings, foxglove_bridge included)
 SILENT_SECONDS = 10.0  # no message and no pong this long: lost (a pulled cable, a frozen robot, a frame trickled)
-SEND_SECONDS = 5.0  # a send the server does not take (it reads nothing) fails after this long
+SEND_SECONDS = 2.0  # a send the server does not take (it reads nothing: its window is shut) fails after this long
 CLOSE_SECONDS = 0.25  # how long a polite close waits for the server's close frame
 STEP_SECONDS = 0.1  # a connect is waited for in steps this long, so `goodbye` ends it
 MAX_QUEUE = 4  # whole frames the library holds for us before it stops reading (each at most MAX_FRAME_BYTES)
