@@ -57,6 +57,11 @@ def endless_line(peer: Peer) -> None:
         peer.send(b"a" * 65536)
 
 
+def redirect(peer: Peer) -> None:
+    peer.request()
+    peer.send(b"HTTP/1.1 301 Moved Permanently\r\nLocation: ws://elsewhere.example/\r\nContent-Length: 0\r\n\r\n")
+
+
 def small_error_body(peer: Peer) -> None:
     peer.request()
     peer.send(b"HTTP/1.1 500 Oops\r\nContent-Length: 4\r\n\r\noops")
@@ -79,6 +84,7 @@ def huge_error_body(peer: Peer) -> None:
             "it answered the WebSocket handshake beyond the client's bounds (too many headers, a line too long or a body too large);",
         ),
         (small_error_body, "it answered the WebSocket handshake with HTTP 500 Oops;"),
+        (redirect, "it answered the WebSocket handshake with HTTP 301 Moved Permanently;"),  # not followed
     ],
 )
 def test_a_handshake_answer_is_read_only_as_far_as_its_bound(behaviour: Callable[[Peer], None], says: str) -> None:

@@ -207,8 +207,9 @@ class Connection:
             return UserError(
                 f"{shown(self.url)}: the TLS connection failed ({shown(exc)}); a wss:// server needs a certificate this machine trusts"
             )
-        if isinstance(exc, InvalidStatus) or isinstance(cause, InvalidStatus):  # a redirect is refused as its status
-            response = (exc if isinstance(exc, InvalidStatus) else cause).response  # type: ignore[union-attr]
+        answered = exc if isinstance(exc, InvalidStatus) else cause  # a redirect is refused as its status
+        if isinstance(answered, InvalidStatus):
+            response = answered.response
             status = f"HTTP {response.status_code} {shown(response.reason_phrase)}".rstrip()
             return self._refused(f"answered the WebSocket handshake with {status}")
         if isinstance(exc, SecurityError) or isinstance(cause, SecurityError):
