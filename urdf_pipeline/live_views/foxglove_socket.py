@@ -53,7 +53,7 @@ SILENT_SECONDS = 10.0  # no message and no pong this long: lost (a pulled cable,
 SEND_SECONDS = 2.0  # a send the server does not take (it reads nothing: its window is shut) fails after this long
 CLOSE_SECONDS = 0.25  # how long a polite close waits for the server's close frame
 STEP_SECONDS = 0.1  # a connect is waited for in steps this long, so `goodbye` ends it
-MAX_QUEUE = 4  # whole frames the library holds for us before it stops reading (each at most MAX_FRAME_BYTES)
+MAX_QUEUE = 2  # the library stops reading while more whole frames than this wait for us (each <= MAX_FRAME_BYTES)
 TEXT, BINARY = 0x1, 0x2
 _FIX = "give --from the address of the robot's Foxglove WebSocket server (foxglove_bridge listens on ws://ROBOT:8765)"
 # The library's own log lines are not ours to show: its failures reach us as exceptions, which we translate.
