@@ -10,6 +10,7 @@ import contextlib
 import hashlib
 import json
 import socket
+import ssl
 import struct
 import threading
 from collections.abc import Callable, Iterator
@@ -125,14 +126,14 @@ def message_data(subscription: int, timestamp_ns: int, payload: bytes) -> bytes:
 
 class RawServer:
     """Listens on 127.0.0.1; each connection runs `behaviour(peer)` on a thread of its own until it returns, the
-    client goes, or `stop()`. `connections` counts those accepted."""
+    client goes, or `stop()`. `connections` counts those accepted. With `tls`, each connection is TLS (a wss:// URL)."""
 
-    def __init__(self, behaviour: Callable[[Peer], None]) -> None:
-        self.behaviour = behaviour
+    def __init__(self, behaviour: Callable[[Peer], None], tls: ssl.SSLContext | None = None) -> None:
+        self.behaviour, self.tls = behaviour, tls
         self.listener = socket.create_server(("127.0.0.1", 0))
         self.listener.settimeout(0.1)
         self.port = self.listener.getsockname()[1]
-        self.url = f"ws://127.0.0.1:{self.port}"
+        self.url = f"{'wss' if tls else 'ws'}://127.0.0.1:{self.port}"
         self.connections = 0
         self.stopping = threading.Event()
         self._threads: list[threading.Thread] = []
@@ -153,6 +154,13 @@ class RawServer:
             thread.start()
 
     def _serve(self, sock: socket.socket, index: int) -> None:
+        if self.tls is not None:
+            sock.settimeout(5.0)
+            try:
+                sock = self.tls.wrap_socket(sock, server_side=True)
+            except OSError:  # the client refused the certificate, or went
+                sock.close()
+                return
         sock.settimeout(0.1)
         with sock, contextlib.suppress(Gone):
             self.behaviour(Peer(sock, self.stopping, index))
@@ -168,8 +176,8 @@ class RawServer:
 
 
 @contextlib.contextmanager
-def raw_server(behaviour: Callable[[Peer], None]) -> Iterator[RawServer]:
-    server = RawServer(behaviour)
+def raw_server(behaviour: Callable[[Peer], None], tls: ssl.SSLContext | None = None) -> Iterator[RawServer]:
+    server = RawServer(behaviour, tls)
     try:
         yield server
     finally:

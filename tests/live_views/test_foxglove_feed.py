@@ -223,7 +223,7 @@ def test_a_plain_http_server_is_refused() -> None:
         assert process.stdout is not None
         process.stdout.close()
     assert refused.value.message.startswith(
-        f"ws://127.0.0.1:{port} is not a Foxglove WebSocket server: it answered the WebSocket handshake with HTTP 200 OK;"
+        f"ws://127.0.0.1:{port} is not a Foxglove WebSocket server: it answered the WebSocket handshake with something other than HTTP/1.1;"
     )
     assert "foxglove_bridge" in refused.value.message
 

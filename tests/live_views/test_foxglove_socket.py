@@ -5,14 +5,22 @@ as documented (bounded), or refuses a server that is no Foxglove server, naming 
 from __future__ import annotations
 
 import contextlib
+import datetime
+import ipaddress
 import json
 import logging
 import socket
+import ssl
 import threading
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import pytest
+from cryptography import x509
+from cryptography.hazmat.primitives import hashes, serialization
+from cryptography.hazmat.primitives.asymmetric import ec
+from cryptography.x509.oid import NameOID
 from mcap_ros2._dynamic import serialize_dynamic
 
 from urdf_pipeline.errors import UserError, has_control_character
@@ -49,6 +57,16 @@ def endless_line(peer: Peer) -> None:
         peer.send(b"a" * 65536)
 
 
+def redirect(peer: Peer) -> None:
+    peer.request()
+    peer.send(b"HTTP/1.1 301 Moved Permanently\r\nLocation: ws://elsewhere.example/\r\nContent-Length: 0\r\n\r\n")
+
+
+def small_error_body(peer: Peer) -> None:
+    peer.request()
+    peer.send(b"HTTP/1.1 500 Oops\r\nContent-Length: 4\r\n\r\noops")
+
+
 def huge_error_body(peer: Peer) -> None:
     peer.request()
     peer.send(f"HTTP/1.1 500 Oops\r\nContent-Length: {GB8}\r\n\r\n".encode())
@@ -59,9 +77,14 @@ def huge_error_body(peer: Peer) -> None:
 @pytest.mark.parametrize(
     ("behaviour", "says"),
     [
-        (endless_headers, "its answer to the WebSocket handshake has no end within 16,384 bytes and 100 lines"),
-        (endless_line, "its answer to the WebSocket handshake has no end within 16,384 bytes and 100 lines"),
-        (huge_error_body, "it answered the WebSocket handshake with HTTP 500 Oops;"),
+        (endless_headers, "it answered the WebSocket handshake beyond the client's bounds (too many headers,"),
+        (endless_line, "it answered the WebSocket handshake beyond the client's bounds (too many headers, a line too long"),
+        (
+            huge_error_body,
+            "it answered the WebSocket handshake beyond the client's bounds (too many headers, a line too long or a body too large);",
+        ),
+        (small_error_body, "it answered the WebSocket handshake with HTTP 500 Oops;"),
+        (redirect, "it answered the WebSocket handshake with HTTP 301 Moved Permanently;"),  # not followed
     ],
 )
 def test_a_handshake_answer_is_read_only_as_far_as_its_bound(behaviour: Callable[[Peer], None], says: str) -> None:
@@ -77,6 +100,10 @@ def wrong_accept(peer: Peer) -> None:
 
 
 def no_subprotocol(peer: Peer) -> None:
+    peer.upgrade(protocol="chat")
+
+
+def control_character(peer: Peer) -> None:
     peer.upgrade(protocol="chat\x1b[31m")
 
 
@@ -84,10 +111,8 @@ def no_subprotocol(peer: Peer) -> None:
     ("behaviour", "says"),
     [
         (wrong_accept, "did not complete the WebSocket upgrade as RFC 6455 says"),
-        (
-            no_subprotocol,
-            "did not accept the Foxglove WebSocket subprotocol (foxglove.sdk.v1 or foxglove.websocket.v1; it chose 'chat\\x1b[31m')",
-        ),
+        (no_subprotocol, "did not accept the Foxglove WebSocket subprotocol (foxglove.sdk.v1 or foxglove.websocket.v1)"),
+        (control_character, "answered the WebSocket handshake with something other than HTTP/1.1"),
     ],
 )
 def test_an_upgrade_that_is_not_foxgloves_is_refused(behaviour: Callable[[Peer], None], says: str) -> None:
@@ -124,10 +149,12 @@ def trickled_frame(peer: Peer) -> None:
 def test_a_message_trickled_a_byte_at_a_time_is_given_up_and_retried(
     caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(foxglove_socket, "MESSAGE_SECONDS", 1.0)
+    """A frame on its way blocks the answer to a ping: the connection falls silent, and is lost."""
+    monkeypatch.setattr(foxglove_socket, "PING_AFTER_SECONDS", 0.2)
+    monkeypatch.setattr(foxglove_socket, "SILENT_SECONDS", 1.0)
     with raw_server(trickled_frame) as server:
         error = refused(server.url, reconnects=1)
-    reason = "a message did not arrive whole within 1 s of its first byte"
+    reason = "no frame, and no answer to pings, for 1 s"
     assert error.message.startswith(f"lost {server.url} after 1 reconnect: {reason};"), error.message
     assert lines(caplog)[0] == f"urdf-pipeline: live: lost {server.url} ({reason}); reconnecting in 0.25 s (1 of 1)"
     assert server.connections == 2
@@ -156,6 +183,11 @@ def huge_ping(peer: Peer) -> None:
         peer.send(b"p" * 65536)
 
 
+def long_ping(peer: Peer) -> None:
+    peer.upgrade()
+    peer.send(frame(9, b"p" * 126))
+
+
 def fragmented_ping(peer: Peer) -> None:
     peer.upgrade()
     peer.send(frame(9, b"ping", fin=False))
@@ -164,6 +196,16 @@ def fragmented_ping(peer: Peer) -> None:
 def huge_text(peer: Peer) -> None:
     peer.upgrade()
     peer.send(frame(1, b"", length=GB8))
+
+
+def large_text(peer: Peer) -> None:
+    peer.upgrade()
+    peer.send(frame(1, b" " * (MAX_TEXT_BYTES + 1)))
+
+
+def not_utf8(peer: Peer) -> None:
+    peer.upgrade()
+    peer.send(frame(1, b"{\xff}"))
 
 
 def masked_frame(peer: Peer) -> None:
@@ -184,13 +226,16 @@ def deep_json(peer: Peer) -> None:
 @pytest.mark.parametrize(
     ("behaviour", "says"),
     [
-        (endless_empty_fragments, "sent a malformed WebSocket frame (a message in more than 1,024 frames)"),
+        (endless_empty_fragments, "sent a malformed WebSocket frame (a message in more frames than the client takes)"),
         (fragments_beyond_the_bound, f"sent a message of {MAX_FRAME_BYTES + 1024 * 1024:,} bytes (at most {MAX_FRAME_BYTES:,})"),
-        (huge_ping, "sent a malformed WebSocket frame (a control frame of 8,589,934,592 bytes (at most 125, whole))"),
-        (fragmented_ping, "sent a malformed WebSocket frame (a control frame of 4 bytes, fragmented (at most 125, whole))"),
-        (huge_text, f"sent a text message of {GB8:,} bytes (at most {MAX_TEXT_BYTES:,})"),
+        (huge_ping, f"sent a message of {GB8:,} bytes (at most {MAX_FRAME_BYTES:,})"),
+        (long_ping, "sent a malformed WebSocket frame (a control frame over 125 bytes (at most 125, whole))"),
+        (fragmented_ping, "sent a malformed WebSocket frame (a control frame fragmented (at most 125 bytes, whole))"),
+        (huge_text, f"sent a message of {GB8:,} bytes (at most {MAX_FRAME_BYTES:,})"),
+        (large_text, f"sent a text message of {MAX_TEXT_BYTES + 1:,} bytes (at most {MAX_TEXT_BYTES:,})"),
+        (not_utf8, "sent a malformed WebSocket frame (text that is not UTF-8)"),
         (masked_frame, "a frame with reserved bits set or a mask"),
-        (unknown_opcode, "a frame of opcode 3, which WebSocket does not define"),
+        (unknown_opcode, "a frame of an opcode WebSocket does not define"),
         (deep_json, "does not speak the Foxglove WebSocket protocol: it sent a text frame of JSON nested too deep"),
     ],
 )
@@ -303,8 +348,8 @@ def three_then_a_stalled_frame(peer: Peer) -> None:
 
 def test_samples_before_a_stalled_frame_are_given_at_once(monkeypatch: pytest.MonkeyPatch) -> None:
     """A drain reads on only while a whole message is here: the three samples are not held for the half frame after
-    them (which would take MESSAGE_SECONDS, set here beyond the test's own guard)."""
-    monkeypatch.setattr(foxglove_socket, "MESSAGE_SECONDS", 10 * HANG_GUARD)
+    them (which would take SILENT_SECONDS, set here beyond the test's own guard)."""
+    monkeypatch.setattr(foxglove_socket, "SILENT_SECONDS", 10 * HANG_GUARD)
     with raw_server(three_then_a_stalled_frame) as server:
         feed = FoxgloveFeed(server.url, {"/joint_states": WHERE})
         batches = feed.batches()
@@ -352,3 +397,102 @@ def test_close_ends_a_connect_under_way() -> None:
         assert ended.wait(HANG_GUARD) and not errors
         for filler in fillers:
             filler.close()
+
+
+def _certificate(folder: Path) -> tuple[Path, Path]:
+    """A self-signed certificate for 127.0.0.1, made here (certificate and key files)."""
+    key = ec.generate_private_key(ec.SECP256R1())
+    name = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, "127.0.0.1")])
+    now = datetime.datetime.now(datetime.UTC)
+    certificate = (
+        x509.CertificateBuilder()
+        .subject_name(name)
+        .issuer_name(name)
+        .public_key(key.public_key())
+        .serial_number(x509.random_serial_number())
+        .not_valid_before(now - datetime.timedelta(minutes=5))
+        .not_valid_after(now + datetime.timedelta(days=1))
+        .add_extension(x509.SubjectAlternativeName([x509.IPAddress(ipaddress.ip_address("127.0.0.1"))]), critical=False)
+        .add_extension(x509.BasicConstraints(ca=True, path_length=None), critical=True)
+        .sign(key, hashes.SHA256())
+    )
+    cert_file, key_file = folder / "server.pem", folder / "server.key"
+    cert_file.write_bytes(certificate.public_bytes(serialization.Encoding.PEM))
+    key_file.write_bytes(key.private_bytes(serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8, serialization.NoEncryption()))
+    return cert_file, key_file
+
+
+def _tls(tmp_path: Path) -> tuple[ssl.SSLContext, Path]:
+    cert_file, key_file = _certificate(tmp_path)
+    context = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
+    context.load_cert_chain(cert_file, key_file)
+    return context, cert_file
+
+
+def test_a_wss_server_is_read_over_tls(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """wss://: TLS with the system's certificate authorities (here the test's own, through SSL_CERT_FILE, which
+    OpenSSL reads), then the same protocol: the samples before the server's close frame are given whole."""
+    context, cert_file = _tls(tmp_path)
+    monkeypatch.setenv("SSL_CERT_FILE", str(cert_file))
+    with raw_server(serve_then_close, tls=context) as server:
+        assert server.url.startswith("wss://")
+        batches = FoxgloveFeed(server.url, {"/joint_states": WHERE}, reconnects=0).batches()
+        assert [s.log_time_ns for s in collect(batches, at_least(3))] == [0, 1, 2]
+        with pytest.raises(UserError) as error:
+            collect(batches, at_least(1))
+    assert error.value.message.startswith(f"lost {server.url} after 0 reconnects: the server closed the connection: 1000 bye\\x1b;")
+
+
+def test_a_wss_server_with_an_untrusted_certificate_is_refused(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    context, _ = _tls(tmp_path)
+    monkeypatch.setenv("SSL_CERT_FILE", str(tmp_path / "none.pem"))  # no authority trusts the server's certificate
+    with raw_server(serve_then_close, tls=context) as server:
+        error = refused(server.url, reconnects=3)
+    assert (
+        error.message.startswith(f"{server.url}: the TLS connection failed (")
+        and "needs a certificate this machine trusts" in error.message
+    )
+    assert server.connections == 1
+
+
+def test_close_ends_a_wss_read_under_way(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """close() from another thread ends a read over TLS too (the library's TLS socket wraps the one we shut down)."""
+    context, cert_file = _tls(tmp_path)
+    monkeypatch.setenv("SSL_CERT_FILE", str(cert_file))
+    with raw_server(stalled_mid_frame, tls=context) as server:
+        feed = FoxgloveFeed(server.url, {"/joint_states": WHERE})
+        _, ended, errors = _consuming(feed)
+        deadline = time.monotonic() + HANG_GUARD
+        while server.connections == 0:
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        time.sleep(0.5)
+        feed.close()
+        assert ended.wait(HANG_GUARD) and not errors
+    assert server.connections == 1
+
+
+def pings_never_reading(peer: Peer) -> None:
+    """Pings without end, and never a read of the client's pongs: the client's sends stall (its buffer full)."""
+    peer.upgrade()
+    peer.subscribed()
+    peer.sock.settimeout(None)  # its own sends wait as long as the client reads
+    while True:
+        peer.send(frame(9, b"x" * 125) * 100)
+
+
+def test_a_server_that_reads_nothing_is_given_up() -> None:
+    """The library's sends (its pongs, our pings) have no deadline of their own: the socket's send timeout is one."""
+    with raw_server(pings_never_reading) as server:
+        error = refused(server.url)
+    reason = f"sending timed out after {foxglove_socket.SEND_SECONDS:g} s"
+    assert error.message.startswith(f"lost {server.url} after 0 reconnects: {reason};"), error.message
+
+
+def test_close_ends_a_feed_whose_sends_are_stalled() -> None:
+    with raw_server(pings_never_reading) as server:
+        feed = FoxgloveFeed(server.url, {"/joint_states": WHERE})
+        _, ended, errors = _consuming(feed)
+        time.sleep(1.5)  # the client's sends are stalled now (its buffer full)
+        feed.close()
+        assert ended.wait(HANG_GUARD) and not errors

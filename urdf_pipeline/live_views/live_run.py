@@ -71,6 +71,10 @@ class LiveSummary:
 def open_feed(source: str, topics: Mapping[str, Where | None], reconnects: int) -> Feed:
     """`--from`: a Foxglove WebSocket server (ws://, wss://) or a path to an MCAP file being written."""
     if source.startswith(("ws://", "wss://")):
+        try:
+            import websockets  # noqa: F401 - the library the client needs, said before anything else
+        except ImportError:
+            raise UserError("live --from ws:// needs the websockets library: pip install 'urdf-pipeline[live]'", FROM_OPTION) from None
         from .foxglove_feed import FoxgloveFeed
 
         return FoxgloveFeed(source, topics, reconnects=reconnects)
