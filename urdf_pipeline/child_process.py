@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import collections
 import contextlib
+import importlib.util
 import json
 import os
 import re
@@ -19,6 +20,7 @@ import threading
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import IO, Any, Literal
 
 from .errors import UserError, Where, shown
@@ -126,6 +128,20 @@ def passed_environment(names: Iterable[str], **extra: str) -> dict[str, str]:
     return {name: os.environ[name] for name in names if name in os.environ} | extra
 
 
+def sandboxed_python(module: str, *needs: str) -> list[str]:
+    """The command of an isolated Python child (`-I -S`: no user site, no .pth files, no PYTHON* variables) running
+    `module`'s main(), importing urdf_pipeline and the packages `needs` from where this process finds them (it has no
+    site-packages). ImportError naming the first of `needs` that is not installed."""
+    folders = [str(Path(__file__).resolve().parents[1])]  # the folder holding the urdf_pipeline package
+    for name in needs:
+        spec = importlib.util.find_spec(name)
+        if spec is None or not spec.submodule_search_locations:
+            raise ImportError(name)
+        folders.append(str(Path(next(iter(spec.submodule_search_locations))).parent))
+    bootstrap = f"import sys; sys.path[:0] = sys.argv[1:]; from {module} import main; main()"
+    return [sys.executable, "-I", "-S", "-X", "utf8", "-c", bootstrap, *dict.fromkeys(folders)]
+
+
 def run_bounded_child(
     command: Sequence[str],
     request: object | None,
@@ -153,7 +169,6 @@ def run_bounded_child(
             stderr=subprocess.PIPE,
             env=env,
             cwd=cwd,
-            close_fds=True,
             start_new_session=True,
             preexec_fn=die_with_parent(signal.SIGKILL),
         )
@@ -219,7 +234,12 @@ class _Output:
                 self.lines.append(line)
 
     def outcome(self, code: int, timed_out: bool) -> ChildOutcome:
-        parsed = _last_object(b"".join(self.answer))
+        text = b"".join(self.answer).decode("utf-8", "replace").strip()
+        try:
+            parsed = json.loads(text.rpartition("\n")[2]) if text else None  # the last line
+        except ValueError:
+            parsed = None
+        parsed = parsed if isinstance(parsed, dict) else None
         kind: Kind = "answered" if parsed is not None else "no answer"
         if self.matched is not None or self.over or timed_out:
             kind = "stopped" if self.matched is not None else "oversized" if self.over else "time"
@@ -228,12 +248,3 @@ class _Output:
         elif code != 0:
             kind = "memory" if code in MEMORY_SIGNALS or any(map(OUT_OF_MEMORY.search, self.lines)) else "failed"
         return ChildOutcome(kind, code, parsed if kind == "answered" else None, bytes(self.head), tuple(self.lines), self.matched)
-
-
-def _last_object(output: bytes) -> dict[str, Any] | None:
-    text = output.decode("utf-8", "replace").strip()
-    try:
-        answer = json.loads(text.splitlines()[-1]) if text else None
-    except ValueError:
-        return None
-    return answer if isinstance(answer, dict) else None

@@ -106,30 +106,20 @@ def in_child(
     outcome = run_bounded_child(
         command, None, timeout_s=budget, env={**os.environ, **CHILD_ENVIRONMENT}, answer_bytes=OUTPUT_BYTES, stop_on=READ_ERROR
     )
-    reading = f"reading topic '{shown(topic)}' of MCAP file {shown(name)}"
-    if outcome.stopped_by is not None:
-        line = outcome.stopped_by
-        cause = line.split(":", 3)[-1].strip() if "Failed" not in line else line[line.index("Failed") :]
-        raise UserError(
-            f"MCAP file {shown(name)} is corrupt: {shown(cause)} (reading topic '{shown(topic)}'); repair or re-record the file", where
-        )
-    if outcome.kind in ("time", "cpu"):
-        raise UserError(
-            f"{reading} did not finish within {budget:.4g} s and was stopped; the file is probably corrupt (the person running the "
-            f"tool can raise the bound with {TIMEOUT_ENV})",
-            where,
-        )
-    if outcome.kind == "memory":
-        raise UserError(
-            f"{reading} needs more than {memory_mb} MB of memory and was stopped (the person running the tool can raise the bound "
-            f"with {MEMORY_ENV})",
-            where,
-        )
-    if outcome.kind == "failed":
-        raise UserError(f"cannot read MCAP file {shown(name)} (topic '{shown(topic)}'): {shown(outcome.last or outcome.status)}", where)
-    if outcome.answer is None:  # an answer over OUTPUT_BYTES, or no answer at all
-        raise UserError(f"cannot read MCAP file {shown(name)} (topic '{shown(topic)}'): its reader gave no readable answer", where)
-    return outcome.answer
+    if outcome.answer is not None:
+        return outcome.answer
+    line, cannot = outcome.stopped_by or "", f"cannot read MCAP file {shown(name)} (topic '{shown(topic)}')"
+    cause = line.split(":", 3)[-1].strip() if "Failed" not in line else line[line.index("Failed") :]
+    reading, raise_it = f"reading topic '{shown(topic)}' of MCAP file {shown(name)}", "the person running the tool can raise the bound with"
+    slow = f"{reading} did not finish within {budget:.4g} s and was stopped; the file is probably corrupt ({raise_it} {TIMEOUT_ENV})"
+    messages = {
+        "stopped": f"MCAP file {shown(name)} is corrupt: {shown(cause)} (reading topic '{shown(topic)}'); repair or re-record the file",
+        "time": slow,
+        "cpu": slow,
+        "memory": f"{reading} needs more than {memory_mb} MB of memory and was stopped ({raise_it} {MEMORY_ENV})",
+        "failed": f"{cannot}: {shown(outcome.last or outcome.status)}",
+    }  # else an answer over OUTPUT_BYTES, or no answer at all
+    raise UserError(messages.get(outcome.kind, f"{cannot}: its reader gave no readable answer"), where)
 
 
 def _bounds(path: Path, where: Where | None) -> tuple[int, float]:

@@ -8,14 +8,12 @@ dependency: without it the form is refused, saying how to install it.
 
 from __future__ import annotations
 
-import importlib.util
 import os
-import sys
 import tempfile
 from pathlib import Path
 from typing import Any
 
-from ..child_process import ChildOutcome, bound_from_environment, passed_environment, run_bounded_child
+from ..child_process import ChildOutcome, bound_from_environment, passed_environment, run_bounded_child, sandboxed_python
 from ..confine import Confinement, refuse_url
 from ..errors import UserError, Where, listing, warn
 from .mjcf_files import scan_mjcf
@@ -26,19 +24,7 @@ DEFAULT_MEMORY_MB = 4096  # address space: MuJoCo reserves its arena (dm_control
 DEFAULT_TIMEOUT_S = 60.0
 OUTPUT_BYTES = 64 << 20
 INSTALL = "pip install 'urdf-pipeline[mjcf]'"
-_BOOTSTRAP = "import sys; sys.path[:0] = sys.argv[1:]; from urdf_pipeline.urdf.mjcf_sandbox import main; main()"
 _PASSED_ENV = ("LD_LIBRARY_PATH", "DYLD_LIBRARY_PATH", "SYSTEMROOT")
-
-
-def _search_path() -> list[str]:
-    """The folders the child imports urdf_pipeline, mujoco and numpy from (it runs without site-packages)."""
-    folders = [str(Path(__file__).resolve().parents[2])]
-    for module in ("mujoco", "numpy"):
-        spec = importlib.util.find_spec(module)
-        if spec is None or not spec.submodule_search_locations:
-            raise ImportError(module)
-        folders.append(str(Path(next(iter(spec.submodule_search_locations))).parent))
-    return list(dict.fromkeys(folders))
 
 
 def load_mjcf(spec: dict[str, Any], config_dir: Path, confinement: Confinement, where: Where) -> tuple[str, Path]:
@@ -50,7 +36,7 @@ def load_mjcf(spec: dict[str, Any], config_dir: Path, confinement: Confinement, 
         raise UserError(f"MJCF file not found: {path} (paths are relative to the config file)", where)
     scan_mjcf(path, confinement, where)
     try:
-        search = _search_path()
+        command = sandboxed_python("urdf_pipeline.urdf.mjcf_sandbox", "mujoco", "numpy")
     except ImportError as exc:
         raise UserError(f"MJCF robots need the {exc.args[0]} package: {INSTALL}", where) from None
     memory_mb = int(bound_from_environment(MEMORY_ENV, DEFAULT_MEMORY_MB, where))
@@ -61,7 +47,6 @@ def load_mjcf(spec: dict[str, Any], config_dir: Path, confinement: Confinement, 
         "name": path.name.removesuffix(".xml"),
         "limits": {"memory_bytes": memory_mb << 20, "cpu_seconds": int(timeout) + 1, "output_bytes": OUTPUT_BYTES},
     }
-    command = [sys.executable, "-I", "-S", "-X", "utf8", "-c", _BOOTSTRAP, *search]
     environment = passed_environment(_PASSED_ENV, OPENBLAS_NUM_THREADS="1")  # each BLAS thread reserves address space
     # In a folder of its own: MuJoCo writes MUJOCO_LOG.TXT into the working folder, never into the user's (and every
     # path it reads is absolute, so none is relative to ours).
@@ -85,12 +70,10 @@ def load_mjcf(spec: dict[str, Any], config_dir: Path, confinement: Confinement, 
 
 def _failure(shown: str, memory_mb: int, timeout: float, outcome: ChildOutcome) -> str:
     """Why the child gave no answer (`run_bounded_child`'s kind), in MuJoCo's words."""
-    if outcome.kind == "time":
-        return f"compiling {shown} with MuJoCo did not end within {timeout:g} s and was stopped; the person running the tool can raise the bound with {TIMEOUT_ENV}"
-    if outcome.kind == "cpu":
-        return f"compiling {shown} with MuJoCo used more than {timeout:g} s of CPU time and was stopped; the person running the tool can raise the bound with {TIMEOUT_ENV}"
-    if outcome.kind == "memory":
-        return f"compiling {shown} with MuJoCo needs more than {memory_mb} MB of memory; the person running the tool can raise the bound with {MEMORY_ENV}"
-    if outcome.kind == "oversized":
-        return f"compiling {shown} with MuJoCo gave more than {OUTPUT_BYTES >> 20} MB of URDF text"
-    return f"compiling {shown} with MuJoCo failed ({outcome.status})" + (f": {outcome.last}" if outcome.last else "")
+    compiling, raise_it = f"compiling {shown} with MuJoCo", "the person running the tool can raise the bound with"
+    return {
+        "time": f"{compiling} did not end within {timeout:g} s and was stopped; {raise_it} {TIMEOUT_ENV}",
+        "cpu": f"{compiling} used more than {timeout:g} s of CPU time and was stopped; {raise_it} {TIMEOUT_ENV}",
+        "memory": f"{compiling} needs more than {memory_mb} MB of memory; {raise_it} {MEMORY_ENV}",
+        "oversized": f"{compiling} gave more than {OUTPUT_BYTES >> 20} MB of URDF text",
+    }.get(outcome.kind, f"{compiling} failed ({outcome.status})" + (f": {outcome.last}" if outcome.last else ""))

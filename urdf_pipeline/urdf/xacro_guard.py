@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import glob
 import hashlib
-import importlib.util
 import os
 import stat
 import sys
@@ -26,7 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..child_process import ChildOutcome, bound_from_environment, passed_environment, run_bounded_child
+from ..child_process import ChildOutcome, bound_from_environment, passed_environment, run_bounded_child, sandboxed_python
 from ..confine import Confinement
 from ..errors import UserError, Where, listing, neutral_text
 from .xml_text import MAX_URDF_BYTES
@@ -39,7 +38,6 @@ OUTPUT_BYTES = MAX_URDF_BYTES  # the expanded URDF text, at most: what any URDF 
 ANSWER_BYTES = OUTPUT_BYTES + (1 << 20)  # the child's whole answer: the text and the files it read
 SHOWN_STDERR = 16 << 10  # xacro's own warnings passed on, at most
 _PASSED_ENV = ("ROS_PACKAGE_PATH", "AMENT_PREFIX_PATH", "LD_LIBRARY_PATH", "DYLD_LIBRARY_PATH", "SYSTEMROOT")
-_BOOTSTRAP = "import sys; sys.path[:0] = sys.argv[1:]; from urdf_pipeline.urdf.xacro_sandbox import main; main()"
 CACHED_BYTES = 256 << 20  # expanded texts kept for reuse, at most
 SMALLEST_SLICE_S = 0.05  # an expansion the budget has less time left for is not started
 _HASHED_CHUNK = 1 << 20
@@ -150,17 +148,6 @@ def _remember(key: tuple[Any, ...], answer: Mapping[str, Any], warnings: bytes) 
         _EXPANSIONS.popitem(last=False)
 
 
-def _search_path() -> list[str]:
-    """The folders the child imports urdf_pipeline, xacro and yaml from (it runs without site-packages)."""
-    folders = [str(Path(__file__).resolve().parents[2])]  # the folder holding the urdf_pipeline package
-    for module in ("xacro", "yaml"):
-        spec = importlib.util.find_spec(module)
-        if spec is None or not spec.submodule_search_locations:
-            raise ImportError(module)
-        folders.append(str(Path(next(iter(spec.submodule_search_locations))).parent))
-    return list(dict.fromkeys(folders))
-
-
 def expand_xacro(request: XacroRequest, where: Where | None, budget: XacroBudget | None = None) -> str:
     """The URDF text of `request.file` expanded with its args, or a UserError at `where` naming the xacro file. The time
     comes from `budget` (a budget of its own when None); a text expanded before from unchanged files is reused."""
@@ -191,7 +178,7 @@ def expand_xacro(request: XacroRequest, where: Where | None, budget: XacroBudget
 def _expand(request: XacroRequest, limits: Limits, budget: XacroBudget, where: Where | None) -> tuple[dict[str, Any], bytes]:
     """The child's answer with a text, and what xacro printed; a UserError for any failure."""
     try:
-        search = _search_path()
+        command = sandboxed_python("urdf_pipeline.urdf.xacro_sandbox", "xacro", "yaml")
     except ImportError as exc:
         raise UserError(f"expanding {request.shown} needs the {exc.args[0]} package: pip install xacro", where) from None
     payload = {
@@ -201,13 +188,8 @@ def _expand(request: XacroRequest, limits: Limits, budget: XacroBudget, where: W
         "packages": {name: str(path) for name, path in request.package_paths.items()},
         "config_dir": str(request.confinement.config_dir),
         "read_roots": [str(root) for root in request.confinement.read_roots],
-        "limits": {
-            "memory_bytes": limits.memory_mb << 20,
-            "cpu_seconds": int(limits.timeout_s) + 1,
-            "output_bytes": ANSWER_BYTES,
-        },
+        "limits": {"memory_bytes": limits.memory_mb << 20, "cpu_seconds": int(limits.timeout_s) + 1, "output_bytes": ANSWER_BYTES},
     }
-    command = [sys.executable, "-I", "-S", "-X", "utf8", "-c", _BOOTSTRAP, *search]
     try:
         outcome = _run(command, payload, limits)
     except OSError as exc:  # no process, no temporary file: still about expanding this file
@@ -247,19 +229,12 @@ def _failure(request: XacroRequest, limits: Limits, budget: XacroBudget, outcome
     """Why the child gave no answer (`run_bounded_child`'s kind), in xacro's words."""
     if outcome.kind == "time" or (outcome.kind == "cpu" and budget.spent > 0 and budget.spenders):
         return _too_slow(request, limits, budget)
-    if outcome.kind == "cpu":
-        return (
-            f"xacro expansion of {request.shown} used more than {limits.timeout_s:g} s of CPU time and was stopped (a macro "
-            f"or expression that never ends?); the person running the tool can raise the bound with {TIMEOUT_ENV}"
-        )
-    if outcome.kind == "memory":
-        return (
-            f"xacro expansion of {request.shown} needs more than {limits.memory_mb} MB of memory (a property or macro "
-            f"that grows without end?); the person running the tool can raise the bound with {MEMORY_ENV}"
-        )
-    if outcome.kind == "oversized":
-        return f"xacro expansion of {request.shown} is larger than {OUTPUT_BYTES >> 20} MB of URDF text"
-    return f"xacro expansion of {request.shown} failed ({outcome.status})" + (f": {outcome.last}" if outcome.last else "")
+    expansion, raise_it = f"xacro expansion of {request.shown}", "the person running the tool can raise the bound with"
+    return {
+        "cpu": f"{expansion} used more than {limits.timeout_s:g} s of CPU time and was stopped (a macro or expression that never ends?); {raise_it} {TIMEOUT_ENV}",
+        "memory": f"{expansion} needs more than {limits.memory_mb} MB of memory (a property or macro that grows without end?); {raise_it} {MEMORY_ENV}",
+        "oversized": f"{expansion} is larger than {OUTPUT_BYTES >> 20} MB of URDF text",
+    }.get(outcome.kind, f"{expansion} failed ({outcome.status})" + (f": {outcome.last}" if outcome.last else ""))
 
 
 def _show_warnings(data: bytes) -> None:
