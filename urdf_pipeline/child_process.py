@@ -206,21 +206,19 @@ class _Output:
     def __init__(self, answer_bytes: int, stderr_bytes: int, stop_on: re.Pattern[str] | None) -> None:
         self.answer_bytes, self.stderr_bytes, self.stop_on = answer_bytes, stderr_bytes, stop_on
         self.stop = threading.Event()
-        self.answer: list[bytes] = []
+        self.answer = bytearray()
         self.over = False
         self.head = bytearray()
         self.lines: collections.deque[str] = collections.deque(maxlen=KEPT_LINES)
         self.matched: str | None = None
 
     def drain(self, stream: IO[bytes]) -> None:
-        kept = 0
         for piece in iter(lambda: stream.read(1 << 16), b""):
-            kept += len(piece)
-            if kept > self.answer_bytes:
+            if len(self.answer) + len(piece) > self.answer_bytes:
                 self.over = True
                 self.stop.set()
                 return
-            self.answer.append(piece)
+            self.answer += piece
 
     def watch(self, stream: IO[bytes]) -> None:
         for raw in iter(lambda: stream.readline(1 << 13), b""):
@@ -234,10 +232,11 @@ class _Output:
                 self.lines.append(line)
 
     def outcome(self, code: int, timed_out: bool) -> ChildOutcome:
-        text = b"".join(self.answer).decode("utf-8", "replace").strip()
+        output = self.answer  # its last line (JSON allows the newline after it), not copied when it is the only one
+        start = output.rfind(b"\n", 0, len(output.rstrip(b"\n"))) + 1
         try:
-            parsed = json.loads(text.rpartition("\n")[2]) if text else None  # the last line
-        except ValueError:
+            parsed = json.loads(output[start:] if start else output) if output.strip() else None
+        except ValueError:  # UnicodeDecodeError too
             parsed = None
         parsed = parsed if isinstance(parsed, dict) else None
         kind: Kind = "answered" if parsed is not None else "no answer"
