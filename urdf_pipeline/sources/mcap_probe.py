@@ -17,16 +17,12 @@ from __future__ import annotations
 import json
 import os
 import re
-import signal
-import subprocess
 import sys
-import threading
-import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any
 
-from ..child_process import bound_from_environment, die_with_parent, limit_this_process
+from ..child_process import bound_from_environment, limit_this_process, run_bounded_child
 from ..errors import UserError, Where, shown
 from .mcap_chunks import McapRefused, check_chunks, read_summary, refusal, require_library
 
@@ -35,15 +31,11 @@ if TYPE_CHECKING:
 
 BASE_SECONDS = 60.0
 SECONDS_PER_BYTE = 1 / 10e6  # 10 MB/s: far below Rerun's decoding speed, so a slow machine is not mistaken for a loop
-ANSI = re.compile(r"\x1b\[[0-9;]*m")
 READ_ERROR = re.compile(r"\bERROR\b.*\b(re_mcap|mcap)\b", re.IGNORECASE)
-OUT_OF_MEMORY = re.compile(
-    r"MemoryError|memory allocation of|unable to allocate|out of memory|bad_alloc|cannot allocate|failed to map segment", re.IGNORECASE
-)
 MEMORY_ENV = "URDF_PIPELINE_MCAP_MEMORY_MB"  # the runner may change the child's bounds for a huge bag; a config cannot
 TIMEOUT_ENV = "URDF_PIPELINE_MCAP_TIMEOUT"
 DEFAULT_MEMORY_MB = 1024  # address space, as xacro's: Rerun's reader needs about 600 MB of it with CHILD_ENVIRONMENT
-OUTPUT_BYTES = 256 << 20  # of any file the child writes: it writes none (its answer goes to a pipe)
+OUTPUT_BYTES = 256 << 20  # of the child's answer, and of any file it writes: it writes none
 CHILD_ENVIRONMENT = {
     "RUST_LOG": "warn",  # the read errors are what the parent watches for
     "MIMALLOC_ARENA_RESERVE": "64MiB",  # Rerun's allocator reserves 1 GiB of address space up front by default
@@ -89,25 +81,6 @@ def topic_messages(path: Path, topic: str, component: str = MESSAGE_COMPONENT) -
     return reader.stream().filter(content=entity, is_static=False, components=component)
 
 
-def _watch(stream: object, errors: list[str], others: list[str], failed: threading.Event) -> None:
-    for raw in stream:  # type: ignore[attr-defined]
-        line = ANSI.sub("", raw.decode("utf-8", errors="replace")).strip()
-        if READ_ERROR.search(line):
-            errors.append(line.split(":", 3)[-1].strip() if "Failed" not in line else line[line.index("Failed") :])
-            failed.set()
-        elif line:
-            others.append(line)
-
-
-def _drain(stream: IO[bytes] | None, answer: list[bytes]) -> None:
-    """Keep what the child prints, up to OUTPUT_BYTES (then read on, keeping nothing, so the child is never blocked)."""
-    kept = 0
-    for piece in iter(lambda: stream.read(1 << 16) if stream else b"", b""):
-        if kept + len(piece) <= OUTPUT_BYTES:
-            answer.append(piece)
-            kept += len(piece)
-
-
 def probe(path: Path, topic: str, first_only: bool, where: Where | None, shown_as: str | None = None) -> tuple[str, ...] | None:
     """Read `topic` in a child: the first message's names (`first_only`), else None once every message decoded.
     `shown_as` names the file in messages (a remote file's URL; its path by default)."""
@@ -130,63 +103,23 @@ def in_child(
     memory_mb, budget = _bounds(path, where)
     limits = {"memory_bytes": memory_mb << 20, "cpu_seconds": int(budget) + 1, "output_bytes": OUTPUT_BYTES}
     command = [sys.executable, "-m", module, str(path), topic, mode, json.dumps(limits)]
-    env = {**os.environ, **CHILD_ENVIRONMENT}
-    child = subprocess.Popen(
-        command, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, preexec_fn=die_with_parent()
+    outcome = run_bounded_child(
+        command, None, timeout_s=budget, env={**os.environ, **CHILD_ENVIRONMENT}, answer_bytes=OUTPUT_BYTES, stop_on=READ_ERROR
     )
-    errors: list[str] = []
-    others: list[str] = []
-    failed = threading.Event()
-    watcher = threading.Thread(target=_watch, args=(child.stderr, errors, others, failed), daemon=True)
-    watcher.start()
-    answer: list[bytes] = []  # drained while the child runs: an answer over a pipe's 64 KiB would block it forever
-    drainer = threading.Thread(target=_drain, args=(child.stdout, answer), daemon=True)
-    drainer.start()
-    deadline = time.monotonic() + budget
-    timed_out = False
-    try:
-        while child.poll() is None and not failed.wait(0.05):
-            if time.monotonic() > deadline:
-                timed_out = True
-                break
-    finally:
-        if child.poll() is None:
-            child.kill()
-        child.wait()
-        watcher.join(timeout=5)
-        drainer.join(timeout=5)
-        if child.stdout:
-            child.stdout.close()
-    output = b"".join(answer).decode("utf-8", errors="replace")
-    reading = f"reading topic '{shown(topic)}' of MCAP file {shown(name)}"
-    if errors:
-        raise UserError(
-            f"MCAP file {shown(name)} is corrupt: {shown(errors[0])} (reading topic '{shown(topic)}'); repair or re-record the file", where
-        )
-    if timed_out or child.returncode in (-signal.SIGXCPU, -signal.SIGKILL):
-        raise UserError(
-            f"{reading} did not finish within {budget:.4g} s and was stopped; the file is probably corrupt (the person running the "
-            f"tool can raise the bound with {TIMEOUT_ENV})",
-            where,
-        )
-    if child.returncode != 0 and (
-        child.returncode in (-signal.SIGABRT, -signal.SIGSEGV, -signal.SIGBUS) or any(map(OUT_OF_MEMORY.search, others))
-    ):
-        raise UserError(
-            f"{reading} needs more than {memory_mb} MB of memory and was stopped (the person running the tool can raise the bound "
-            f"with {MEMORY_ENV})",
-            where,
-        )
-    if child.returncode != 0:
-        reason = others[-1] if others else f"exit status {child.returncode}"
-        raise UserError(f"cannot read MCAP file {shown(name)} (topic '{shown(topic)}'): {shown(reason)}", where)
-    try:
-        result = json.loads(output.strip().splitlines()[-1]) if output.strip() else {}
-    except ValueError:
-        result = None
-    if not isinstance(result, dict):  # an answer cut at OUTPUT_BYTES, or no answer at all
-        raise UserError(f"cannot read MCAP file {shown(name)} (topic '{shown(topic)}'): its reader gave no readable answer", where)
-    return result
+    if outcome.answer is not None:
+        return outcome.answer
+    line, cannot = outcome.stopped_by or "", f"cannot read MCAP file {shown(name)} (topic '{shown(topic)}')"
+    cause = line.split(":", 3)[-1].strip() if "Failed" not in line else line[line.index("Failed") :]
+    reading, raise_it = f"reading topic '{shown(topic)}' of MCAP file {shown(name)}", "the person running the tool can raise the bound with"
+    slow = f"{reading} did not finish within {budget:.4g} s and was stopped; the file is probably corrupt ({raise_it} {TIMEOUT_ENV})"
+    messages = {
+        "stopped": f"MCAP file {shown(name)} is corrupt: {shown(cause)} (reading topic '{shown(topic)}'); repair or re-record the file",
+        "time": slow,
+        "cpu": slow,
+        "memory": f"{reading} needs more than {memory_mb} MB of memory and was stopped ({raise_it} {MEMORY_ENV})",
+        "failed": f"{cannot}: {shown(outcome.last or outcome.status)}",
+    }  # else an answer over OUTPUT_BYTES, or no answer at all
+    raise UserError(messages.get(outcome.kind, f"{cannot}: its reader gave no readable answer"), where)
 
 
 def _bounds(path: Path, where: Where | None) -> tuple[int, float]:

@@ -8,17 +8,12 @@ dependency: without it the form is refused, saying how to install it.
 
 from __future__ import annotations
 
-import importlib.util
-import json
 import os
-import signal
-import subprocess
-import sys
 import tempfile
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
-from ..child_process import bound_from_environment
+from ..child_process import ChildOutcome, bound_from_environment, passed_environment, run_bounded_child, sandboxed_python
 from ..confine import Confinement, refuse_url
 from ..errors import UserError, Where, listing, warn
 from .mjcf_files import scan_mjcf
@@ -29,19 +24,7 @@ DEFAULT_MEMORY_MB = 4096  # address space: MuJoCo reserves its arena (dm_control
 DEFAULT_TIMEOUT_S = 60.0
 OUTPUT_BYTES = 64 << 20
 INSTALL = "pip install 'urdf-pipeline[mjcf]'"
-_BOOTSTRAP = "import sys; sys.path[:0] = sys.argv[1:]; from urdf_pipeline.urdf.mjcf_sandbox import main; main()"
 _PASSED_ENV = ("LD_LIBRARY_PATH", "DYLD_LIBRARY_PATH", "SYSTEMROOT")
-
-
-def _search_path() -> list[str]:
-    """The folders the child imports urdf_pipeline, mujoco and numpy from (it runs without site-packages)."""
-    folders = [str(Path(__file__).resolve().parents[2])]
-    for module in ("mujoco", "numpy"):
-        spec = importlib.util.find_spec(module)
-        if spec is None or not spec.submodule_search_locations:
-            raise ImportError(module)
-        folders.append(str(Path(next(iter(spec.submodule_search_locations))).parent))
-    return list(dict.fromkeys(folders))
 
 
 def load_mjcf(spec: dict[str, Any], config_dir: Path, confinement: Confinement, where: Where) -> tuple[str, Path]:
@@ -53,7 +36,7 @@ def load_mjcf(spec: dict[str, Any], config_dir: Path, confinement: Confinement, 
         raise UserError(f"MJCF file not found: {path} (paths are relative to the config file)", where)
     scan_mjcf(path, confinement, where)
     try:
-        search = _search_path()
+        command = sandboxed_python("urdf_pipeline.urdf.mjcf_sandbox", "mujoco", "numpy")
     except ImportError as exc:
         raise UserError(f"MJCF robots need the {exc.args[0]} package: {INSTALL}", where) from None
     memory_mb = int(bound_from_environment(MEMORY_ENV, DEFAULT_MEMORY_MB, where))
@@ -64,8 +47,19 @@ def load_mjcf(spec: dict[str, Any], config_dir: Path, confinement: Confinement, 
         "name": path.name.removesuffix(".xml"),
         "limits": {"memory_bytes": memory_mb << 20, "cpu_seconds": int(timeout) + 1, "output_bytes": OUTPUT_BYTES},
     }
-    command = [sys.executable, "-I", "-S", "-X", "utf8", "-c", _BOOTSTRAP, *search]
-    answer = _run(command, request, memory_mb, timeout, where)
+    environment = passed_environment(_PASSED_ENV, OPENBLAS_NUM_THREADS="1")  # each BLAS thread reserves address space
+    # In a folder of its own: MuJoCo writes MUJOCO_LOG.TXT into the working folder, never into the user's (and every
+    # path it reads is absolute, so none is relative to ours).
+    try:
+        with tempfile.TemporaryDirectory() as folder:
+            outcome = run_bounded_child(
+                command, request, timeout_s=timeout, env=environment, answer_bytes=OUTPUT_BYTES + (1 << 20), cwd=folder
+            )
+    except OSError as exc:
+        raise UserError(f"cannot compile {written}: {exc}", where) from None
+    answer = outcome.answer
+    if answer is None or not ("text" in answer or "error" in answer):
+        raise UserError(_failure(written, memory_mb, timeout, outcome), where)
     if "error" in answer:
         raise UserError(str(answer["error"]), where)
     notes = [str(note) for note in answer.get("notes", [])]
@@ -74,53 +68,12 @@ def load_mjcf(spec: dict[str, Any], config_dir: Path, confinement: Confinement, 
     return str(answer["text"]), path
 
 
-def _run(command: list[str], request: dict[str, Any], memory_mb: int, timeout: float, where: Where) -> dict[str, Any]:
-    environment = {name: os.environ[name] for name in _PASSED_ENV if name in os.environ}
-    environment["OPENBLAS_NUM_THREADS"] = "1"  # each BLAS thread reserves address space
-    shown = request["shown"]
-    # In a folder of its own: MuJoCo writes MUJOCO_LOG.TXT into the working folder, never into the user's (and every
-    # path it reads is absolute, so none is relative to ours).
-    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err, tempfile.TemporaryDirectory() as folder:
-        try:
-            child = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=out, stderr=err, env=environment, close_fds=True, cwd=folder)
-        except OSError as exc:
-            raise UserError(f"cannot compile {shown}: {exc}", where) from None
-        try:
-            child.communicate(json.dumps(request).encode("utf-8"), timeout=timeout)
-        except subprocess.TimeoutExpired:
-            raise UserError(
-                f"compiling {shown} with MuJoCo did not end within {timeout:g} s and was stopped; the person running the tool can raise the bound with {TIMEOUT_ENV}",
-                where,
-            ) from None
-        except BrokenPipeError:
-            pass  # the child ended before reading: its exit status says why
-        finally:
-            if child.poll() is None:
-                child.kill()
-            child.wait()
-        answer = _answer(out)
-        if answer is None:
-            raise UserError(_failure(shown, memory_mb, timeout, child.returncode, err), where)
-        return answer
-
-
-def _answer(out: IO[bytes]) -> dict[str, Any] | None:
-    out.seek(0)
-    try:
-        answer = json.loads(out.read(OUTPUT_BYTES + (1 << 20)).decode("utf-8"))
-    except (UnicodeDecodeError, ValueError):
-        return None
-    return answer if isinstance(answer, dict) and ("text" in answer or "error" in answer) else None
-
-
-def _failure(shown: str, memory_mb: int, timeout: float, code: int, err: IO[bytes]) -> str:
-    """Why the child gave no answer, from its exit status and the last line it printed."""
-    err.seek(0)
-    lines = err.read(16 << 10).decode("utf-8", "replace").strip().splitlines()
-    last = lines[-1][:500] if lines else ""
-    if code in (-signal.SIGXCPU, -signal.SIGKILL):
-        return f"compiling {shown} with MuJoCo used more than {timeout:g} s of CPU time and was stopped; the person running the tool can raise the bound with {TIMEOUT_ENV}"
-    if "MemoryError" in last or "cannot allocate" in last.lower() or "bad_alloc" in last or code in (-signal.SIGSEGV, -signal.SIGABRT):
-        return f"compiling {shown} with MuJoCo needs more than {memory_mb} MB of memory; the person running the tool can raise the bound with {MEMORY_ENV}"
-    status = f"signal {-code}" if code < 0 else f"exit status {code}"
-    return f"compiling {shown} with MuJoCo failed ({status})" + (f": {last}" if last else "")
+def _failure(shown: str, memory_mb: int, timeout: float, outcome: ChildOutcome) -> str:
+    """Why the child gave no answer (`run_bounded_child`'s kind), in MuJoCo's words."""
+    compiling, raise_it = f"compiling {shown} with MuJoCo", "the person running the tool can raise the bound with"
+    return {
+        "time": f"{compiling} did not end within {timeout:g} s and was stopped; {raise_it} {TIMEOUT_ENV}",
+        "cpu": f"{compiling} used more than {timeout:g} s of CPU time and was stopped; {raise_it} {TIMEOUT_ENV}",
+        "memory": f"{compiling} needs more than {memory_mb} MB of memory; {raise_it} {MEMORY_ENV}",
+        "oversized": f"{compiling} gave more than {OUTPUT_BYTES >> 20} MB of URDF text",
+    }.get(outcome.kind, f"{compiling} failed ({outcome.status})" + (f": {outcome.last}" if outcome.last else ""))

@@ -15,22 +15,17 @@ from __future__ import annotations
 
 import glob
 import hashlib
-import importlib.util
-import json
 import os
-import signal
 import stat
-import subprocess
 import sys
-import tempfile
 import time
 from collections import OrderedDict
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
-from ..child_process import bound_from_environment
+from ..child_process import ChildOutcome, bound_from_environment, passed_environment, run_bounded_child, sandboxed_python
 from ..confine import Confinement
 from ..errors import UserError, Where, listing, neutral_text
 from .xml_text import MAX_URDF_BYTES
@@ -40,9 +35,9 @@ TIMEOUT_ENV = "URDF_PIPELINE_XACRO_TIMEOUT"
 DEFAULT_MEMORY_MB = 1024
 DEFAULT_TIMEOUT_S = 60.0
 OUTPUT_BYTES = MAX_URDF_BYTES  # the expanded URDF text, at most: what any URDF text may be
+ANSWER_BYTES = OUTPUT_BYTES + (1 << 20)  # the child's whole answer: the text and the files it read
 SHOWN_STDERR = 16 << 10  # xacro's own warnings passed on, at most
 _PASSED_ENV = ("ROS_PACKAGE_PATH", "AMENT_PREFIX_PATH", "LD_LIBRARY_PATH", "DYLD_LIBRARY_PATH", "SYSTEMROOT")
-_BOOTSTRAP = "import sys; sys.path[:0] = sys.argv[1:]; from urdf_pipeline.urdf.xacro_sandbox import main; main()"
 CACHED_BYTES = 256 << 20  # expanded texts kept for reuse, at most
 SMALLEST_SLICE_S = 0.05  # an expansion the budget has less time left for is not started
 _HASHED_CHUNK = 1 << 20
@@ -153,17 +148,6 @@ def _remember(key: tuple[Any, ...], answer: Mapping[str, Any], warnings: bytes) 
         _EXPANSIONS.popitem(last=False)
 
 
-def _search_path() -> list[str]:
-    """The folders the child imports urdf_pipeline, xacro and yaml from (it runs without site-packages)."""
-    folders = [str(Path(__file__).resolve().parents[2])]  # the folder holding the urdf_pipeline package
-    for module in ("xacro", "yaml"):
-        spec = importlib.util.find_spec(module)
-        if spec is None or not spec.submodule_search_locations:
-            raise ImportError(module)
-        folders.append(str(Path(next(iter(spec.submodule_search_locations))).parent))
-    return list(dict.fromkeys(folders))
-
-
 def expand_xacro(request: XacroRequest, where: Where | None, budget: XacroBudget | None = None) -> str:
     """The URDF text of `request.file` expanded with its args, or a UserError at `where` naming the xacro file. The time
     comes from `budget` (a budget of its own when None); a text expanded before from unchanged files is reused."""
@@ -194,7 +178,7 @@ def expand_xacro(request: XacroRequest, where: Where | None, budget: XacroBudget
 def _expand(request: XacroRequest, limits: Limits, budget: XacroBudget, where: Where | None) -> tuple[dict[str, Any], bytes]:
     """The child's answer with a text, and what xacro printed; a UserError for any failure."""
     try:
-        search = _search_path()
+        command = sandboxed_python("urdf_pipeline.urdf.xacro_sandbox", "xacro", "yaml")
     except ImportError as exc:
         raise UserError(f"expanding {request.shown} needs the {exc.args[0]} package: pip install xacro", where) from None
     payload = {
@@ -204,48 +188,27 @@ def _expand(request: XacroRequest, limits: Limits, budget: XacroBudget, where: W
         "packages": {name: str(path) for name, path in request.package_paths.items()},
         "config_dir": str(request.confinement.config_dir),
         "read_roots": [str(root) for root in request.confinement.read_roots],
-        "limits": {
-            "memory_bytes": limits.memory_mb << 20,
-            "cpu_seconds": int(limits.timeout_s) + 1,
-            "output_bytes": OUTPUT_BYTES + (1 << 20),
-        },
+        "limits": {"memory_bytes": limits.memory_mb << 20, "cpu_seconds": int(limits.timeout_s) + 1, "output_bytes": ANSWER_BYTES},
     }
     try:
-        answer, warnings = _run(
-            [sys.executable, "-I", "-S", "-X", "utf8", "-c", _BOOTSTRAP, *search], payload, request, limits, budget, where
-        )
+        outcome = _run(command, payload, limits)
     except OSError as exc:  # no process, no temporary file: still about expanding this file
         raise UserError(f"cannot expand {request.shown}: {exc}", where) from None
+    answer = outcome.answer
+    if answer is None or not ("text" in answer or "error" in answer):
+        raise UserError(_failure(request, limits, budget, outcome), where)
+    _show_warnings(outcome.head)
     if "error" in answer:
         raise UserError(str(answer["error"]), where)
-    return answer, warnings
+    return answer, outcome.head
 
 
-def _run(
-    command: list[str], payload: dict[str, Any], request: XacroRequest, limits: Limits, budget: XacroBudget, where: Where | None
-) -> tuple[dict[str, Any], bytes]:
-    """The child's answer and its stderr; the child is gone when this returns or raises (killed at the time bound, or
-    on Ctrl-C)."""
-    environment = {name: os.environ[name] for name in _PASSED_ENV if name in os.environ}
-    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
-        child = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=out, stderr=err, env=environment, close_fds=True)
-        try:
-            child.communicate(json.dumps(payload).encode("utf-8"), timeout=limits.timeout_s)
-        except subprocess.TimeoutExpired:
-            raise UserError(_too_slow(request, limits, budget), where) from None
-        except BrokenPipeError:
-            pass  # the child ended before reading: its exit status says why
-        finally:
-            if child.poll() is None:
-                child.kill()
-            child.wait()
-        answer = _answer(out)
-        if answer is None:
-            raise UserError(_failure(request, limits, budget, child.returncode, err), where)
-        err.seek(0)
-        warnings = err.read(SHOWN_STDERR + 1)
-        _show_warnings(warnings)
-        return answer, warnings
+def _run(command: list[str], payload: dict[str, Any], limits: Limits) -> ChildOutcome:
+    """The child's outcome (a name of its own: the tests count the expansions that start a child)."""
+    environment = passed_environment(_PASSED_ENV)
+    return run_bounded_child(
+        command, payload, timeout_s=limits.timeout_s, env=environment, answer_bytes=ANSWER_BYTES, stderr_bytes=SHOWN_STDERR
+    )
 
 
 def _too_slow(request: XacroRequest, limits: Limits, budget: XacroBudget) -> str:
@@ -262,38 +225,16 @@ def _too_slow(request: XacroRequest, limits: Limits, budget: XacroBudget) -> str
     )
 
 
-def _answer(out: IO[bytes]) -> dict[str, Any] | None:
-    out.seek(0)
-    data = out.read(OUTPUT_BYTES + (2 << 20))
-    try:
-        answer = json.loads(data.decode("utf-8"))
-    except (UnicodeDecodeError, ValueError):
-        return None
-    return answer if isinstance(answer, dict) and ("text" in answer or "error" in answer) else None
-
-
-def _failure(request: XacroRequest, limits: Limits, budget: XacroBudget, code: int, err: IO[bytes]) -> str:
-    """Why the child gave no answer, from its exit status and the last line it printed."""
-    err.seek(0)
-    lines = err.read(SHOWN_STDERR).decode("utf-8", "replace").strip().splitlines()
-    last = f": {lines[-1][:500]}" if lines else ""
-    if code in (-signal.SIGXCPU, -signal.SIGKILL):
-        if budget.spent > 0 and budget.spenders:
-            return _too_slow(request, limits, budget)
-        return (
-            f"xacro expansion of {request.shown} used more than {limits.timeout_s:g} s of CPU time and was stopped (a macro "
-            f"or expression that never ends?); the person running the tool can raise the bound with {TIMEOUT_ENV}"
-        )
-    # Out of address space shows as MemoryError, a crash, or a shared library that cannot be mapped while importing.
-    if "MemoryError" in last or "failed to map segment" in last or "cannot allocate memory" in last.lower() or code == -signal.SIGSEGV:
-        return (
-            f"xacro expansion of {request.shown} needs more than {limits.memory_mb} MB of memory (a property or macro "
-            f"that grows without end?); the person running the tool can raise the bound with {MEMORY_ENV}"
-        )
-    if "File too large" in last or "EFBIG" in last:
-        return f"xacro expansion of {request.shown} is larger than {OUTPUT_BYTES >> 20} MB of URDF text"
-    status = f"signal {-code}" if code < 0 else f"exit status {code}"
-    return f"xacro expansion of {request.shown} failed ({status}){last}"
+def _failure(request: XacroRequest, limits: Limits, budget: XacroBudget, outcome: ChildOutcome) -> str:
+    """Why the child gave no answer (`run_bounded_child`'s kind), in xacro's words."""
+    if outcome.kind == "time" or (outcome.kind == "cpu" and budget.spent > 0 and budget.spenders):
+        return _too_slow(request, limits, budget)
+    expansion, raise_it = f"xacro expansion of {request.shown}", "the person running the tool can raise the bound with"
+    return {
+        "cpu": f"{expansion} used more than {limits.timeout_s:g} s of CPU time and was stopped (a macro or expression that never ends?); {raise_it} {TIMEOUT_ENV}",
+        "memory": f"{expansion} needs more than {limits.memory_mb} MB of memory (a property or macro that grows without end?); {raise_it} {MEMORY_ENV}",
+        "oversized": f"{expansion} is larger than {OUTPUT_BYTES >> 20} MB of URDF text",
+    }.get(outcome.kind, f"{expansion} failed ({outcome.status})" + (f": {outcome.last}" if outcome.last else ""))
 
 
 def _show_warnings(data: bytes) -> None:
