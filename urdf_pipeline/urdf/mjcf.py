@@ -15,7 +15,7 @@ from typing import Any
 
 from ..child_process import ChildOutcome, bound_from_environment, passed_environment, run_bounded_child, sandboxed_python
 from ..confine import Confinement, refuse_url
-from ..errors import UserError, Where, listing, warn
+from ..errors import UserError, Where, listing, shown, warn
 from .mjcf_files import scan_mjcf
 
 MEMORY_ENV = "URDF_PIPELINE_MJCF_MEMORY_MB"  # the runner may raise the bounds for a huge model; a config cannot
@@ -68,12 +68,12 @@ def load_mjcf(spec: dict[str, Any], config_dir: Path, confinement: Confinement, 
     return str(answer["text"]), path
 
 
-def _failure(shown: str, memory_mb: int, timeout: float, outcome: ChildOutcome) -> str:
+def _failure(model: str, memory_mb: int, timeout: float, outcome: ChildOutcome) -> str:
     """Why the child gave no answer (`run_bounded_child`'s kind), in MuJoCo's words."""
-    compiling, raise_it = f"compiling {shown} with MuJoCo", "the person running the tool can raise the bound with"
+    compiling, raise_it = f"compiling {shown(model)} with MuJoCo", "the person running the tool can raise the bound with"
     return {
         "time": f"{compiling} did not end within {timeout:g} s and was stopped; {raise_it} {TIMEOUT_ENV}",
         "cpu": f"{compiling} used more than {timeout:g} s of CPU time and was stopped; {raise_it} {TIMEOUT_ENV}",
         "memory": f"{compiling} needs more than {memory_mb} MB of memory; {raise_it} {MEMORY_ENV}",
         "oversized": f"{compiling} gave more than {OUTPUT_BYTES >> 20} MB of URDF text",
-    }.get(outcome.kind, f"{compiling} failed ({outcome.status})" + (f": {outcome.last}" if outcome.last else ""))
+    }.get(outcome.kind, f"{compiling} failed ({outcome.status})" + (f": {shown(outcome.last)}" if outcome.last else ""))

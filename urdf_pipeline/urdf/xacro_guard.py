@@ -27,7 +27,7 @@ from typing import Any
 
 from ..child_process import ChildOutcome, bound_from_environment, passed_environment, run_bounded_child, sandboxed_python
 from ..confine import Confinement
-from ..errors import UserError, Where, listing, neutral_text
+from ..errors import UserError, Where, listing, neutral_text, shown
 from .xml_text import MAX_URDF_BYTES
 
 MEMORY_ENV = "URDF_PIPELINE_XACRO_MEMORY_MB"  # the runner may raise the bounds for a huge robot; a config cannot
@@ -234,7 +234,7 @@ def _failure(request: XacroRequest, limits: Limits, budget: XacroBudget, outcome
         "cpu": f"{expansion} used more than {limits.timeout_s:g} s of CPU time and was stopped (a macro or expression that never ends?); {raise_it} {TIMEOUT_ENV}",
         "memory": f"{expansion} needs more than {limits.memory_mb} MB of memory (a property or macro that grows without end?); {raise_it} {MEMORY_ENV}",
         "oversized": f"{expansion} is larger than {OUTPUT_BYTES >> 20} MB of URDF text",
-    }.get(outcome.kind, f"{expansion} failed ({outcome.status})" + (f": {outcome.last}" if outcome.last else ""))
+    }.get(outcome.kind, f"{expansion} failed ({outcome.status})" + (f": {shown(outcome.last)}" if outcome.last else ""))
 
 
 def _show_warnings(data: bytes) -> None:
