@@ -87,7 +87,10 @@ def huge_error_body(peer: Peer) -> None:
         (redirect, "it answered the WebSocket handshake with HTTP 301 Moved Permanently;"),  # not followed
     ],
 )
-def test_a_handshake_answer_is_read_only_as_far_as_its_bound(behaviour: Callable[[Peer], None], says: str) -> None:
+def test_a_handshake_answer_is_read_only_as_far_as_its_bound(
+    behaviour: Callable[[Peer], None], says: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(foxglove_socket, "CONNECT_SECONDS", 1.0)  # the library refuses at the handshake's deadline: 5 s
     with raw_server(behaviour) as server:
         error = refused(server.url)
     assert error.message.startswith(f"{server.url} is not a Foxglove WebSocket server:") and says in error.message, error.message
@@ -115,7 +118,8 @@ def control_character(peer: Peer) -> None:
         (control_character, "answered the WebSocket handshake with something other than HTTP/1.1"),
     ],
 )
-def test_an_upgrade_that_is_not_foxgloves_is_refused(behaviour: Callable[[Peer], None], says: str) -> None:
+def test_an_upgrade_that_is_not_foxgloves_is_refused(behaviour: Callable[[Peer], None], says: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(foxglove_socket, "CONNECT_SECONDS", 1.0)  # a malformed answer is refused at the handshake's deadline
     with raw_server(behaviour) as server:
         assert says in refused(server.url).message
 
