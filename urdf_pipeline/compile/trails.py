@@ -14,14 +14,12 @@ from typing import Any
 
 from ..errors import Where, did_you_mean, listing, quoted
 from ..plan import EdgePlan, RobotPlan, SourcePlan, TemporalEdgePlan, TrailPlan, WindowUnit
+from ..sources import INT64_MAX  # a timeline's values: nanoseconds on a time timeline, rows on a sequence timeline
 from .context import CompileContext
 
 TRAILS_FOLDER = "trails"  # a trail's entity: <entity_path_prefix>/trails/<link>
 _WINDOW = re.compile(r"^\s*(\d+(?:\.\d*)?|\.\d+)\s*(ms|s|min|rows?)\s*$")
 _SECONDS = {"ms": 1e-3, "s": 1.0, "min": 60.0}
-
-
-INT64_MAX = 2**63 - 1  # a timeline's values: nanoseconds on a time timeline, rows on a sequence timeline
 
 
 def parse_window(text: str) -> tuple[float, WindowUnit] | None:

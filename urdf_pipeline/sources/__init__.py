@@ -26,6 +26,7 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
     from .mcap_chunks import HEAD, MAGIC, InflationBudget, McapRefused, chunk_records, parsed_chunk, refusal, short_reason
     from .ordering import NeedsSorting, sorted_in_memory, with_sorting_retry
     from .stream import SourceStream
+    from .time_range import INT64_MAX
 
 KINDS: dict[str, SourceKind] = {"lerobot": lerobot, "parquet": parquet, "mcap": mcap, "hdf5": hdf5, "rrd": rrd, "csv": csv}
 
