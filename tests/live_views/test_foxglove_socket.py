@@ -267,6 +267,20 @@ def _consuming(feed: FoxgloveFeed) -> tuple[threading.Thread, threading.Event, l
     return thread, ended, errors
 
 
+def _closed_while_waiting(url: str, connections: Callable[[], int]) -> None:
+    """A feed of `url` read on a thread, closed from this one once the client waits on the server (connected, then
+    0.5 s): its batches() must end within HANG_GUARD, raising nothing."""
+    feed = FoxgloveFeed(url, {"/joint_states": WHERE})
+    _, ended, errors = _consuming(feed)
+    deadline = time.monotonic() + HANG_GUARD
+    while connections() == 0:
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    time.sleep(0.5)  # the client is waiting on the server now
+    feed.close()
+    assert ended.wait(HANG_GUARD) and not errors
+
+
 def stalled_mid_frame(peer: Peer) -> None:
     peer.upgrade()
     peer.subscribed()
@@ -286,15 +300,7 @@ def test_close_ends_a_feed_whatever_the_server_does(behaviour: Callable[[Peer], 
     """close() from another thread ends batches() under way at once: a read in the middle of a frame, a handshake
     without an answer (the test measures nothing; the report's figures are by hand)."""
     with raw_server(behaviour) as server:
-        feed = FoxgloveFeed(server.url, {"/joint_states": WHERE})
-        _, ended, errors = _consuming(feed)
-        deadline = time.monotonic() + HANG_GUARD
-        while server.connections == 0:
-            assert time.monotonic() < deadline
-            time.sleep(0.01)
-        time.sleep(0.5)  # the client is waiting on the server now
-        feed.close()
-        assert ended.wait(HANG_GUARD) and not errors
+        _closed_while_waiting(server.url, lambda: server.connections)
     assert server.connections == 1
 
 
@@ -464,15 +470,7 @@ def test_close_ends_a_wss_read_under_way(tmp_path: Path, monkeypatch: pytest.Mon
     context, cert_file = _tls(tmp_path)
     monkeypatch.setenv("SSL_CERT_FILE", str(cert_file))
     with raw_server(stalled_mid_frame, tls=context) as server:
-        feed = FoxgloveFeed(server.url, {"/joint_states": WHERE})
-        _, ended, errors = _consuming(feed)
-        deadline = time.monotonic() + HANG_GUARD
-        while server.connections == 0:
-            assert time.monotonic() < deadline
-            time.sleep(0.01)
-        time.sleep(0.5)
-        feed.close()
-        assert ended.wait(HANG_GUARD) and not errors
+        _closed_while_waiting(server.url, lambda: server.connections)
     assert server.connections == 1
 
 

@@ -122,16 +122,22 @@ def test_a_port_in_use_is_a_user_error(run_cli, site: Path) -> None:
     assert result.code == 1 and "is in use" in result.err and "--port 0" in result.err
 
 
-@pytest.mark.parametrize(("sent", "status"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
-def test_ctrl_c_and_sigterm_end_it(site: Path, sent: signal.Signals, status: int) -> None:
-    """The command as a user runs it: its URL alone on stdout, answered, then ended by the signal with 128 + its number."""
-    process = subprocess.Popen(
+def _serve_command(site: Path, start_new_session: bool = False) -> subprocess.Popen[str]:
+    """`urdf-pipeline serve SITE` as a user runs it, in a process of its own (stdout and stderr piped, as text)."""
+    return subprocess.Popen(
         [sys.executable, "-m", "urdf_pipeline", "serve", str(site)],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
         env={**os.environ, "PYTHONPATH": str(REPO)},
+        start_new_session=start_new_session,
     )
+
+
+@pytest.mark.parametrize(("sent", "status"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_ctrl_c_and_sigterm_end_it(site: Path, sent: signal.Signals, status: int) -> None:
+    """The command as a user runs it: its URL alone on stdout, answered, then ended by the signal with 128 + its number."""
+    process = _serve_command(site)
     try:
         assert process.stdout is not None
         url = process.stdout.readline().strip()
@@ -278,14 +284,7 @@ def test_a_flood_of_connections_is_bounded(server: SiteServer) -> None:
 def test_a_signal_ends_it_while_clients_hold_connections(site: Path, sent: signal.Signals) -> None:
     """The command as a user runs it, with 500 connections open (idle, half-sent, trickling): the signal ends it
     within a few seconds, without a traceback, and leaves no process behind."""
-    process = subprocess.Popen(
-        [sys.executable, "-m", "urdf_pipeline", "serve", str(site)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env={**os.environ, "PYTHONPATH": str(REPO)},
-        start_new_session=True,  # its own process group: anything it started is found by it
-    )
+    process = _serve_command(site, start_new_session=True)  # its own group: anything it started is found by it
     held: list[socket.socket] = []
     try:
         assert process.stdout is not None
