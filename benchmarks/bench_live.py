@@ -34,14 +34,8 @@ import yaml
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
-G1 = "robots/share/example-robot-data/robots/g1_description/urdf/g1_29dof_rev_1_0.urdf"
 
-
-def g1_joints(urdf: Path) -> list[str]:
-    import xml.etree.ElementTree as ET
-
-    root = ET.parse(urdf).getroot()
-    return [j.get("name", "") for j in root.iter("joint") if j.get("type") in ("revolute", "continuous", "prismatic")]
+from benchmarks.bench_live_stream import G1, g1_joints  # noqa: E402  shared with part 2, imported one way
 
 
 def prepare(workdir: Path) -> Path:

@@ -26,6 +26,16 @@ REPO = Path(__file__).resolve().parents[1]
 RATES = {100: 1000, 1000: 10000}  # messages per second -> messages published (10 s each)
 
 
+G1 = "robots/share/example-robot-data/robots/g1_description/urdf/g1_29dof_rev_1_0.urdf"
+
+
+def g1_joints(urdf: Path) -> list[str]:
+    import xml.etree.ElementTree as ET
+
+    root = ET.parse(urdf).getroot()
+    return [j.get("name", "") for j in root.iter("joint") if j.get("type") in ("revolute", "continuous", "prismatic")]
+
+
 def _server(names: list[str], rate: int, count: int) -> tuple[subprocess.Popen[bytes], str]:
     sys.path.insert(0, str(REPO))
     from tests.local_processes import free_port
@@ -79,7 +89,6 @@ def _figures(lines: list[str]) -> dict[str, float]:
 
 
 def part_stream(config: Path, repeat: int, workdir: Path) -> None:
-    from benchmarks.bench_live import G1, g1_joints
 
     names = g1_joints(config.parent / G1)
     print("\nlive --from ws:// (foxglove-sdk server, 29 joints), medians of", repeat)
@@ -112,7 +121,6 @@ def hand_written(config: Path, url: str, out: Path) -> None:
     import rerun as rr
     from rerun.urdf import UrdfTree
 
-    from benchmarks.bench_live import G1
     from urdf_pipeline.live_views import FoxgloveFeed, Latencies
 
     feed = FoxgloveFeed(url, {"/joint_states": None}, reconnects=100)

@@ -223,7 +223,7 @@ WarningHandler = Callable[[ConfigWarning], None]
 
 
 def show_warning(warning: ConfigWarning) -> None:
-    """To the `urdf_pipeline` logger (see progress.py), which the command line prints on stderr."""
+    """To the `urdf_pipeline` logger (see logs.py), which the command line prints on stderr."""
     logging.getLogger("urdf_pipeline").warning(warning.line())
 
 

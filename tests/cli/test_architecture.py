@@ -118,8 +118,8 @@ def _within(target: str, names: set[str]) -> bool:
 
 
 def test_every_import_is_allowed_by_the_table() -> None:
-    """Each module imports only what its row of ARCHITECTURE.md's table allows; the root package, which Python imports
-    before any of its modules (`lazy_surface` is there), is everyone's."""
+    """Each module imports only what its row of ARCHITECTURE.md's table allows (the root package, the Python API, only
+    where the table says so: no stage imports upward into it)."""
     rows = may_import_table()
     files = sorted(PACKAGE.rglob("*.py"))
     modules = {_module_name(f) for f in files}
@@ -127,9 +127,42 @@ def test_every_import_is_allowed_by_the_table() -> None:
         f"{_module_name(f)} -> {target}"
         for f in files
         for target in sorted(_imports(f, modules))
-        if target != "urdf_pipeline" and not _within(target, rows[_row(_module_name(f), rows)][1])
+        if not _within(target, rows[_row(_module_name(f), rows)][1])
     ]
     assert not refused, "imports ARCHITECTURE.md's table does not allow (change the import, or the table): " + "; ".join(refused)
+
+
+def test_no_module_imports_a_package_that_holds_it() -> None:
+    """No upward import: a module never imports its own package's `__init__` or any above it (a package's surface is
+    for other packages; the root's, for users)."""
+    files = sorted(PACKAGE.rglob("*.py"))
+    modules = {_module_name(f) for f in files}
+    upward = [
+        f"{_module_name(f)} -> {target}"
+        for f in files
+        for target in sorted(_imports(f, modules))
+        if _module_name(f).startswith(target + ".") and not (f.name == "__init__.py" and _module_name(f) == target)
+    ]
+    assert not upward, "upward imports: " + "; ".join(upward)
+
+
+def test_benchmarks_import_no_other_benchmark_in_a_cycle() -> None:
+    """The benchmark scripts share helpers through `benchmarks/common.py`-style modules, never by importing each other
+    both ways."""
+    folder = PACKAGE.parent / "benchmarks"
+    scripts = {path.stem: path for path in folder.glob("*.py")}
+    graph = {
+        name: {
+            alias.name.split(".")[-1] if isinstance(node, ast.Import) else (node.module or "").split(".")[-1]
+            for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
+            if isinstance(node, ast.Import | ast.ImportFrom)
+            for alias in node.names
+        }
+        & set(scripts)
+        for name, path in scripts.items()
+    }
+    both_ways = sorted(f"{a} <-> {b}" for a in graph for b in graph[a] if a < b and a in graph.get(b, set()))
+    assert not both_ways, "benchmarks importing each other: " + "; ".join(both_ways)
 
 
 def test_the_top_level_stays_small() -> None:
@@ -254,7 +287,7 @@ def test_no_surface_name_is_also_a_module_name() -> None:
 def test_each_surface_lists_its_names_once() -> None:
     """A package's public names are written once, as `from .module import name` under `if TYPE_CHECKING:`; `__all__`
     and the lazy `__getattr__` are derived from those lines by `lazy_surface`, never written out beside them."""
-    from urdf_pipeline import surface_imports
+    from urdf_pipeline.package import surface_imports
 
     twice = []
     for package in STAGE_PACKAGES:

@@ -48,4 +48,4 @@ def test_the_project_says_its_license_home_and_version_source() -> None:
     assert (REPO / project["license-files"][0]).read_text().lstrip().startswith("Apache License")
     assert project["license"] == "Apache-2.0" and project["urls"]["Source"].startswith("https://github.com/")
     assert project["dynamic"] == ["version"]
-    assert PYPROJECT["tool"]["setuptools"]["dynamic"]["version"] == {"attr": "urdf_pipeline.__version__"}
+    assert PYPROJECT["tool"]["setuptools"]["dynamic"]["version"] == {"attr": "urdf_pipeline.package.__version__"}

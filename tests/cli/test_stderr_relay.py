@@ -15,7 +15,7 @@ import pytest
 
 from urdf_pipeline.cli import parser
 from urdf_pipeline.cli.stderr_relay import relayed
-from urdf_pipeline.progress import warnings_logged
+from urdf_pipeline.logs import warnings_logged
 
 RERUN_WARN = "\x1b[2m2026-01-01T00:00:00.123456Z\x1b[0m \x1b[33m WARN\x1b[0m \x1b[2mre_sdk::recording_stream\x1b[0m\x1b[2m:\x1b[0m careful"
 

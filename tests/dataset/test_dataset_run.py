@@ -17,7 +17,7 @@ import pytest
 from rerun.chunk import RrdReader
 
 from urdf_pipeline.execute.segment_run import SegmentResult
-from urdf_pipeline.progress import SegmentProgress
+from urdf_pipeline.logs import SegmentProgress
 
 from ..dataset_helpers import (
     SO101_JOINTS,

@@ -18,8 +18,8 @@ import numpy as np
 import pyarrow as pa
 import pytest
 
-from urdf_pipeline import PandasLeftOut
 from urdf_pipeline.dataset.local_executor import PRELOAD, _start_fork_server, _start_worker, _terminate, run_locally
+from urdf_pipeline.package import PandasLeftOut
 
 WAIT = 120.0  # seconds a state may take to come; a bound against hangs, not a measurement
 

@@ -17,7 +17,7 @@ from urdf_pipeline.dataset import SegmentEntry, segment_summaries
 from urdf_pipeline.errors import UserError
 
 from ..dataset_helpers import SO101_JOINTS, isolated_examples, status_lines
-from ..execute.test_segment_summary import assert_codes_match, reference_bands
+from ..execute.test_ranges_and_preview import assert_codes_match, reference_bands
 
 pytestmark = pytest.mark.usefixtures("allow_examples")  # configs elsewhere read the session's examples
 

@@ -17,7 +17,7 @@ from urdf_pipeline.compile import compile_config
 from urdf_pipeline.dataset.fingerprint import model_hash, segment_hashes
 from urdf_pipeline.examples import write_lerobot_dataset
 from urdf_pipeline.execute.differences import PairDifferences
-from urdf_pipeline.execute.summary_record import JointDifferences
+from urdf_pipeline.execute.manifest_entry import JointDifferences
 from urdf_pipeline.plan import Comparison, JointChannel, RobotPlan
 
 from ..reference_fk import PinocchioRobot

@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 import yaml
 
-from urdf_pipeline.dataset.summary import summary_table
+from urdf_pipeline.dataset.run_report import summary_table
 from urdf_pipeline.errors import LINE_LIMIT, Where, escaped, listing, located, neutral_line, neutral_text, quoted, shown
 from urdf_pipeline.examples import write_joint_parquet
 from urdf_pipeline.execute import SegmentResult
-from urdf_pipeline.progress import LOGGER, command_logging
+from urdf_pipeline.logs import LOGGER, command_logging
 from urdf_pipeline.review.markdown_text import cell, code, plain
 from urdf_pipeline.review.validate.annotations import Annotation
 

@@ -14,7 +14,7 @@ import rerun as rr
 from rerun.chunk import Chunk, LazyChunkStream
 
 from urdf_pipeline.errors import UserError, Where
-from urdf_pipeline.progress import command_logging
+from urdf_pipeline.logs import command_logging
 from urdf_pipeline.sources.ordering import (
     BLOCK_ROWS,
     ROW_ID,

@@ -53,7 +53,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 def _compiled_for_run(args: argparse.Namespace) -> Plan:
     """The config's plan, each robot's URDF named; with --base, its segment ids checked against the base recordings."""
     from ..compile import compile_config
-    from ..progress import detail, say
+    from ..logs import detail, say
 
     started = time.perf_counter()
     plan = compile_config(Path(args.config), args.episodes)
@@ -71,7 +71,7 @@ def _run_segments(args: argparse.Namespace, plan: Plan, many: bool) -> DatasetRu
     """The run on the executor asked for (`many`: with a progress bar, and each result's worker and notes at
     --verbose); with --report, what it did as JSON."""
     from ..dataset import RunOptions, report_target, run_dataset, write_report
-    from ..progress import LOGGER, SegmentProgress, detail, say
+    from ..logs import LOGGER, SegmentProgress, detail, say
 
     address, origin = _ray_address(args)
 
@@ -107,7 +107,7 @@ def _say_results(run: DatasetRun, many: bool, joint_series: bool) -> None:
     """The blueprint, the summary (a dataset's table, or one recording's lines), the usable outputs' paths on stdout,
     and the traceback of every bug on stderr."""
     from ..dataset import differences_lines, summary_table, totals_line
-    from ..progress import LOGGER, say
+    from ..logs import LOGGER, say
 
     if run.blueprint is not None:
         plots = ", beside plots of the driven joints" if joint_series else ""
@@ -129,7 +129,7 @@ def _say_results(run: DatasetRun, many: bool, joint_series: bool) -> None:
 def _deliver(args: argparse.Namespace, plan: Plan, run: DatasetRun, viewer: str | None) -> None:
     """What was written (or is up to date) registered in the catalog and sent to the viewer, even when other
     segments failed."""
-    from ..progress import say
+    from ..logs import say
 
     if args.catalog:
         from ..dataset import register_outputs
@@ -143,7 +143,7 @@ def _deliver(args: argparse.Namespace, plan: Plan, run: DatasetRun, viewer: str 
 
 def _print_single(result: SegmentResult) -> None:
     """One recording: as a plain run always printed it (its error lines, or what was written)."""
-    from ..progress import say
+    from ..logs import say
 
     if result.status == "failed":
         print(neutral_text(result.reason), file=sys.stderr)
@@ -183,7 +183,7 @@ def cmd_live(args: argparse.Namespace) -> int:
     (its line said, --save kept) and exit 130 or 143, as they do every command."""
     from ..execute import folders_removed_if_left_empty
     from ..live_views import LiveOptions, live_command
-    from ..progress import say
+    from ..logs import say
 
     viewer = require_viewer(args.connect) if args.connect else None
     if args.spawn or (viewer is None and args.save is None):
@@ -238,7 +238,7 @@ def _site(folder: str | None) -> Iterator[SiteWriter | None]:
 
 def _say_site(folder: str | None) -> None:
     if folder is not None:
-        from ..progress import say
+        from ..logs import say
 
         say(f"site written to {folder}; look at it with: urdf-pipeline serve {folder}")
 
@@ -310,7 +310,7 @@ def cmd_browse(args: argparse.Namespace) -> int:
     """A dataset browser over the config's written outputs (from the run's manifest only); the site's folder on stdout."""
     from ..compile import compile_config
     from ..execute import folders_removed_if_left_empty
-    from ..progress import say
+    from ..logs import say
     from ..web import browse_config
 
     plan = compile_config(Path(args.config))
@@ -328,7 +328,7 @@ def cmd_browse(args: argparse.Namespace) -> int:
 def cmd_serve(args: argparse.Namespace) -> int:
     """A site on http://127.0.0.1:PORT/ until Ctrl-C or SIGTERM (exit 130 or 143, as every command they stop); its URL
     is the one line on stdout."""
-    from ..progress import say
+    from ..logs import say
     from ..web import SiteServer, serve_site
 
     def ready(server: SiteServer) -> None:

@@ -10,9 +10,9 @@ import sys
 import traceback
 from collections.abc import Callable, Sequence
 
-from .. import PandasLeftOut
 from ..errors import ExitCode, Stopped, UserError, neutral_text, stop_signal
-from ..progress import command_logging, warnings_logged
+from ..logs import command_logging, warnings_logged
+from ..package import PandasLeftOut
 from .parser import build_parser
 from .stderr_relay import stderr_through_logger
 

@@ -52,7 +52,7 @@ def _version() -> str:
     """Ours and the Rerun SDK's (the one a recording's format depends on), from the installed metadata: no import."""
     from importlib.metadata import PackageNotFoundError, version
 
-    from .. import __version__
+    from ..package import __version__
 
     try:
         rerun = version("rerun-sdk")

@@ -17,7 +17,7 @@ from functools import cache
 from pathlib import Path
 from typing import Any
 
-from .. import __version__
+from ..package import __version__
 from ..plan import Plan, TrailPlan
 
 MESH_FILENAME = re.compile(r'filename\s*=\s*"([^"]+)"')

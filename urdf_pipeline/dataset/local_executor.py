@@ -26,8 +26,8 @@ from concurrent.futures.process import BrokenProcessPool
 from multiprocessing.process import BaseProcess
 from typing import TypeVar
 
-from .. import PandasLeftOut
 from ..execute import deferred_signals, process_alive
+from ..package import PandasLeftOut
 
 PRELOAD = ["urdf_pipeline.execute.segment_run", "urdf_pipeline.execute.segment", "rerun.chunk", "rerun.urdf", "rerun.experimental"]
 POLL_SECONDS = 0.2  # how soon a Ctrl-C or SIGTERM is acted on while waiting for the workers

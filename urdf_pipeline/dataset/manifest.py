@@ -1,7 +1,7 @@
 """The run's JSON manifest: every output with its content hash, so a re-run skips what is up to date.
 
 It is rewritten atomically as segments finish, so after a crash or Ctrl-C it lists exactly the complete files.
-A written segment's entry also holds its `summary` (execute/segment_summary.py: time ranges, robots, notes, a preview
+A written segment's entry also holds its `summary` (execute/ranges_and_preview.py: time ranges, robots, notes, a preview
 of the joint values), which `segment_summaries` reads back for a dataset browser without opening any recording; an
 entry without one (written before summaries, or adopted from its file) stays valid, and FORMAT is unchanged: only a
 key was added, which older versions ignore, and a new FORMAT would make every existing manifest be thrown away.
@@ -19,10 +19,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
-from .. import __version__
 from ..confine import Confinement, confinement_for, file_state, os_cause, resolved_or_written
 from ..errors import UserError, Where, shown
 from ..execute import SegmentSummary, foreign_reason, require_ours, write_file_atomically
+from ..package import __version__
 
 if TYPE_CHECKING:
     from ..plan import Plan

@@ -26,8 +26,8 @@ from ..execute import (
     require_writable,
     run_segment,
 )
+from ..logs import LOGGER, SegmentProgress, process_identity
 from ..plan import Plan, RemoteOutputs
-from ..progress import LOGGER, SegmentProgress, process_identity
 from .executors import ExecutorName, executor_for
 from .fingerprint import file_hashes_used, model_hash, remember_file_hashes, segment_hashes
 from .interrupts import signal_name

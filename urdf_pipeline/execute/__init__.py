@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .. import lazy_surface
+from ..package import lazy_surface
 
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
     from .blueprint import blueprint_key, blueprint_path, write_blueprint
@@ -17,11 +17,11 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
     from .joint_fk import ClosedFormJointTransforms, rotation_matrices
     from .kinematics import RobotKinematics, segment_kinematics
     from .limits_report import check_joint_statistics
+    from .manifest_entry import JointPreview, SegmentSummary, TimeRange
     from .model_stream import cached_tree, robot_model_stream
     from .provenance import provenance_stream, stored_content_hash
     from .segment import Parts, RunResult, execute, log_segment
     from .segment_run import CONTENT_METADATA, SegmentJob, SegmentResult, install_run_plan, run_segment
-    from .summary_record import JointPreview, SegmentSummary, TimeRange
     from .temporal_stream import TemporalEdgeStats, TemporalEdgeValues, check_temporal_edges
     from .viewer_delivery import send_to_viewer, viewer_binary
     from .writer import (

@@ -54,7 +54,7 @@ def blueprint_key(plan: Plan) -> str:
     import hashlib
     import json
 
-    from .. import __version__
+    from ..package import __version__
 
     parts: list[object] = [__version__, plan.application_id, [[r.key, r.entity_path_prefix] for r in plan.robots]]
     plotted = _plotted(plan)

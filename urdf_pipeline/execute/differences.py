@@ -13,7 +13,7 @@ import threading
 import numpy as np
 
 from ..plan import Comparison, RobotPlan
-from .summary_record import JointDifferences
+from .manifest_entry import JointDifferences
 
 
 class PairDifferences:

@@ -11,7 +11,7 @@ from ..sources import CallbackErrors, JointValueMapper, raw_matrix
 from .joint_fk import ClosedFormJointTransforms
 from .joint_series import TRANSFORMS_FIELD, series_lens, with_values
 from .progress_meter import RowMeter
-from .segment_summary import ValuePreview
+from .ranges_and_preview import ValuePreview
 from .trail_stream import TrailPositions, trail_field, trail_lenses
 from .transform_lenses import transform_lenses, transform_stream
 
@@ -41,7 +41,7 @@ class JointTransformBatches:
     ) -> None:
         self.mapper = mapper
         self.progress = progress
-        self.preview = preview  # the manifest's preview of the values (segment_summary.py)
+        self.preview = preview  # the manifest's preview of the values (ranges_and_preview.py)
         self.transforms = ClosedFormJointTransforms(tree, list(mapper.joint_names))
         self.series = series  # output.joint_series: the driven values too, beside the transforms (joint_series.py)
         self.trails = trails or []  # `trails:`: each trail's positions too, beside the transforms (trail_stream.py)

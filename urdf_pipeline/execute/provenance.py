@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .. import __version__
+from ..package import __version__
 from ..plan import ScenePlan
 
 if TYPE_CHECKING:

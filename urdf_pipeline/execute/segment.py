@@ -10,22 +10,22 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
 from ..errors import Problems
+from ..logs import note as log_note
+from ..logs import say
 from ..plan import RecordingPlan, RobotPlan
-from ..progress import note as log_note
-from ..progress import say
 from ..sources import CallbackErrors, JointValueMapper, module_for, with_sorting_retry
 from .differences import PairDifferences, pair_differences
 from .edges_stream import calibration_stream
 from .fk_stream import JointTransformBatches, fk_stream
 from .joint_series import series_names_stream
 from .limits_report import check_joint_statistics
+from .manifest_entry import SegmentSummary
 from .model_stream import cached_tree, robot_model_stream
 from .progress_meter import RowMeter, source_meter
 from .provenance import provenance_stream
+from .ranges_and_preview import TimeRanges, ValuePreview, observed, segment_summary
 from .remote_inputs import local_inputs
-from .segment_summary import TimeRanges, ValuePreview, observed, segment_summary
 from .stream_writer import drain_streams
-from .summary_record import SegmentSummary
 from .temporal_stream import EdgeRows, check_temporal_edges, temporal_edge_streams
 from .tf_stream import bag_edge_streams
 from .trail_stream import TrailPositions, trail_statics_stream

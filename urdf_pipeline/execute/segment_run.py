@@ -15,10 +15,10 @@ from pathlib import Path
 from typing import Literal
 
 from ..errors import UserError
+from ..logs import note, process_identity, warnings_logged, worker_logging
 from ..plan import Plan, RecordingPlan, Segment
-from ..progress import note, process_identity, warnings_logged, worker_logging
+from .manifest_entry import SegmentSummary
 from .segment import Parts
-from .summary_record import SegmentSummary
 
 Status = Literal["written", "skipped", "failed", "bug", "interrupted"]
 

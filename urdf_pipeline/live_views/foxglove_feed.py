@@ -13,7 +13,7 @@ from collections.abc import Iterator, Mapping
 from typing import Any, NamedTuple
 
 from ..errors import UserError, Where, quoted, shown
-from ..progress import detail, say
+from ..logs import detail, say
 from .foxglove_protocol import Advertised, ProtocolError, advertised, message_data, server_message, subscribe, unadvertised
 from .foxglove_socket import BINARY, CONNECT_SECONDS, TEXT, Connection, Lost, check_url
 from .joint_state import JOINT_STATE, POLL_SECONDS, JointStateDecoder, JointStateSample, NameOrders, same_topic

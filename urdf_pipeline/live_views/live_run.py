@@ -21,7 +21,7 @@ import numpy as np
 from ..compile import LivePlan, LiveSourceSpec, check_live_config, compile_live
 from ..errors import Stopped, UserError, UserErrors, Where, shown, stop_signal
 from ..execute import deferred_signals, provenance_stream, write_file_atomically
-from ..progress import say
+from ..logs import say
 from ..sources import checked_first_names
 from .joint_state import Feed, JointStateSample, same_topic
 from .latency import Latencies

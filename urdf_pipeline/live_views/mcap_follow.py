@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
 
 from ..errors import UserError, Where, shown
-from ..progress import say
+from ..logs import say
 from ..sources import JOINT_STATE, MAX_SCHEMA_BYTES
 from .joint_state import POLL_SECONDS, JointStateDecoder, JointStateSample, same_topic
 from .mcap_records import RecordSplitter

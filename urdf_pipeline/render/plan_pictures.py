@@ -13,8 +13,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import UserError, shown
+from ..logs import say
 from ..plan import Plan, RobotPlan
-from ..progress import say
 from .camera import LINK_PADDING, Camera, framing
 from .captions import band_height, burn_caption, changes_caption, ghost_over
 from .frames import RecordedTransforms, read_transforms

@@ -311,7 +311,7 @@ def self_check(result: Scaffold, out_file: Path) -> Document:
 def init_config(urdf: UrdfArgument, source: str | None, output: Path | None, force: bool) -> tuple[Scaffold, list[str]]:
     """Scaffold, check and write (to `output`, or return it for stdout); the lines to say on stderr. With a source,
     a bounded sample (check's) chooses each joint's unit, and check's rules judge the result (init_units.py)."""
-    from .init_summary import SampleVerdict, compiled, summary_lines
+    from .init_messages import SampleVerdict, compiled, summary_lines
     from .init_units import read_units, refused_by_check
 
     out_file = (output if output is not None else Path.cwd() / "urdf-pipeline.yaml").absolute()

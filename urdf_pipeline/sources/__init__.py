@@ -11,7 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .. import lazy_surface
+from ..package import lazy_surface
 from ..plan import SourcePlan
 from . import csv, hdf5, lerobot, mcap, parquet, rrd
 

@@ -26,7 +26,7 @@ import numpy as np
 import pyarrow as pa
 
 from ..errors import UserError, Where
-from ..progress import note
+from ..logs import note
 
 if TYPE_CHECKING:
     from rerun.chunk import Chunk, LazyChunkStream

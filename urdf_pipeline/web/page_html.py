@@ -13,8 +13,8 @@ import posixpath
 from collections.abc import Sequence
 from urllib.parse import quote
 
-from .. import __version__
 from ..errors import NAME_LIMIT, shown
+from ..package import __version__
 
 STYLESHEET = "style.css"
 VIEWER_PAGE = "viewer/index.html"

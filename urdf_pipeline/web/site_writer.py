@@ -17,9 +17,9 @@ from collections.abc import Iterator, Sequence
 from importlib.resources import files
 from pathlib import Path
 
-from .. import __version__
 from ..confine import os_cause
 from ..errors import UserError, Where
+from ..package import __version__
 from .page_html import STYLESHEET, VIEWER_POLICY, page
 from .viewer_cache import FILES, ViewerAssets, viewer_assets
 

@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import UserError, Where
-from ..progress import detail
+from ..logs import detail
 
 HOST = "127.0.0.1"
 REQUEST_LINE_LIMIT = 8192  # bytes of `GET /path HTTP/1.1`: a longer one is a 414

@@ -1,4 +1,4 @@
-"""The manifest's per-segment summary (execute/segment_summary.py): time ranges, notes and the joint-value preview,
+"""The manifest's per-segment summary (execute/ranges_and_preview.py): time ranges, notes and the joint-value preview,
 checked against pyarrow and numpy computed here, independently of the run; and read back from hostile JSON."""
 
 from __future__ import annotations
@@ -16,8 +16,7 @@ import pytest
 
 from urdf_pipeline.compile import compile_config
 from urdf_pipeline.errors import Where
-from urdf_pipeline.execute.segment_summary import FINE_BUCKETS, TimeRanges, ValuePreview, segment_summary
-from urdf_pipeline.execute.summary_record import (
+from urdf_pipeline.execute.manifest_entry import (
     BUCKETS,
     NOTE_LIMIT,
     NOTES,
@@ -27,6 +26,7 @@ from urdf_pipeline.execute.summary_record import (
     TimeRange,
     iso_time,
 )
+from urdf_pipeline.execute.ranges_and_preview import FINE_BUCKETS, TimeRanges, ValuePreview, segment_summary
 from urdf_pipeline.plan import JointChannel
 
 from ..dataset_helpers import edit_config, isolated_examples

@@ -5,7 +5,7 @@ from __future__ import annotations
 import io
 from types import SimpleNamespace
 
-from urdf_pipeline.progress import SegmentProgress
+from urdf_pipeline.logs import SegmentProgress
 
 
 def test_a_segment_line_shows_a_hostile_label_and_reason_escaped() -> None:

@@ -1,4 +1,4 @@
-"""The segment's summary for the manifest (summary_record.py), gathered during the run's one pass over the data.
+"""The segment's summary for the manifest (manifest_entry.py), gathered during the run's one pass over the data.
 
 Time ranges: each source's stream passes through `observed`, which reads the first chunk's and the last chunk's index
 values (two chunks per source, not every chunk). The preview: the FK's values matrix, batch by batch
@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import shown
-from .summary_record import BUCKETS, EMPTY, NOTE_LIMIT, NOTES, PREVIEW_JOINTS, JointPreview, SegmentSummary, TimelineKind, TimeRange
+from .manifest_entry import BUCKETS, EMPTY, NOTE_LIMIT, NOTES, PREVIEW_JOINTS, JointPreview, SegmentSummary, TimelineKind, TimeRange
 
 if TYPE_CHECKING:
     import pyarrow as pa

@@ -1,4 +1,4 @@
-"""The record of a segment a dataset browser lists, and its JSON form in the run's manifest (segment_summary.py
+"""The record of a segment a dataset browser lists, and its JSON form in the run's manifest (ranges_and_preview.py
 gathers it during the run's pass).
 
 Per segment: the time range of each timeline the joint values sit on (first and last index value, int64 as the
