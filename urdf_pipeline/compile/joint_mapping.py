@@ -12,8 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from ..errors import Hints, Where, listing, quoted
-from ..errors import did_you_mean as _hint
+from ..errors import Hints, Where, did_you_mean, listing, quoted
 from ..plan import HeldJoint, JointChannel, MimicJoint, OnViolation
 from ..urdf import UrdfModel
 from .context import UNKNOWN_INDEX, CompileContext
@@ -225,7 +224,7 @@ def _channel(ctx: CompileContext, robot: _RobotJoints, entry: _MapEntry, joint_n
     model, spec, where, problems = robot.model, entry.spec, entry.where, ctx.problems
     joint = model.joint(joint_name)
     if joint is None:
-        problems.add(f"URDF '{model.name}' has no joint '{joint_name}'{_hint(joint_name, [j.name for j in model.joints])}", where)
+        problems.add(f"URDF '{model.name}' has no joint '{joint_name}'{did_you_mean(joint_name, [j.name for j in model.joints])}", where)
         return None
     if not joint.moving:
         problems.add(f"joint '{joint_name}' is {joint.type}; only revolute, continuous and prismatic joints can be driven", where)

@@ -280,10 +280,3 @@ def metadata_of(url: RemoteUrl, where: Where | None) -> dict[str, str]:
     except _errors() as exc:
         raise s3_error(exc, url.url, where) from None
     return {str(k).lower(): str(v) for k, v in answer.get("Metadata", {}).items()}
-
-
-def delete(url: RemoteUrl, where: Where | None) -> None:
-    try:
-        client().delete_object(Bucket=url.bucket, Key=url.key)
-    except _errors() as exc:
-        raise s3_error(exc, url.url, where, "delete") from None

@@ -38,7 +38,7 @@ from ..urdf import (
     parse_urdf_text,
     read_urdf,
 )
-from .source_probe import _relative
+from .source_probe import relative_to
 from .yaml_writer import Block
 
 FIND_NEEDED = re.compile(r"xacro needs \$\(find ([^)\s]+)\)")  # urdf/xacro_sandbox.py's message for a package it lacks
@@ -127,7 +127,7 @@ def _plain(argument: UrdfArgument, out_file: Path) -> InitUrdf:
         ) from None
     except (UrdfParseError, OSError, UnicodeDecodeError) as exc:
         raise UserError(f"{urdf}: {exc}") from None
-    relative = _relative(urdf, out_file.parent)
+    relative = relative_to(urdf, out_file.parent)
     return InitUrdf(model, urdf, relative, relative)
 
 
@@ -136,7 +136,7 @@ def _xacro(argument: UrdfArgument, out_file: Path) -> InitUrdf:
     path = Path(argument.value)
     if not path.is_file():
         raise UserError(f"{argument.option}: xacro file not found")
-    relative = _relative(path, out_file.parent)
+    relative = relative_to(path, out_file.parent)
     entry: dict[str, Any] = {"xacro": relative}
     if argument.args:
         entry["args"] = dict(argument.args)
@@ -256,7 +256,7 @@ def package_paths(robot: InitUrdf, out_dir: Path) -> Block | None:
         if package in robot.finds:
             folder, count = robot.finds[package], _count(robot.finds[package], rests)
             short = f"; review: only {count} of its {len(rests)} mesh files are there" if count < len(rests) else ""
-            paths.add(package, _relative(folder, out_dir), f"$(find {package}) in the xacro{short}")
+            paths.add(package, relative_to(folder, out_dir), f"$(find {package}) in the xacro{short}")
             continue
         resolved = resolve_package(package, rests, robot.file)
         if resolved is None:
@@ -264,5 +264,5 @@ def package_paths(robot: InitUrdf, out_dir: Path) -> Block | None:
         else:
             folder, why, count = resolved
             comment = why if count == len(rests) else f"review: only {count} of its {len(rests)} mesh files are there"
-            paths.add(package, _relative(folder, out_dir), comment)
+            paths.add(package, relative_to(folder, out_dir), comment)
     return paths if paths.items else None

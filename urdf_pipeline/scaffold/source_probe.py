@@ -46,7 +46,7 @@ def parse_source_spec(text: str) -> tuple[str, str, str | None]:
     return kind, path, (part or None) if hash_ else None
 
 
-def _relative(target: str | Path, base: Path) -> str:
+def relative_to(target: str | Path, base: Path) -> str:
     """`target` for a config in folder `base`: relative (as the pipeline resolves it, `(base / rel).resolve()`) when
     the two share a top folder, else absolute; with `/`."""
     real_base = os.path.realpath(base)
@@ -68,7 +68,7 @@ def _relative_pattern(pattern: str, base: Path) -> str:
     split = [i for i, part in enumerate(Path(pattern).parts) if GLOB.search(part)]
     if split and split[0] < len(Path(pattern).parts) - 1:  # a glob in a folder name: keep it as given, made absolute
         return Path(os.path.abspath(pattern)).as_posix()
-    return f"{_relative(folder or '.', base)}/{name}".removeprefix("./")
+    return f"{relative_to(folder or '.', base)}/{name}".removeprefix("./")
 
 
 def read_source(text: str, key: str, out_file: Path) -> SourceInfo:
@@ -79,7 +79,7 @@ def read_source(text: str, key: str, out_file: Path) -> SourceInfo:
     except UserError as exc:
         raise UserError(f"--source {text}: {exc.message}") from None
     base = out_file.parent
-    return SourceInfo(described, _relative_pattern(path, base) if described.pattern else _relative(path, base))
+    return SourceInfo(described, _relative_pattern(path, base) if described.pattern else relative_to(path, base))
 
 
 def stub_source(key: str, joints: list[str]) -> SourceInfo:

@@ -78,10 +78,6 @@ class SourceKind(Protocol):
     def check_download(self, plan: Any) -> None: ...  # a remote file's data checks, once `run` downloaded it
 
 
-def no_remote_files(plan: Any) -> None:
-    """`check_download` of a kind that reads no remote file yet (its plans never hold one)."""
-
-
 def shown_file(plan: Any) -> str:
     """A file source as its messages name it: a remote file by its URL (not the download cache's path), else its path."""
     remote = getattr(plan, "remote", None)

@@ -107,7 +107,6 @@ class JointValueMapper:
         position = {name: i for i, name in enumerate(self.joint_names)}
         self.mimic_plan = [(position[m.joint], position[m.driver], m.multiplier, m.offset) for m in robot.mimics]
         self.clamp_all = robot.on_violation == "clamp"
-        self.clamp_none = robot.on_violation == "ignore"
         self.stats = RobotStats(channels=[ChannelStats() for _ in channels])
         self._lock = threading.Lock()
 

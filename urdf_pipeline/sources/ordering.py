@@ -31,7 +31,6 @@ from ..logs import note
 if TYPE_CHECKING:
     from rerun.chunk import Chunk, LazyChunkStream
 
-DUPLICATE_POLICIES = ("error", "keep_last")
 ROW_ID = "rerun.controls.RowId"
 BLOCK_ROWS = 2048  # rows per joined or rebuilt chunk: Rerun's FK is fastest in 1k-10k row batches, and a block
 # becomes one FK chunk of the recording (2048 x up to 32 joints stays under OBJECT_STORE's 65,536 rows)

@@ -81,12 +81,6 @@ class XacroContent(UrdfParseError):
         )
 
 
-def without_leading_space(text: str) -> str:
-    """`text` without the blank lines and spaces (and byte order mark) before its `<?xml ...?>`, else `text` itself."""
-    match = _LEADING.match(text)
-    return text[match.end() :] if match else text
-
-
 class _PrologRead(Exception):
     """The root element started: the prolog, where a DOCTYPE may stand, has been read."""
 
