@@ -48,7 +48,7 @@ def test_the_site_builds_strictly(tmp_path: Path) -> None:
 def test_the_build_fails_on_a_broken_link_a_missing_page_or_an_orphan(tmp_path: Path) -> None:
     repo = tmp_path / "repo"
     shutil.copytree(DOCS, repo / "docs", ignore=shutil.ignore_patterns("_build"))
-    for name in ("pyproject.toml", "README.md", "ARCHITECTURE.md", "urdf_pipeline/__init__.py", "configs/demo.yaml"):
+    for name in ("pyproject.toml", "README.md", "ARCHITECTURE.md", "urdf_pipeline/package.py", "configs/demo.yaml"):
         (repo / name).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy(REPO / name, repo / name)
     with (repo / "docs" / "sources.md").open("a", encoding="utf-8") as page:
