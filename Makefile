@@ -65,8 +65,9 @@ lint: $(VENV)/.test-installed
 	$(BIN)/ruff format --check urdf_pipeline tests benchmarks
 	$(BIN)/mypy
 
+# -rs: each skipped test's reason at the end (a missing Vulkan driver, chromium, ../shared).
 test: lint bytecode renderer browser
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -rs
 
 # The site of docs/, into docs/_build/html (git-ignored). Strict, as tests/docs builds it: any warning (a broken link
 # or anchor, a missing page, a page in no table of contents) fails the build, after all of them are reported.

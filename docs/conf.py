@@ -26,7 +26,7 @@ author = "urdf-pipeline contributors"
 copyright = "urdf-pipeline contributors, Apache-2.0"
 release = next(
     line.split("=", 1)[1].strip().strip("\"'")
-    for line in (REPO / "urdf_pipeline" / "__init__.py").read_text(encoding="utf-8").splitlines()
+    for line in (REPO / "urdf_pipeline" / "package.py").read_text(encoding="utf-8").splitlines()
     if line.startswith("__version__")
 )
 

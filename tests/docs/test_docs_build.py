@@ -48,7 +48,7 @@ def test_the_site_builds_strictly(tmp_path: Path) -> None:
 def test_the_build_fails_on_a_broken_link_a_missing_page_or_an_orphan(tmp_path: Path) -> None:
     repo = tmp_path / "repo"
     shutil.copytree(DOCS, repo / "docs", ignore=shutil.ignore_patterns("_build"))
-    for name in ("pyproject.toml", "README.md", "ARCHITECTURE.md", "urdf_pipeline/__init__.py", "configs/demo.yaml"):
+    for name in ("pyproject.toml", "README.md", "ARCHITECTURE.md", "urdf_pipeline/package.py", "configs/demo.yaml"):
         (repo / name).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy(REPO / name, repo / name)
     with (repo / "docs" / "sources.md").open("a", encoding="utf-8") as page:
@@ -127,3 +127,9 @@ def test_the_readme_test_command_is_what_ci_runs() -> None:
 def test_the_test_extra_brings_the_docs_tools() -> None:
     extras = tomllib.loads((REPO / "pyproject.toml").read_text(encoding="utf-8"))["project"]["optional-dependencies"]
     assert set(extras["docs"]) <= set(extras["test"]), "tests/docs builds the site: the test extra needs the docs extra's tools"
+
+
+def test_the_readme_gives_the_loop_for_one_test_file_and_make_test_says_why_tests_skip() -> None:
+    loop = re.search(r"`\.venv/bin/python -m pytest (tests/\S+\.py) -q`", (REPO / "README.md").read_text(encoding="utf-8"))
+    assert loop and (REPO / loop.group(1)).is_file()
+    assert re.search(r"^test:.*\n(?:#.*\n)*\t\$\(BIN\)/python -m pytest -rs$", (REPO / "Makefile").read_text(), re.MULTILINE)

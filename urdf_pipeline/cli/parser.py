@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, NoReturn
+from typing import TYPE_CHECKING, NoReturn
 
 from .commands import (
     cmd_browse,
@@ -61,6 +61,12 @@ def _version() -> str:
     return f"urdf-pipeline {__version__} (rerun-sdk {rerun}, Python {sys.version.split()[0]})"
 
 
+CONFIG_HELP = "the robot setup's YAML config (paths in it are relative to its folder)"
+"""The help of the CONFIG argument, the same in every command that reads one."""
+
+EXAMPLE_HEADING = "example (on the configs `make demo` writes and runs):"
+
+
 def _verbosity(parser: argparse.ArgumentParser, default: object) -> None:
     """-q / -v, on the main parser and on every subcommand (`urdf-pipeline run -q CONFIG` and `urdf-pipeline -q run`)."""
     group = parser.add_mutually_exclusive_group()
@@ -70,15 +76,27 @@ def _verbosity(parser: argparse.ArgumentParser, default: object) -> None:
 
 class _Commands:
     """Subparsers that all take -q / -v (their defaults suppressed, so the main parser's value stays when not given) and
-    name their handler, so `main` finds the function and the parser (for `parser.error`) of the command it was given."""
+    name their handler, so `main` finds the function and the parser (for `parser.error`) of the command it was given.
+    Each has one summary (the command list's line and its --help's description), the CONFIG argument when it reads
+    one (`configs`: one or more), and ends its --help with one example that runs as typed (tests/cli/test_help.py)."""
 
     def __init__(self, parser: argparse.ArgumentParser) -> None:
         self.actions = parser.add_subparsers(dest="command", required=True)
 
-    def add_parser(self, name: str, handler: Callable[[argparse.Namespace], int], **kwargs: Any) -> argparse.ArgumentParser:
-        sub = self.actions.add_parser(name, **kwargs)
+    def add_parser(
+        self, name: str, handler: Callable[[argparse.Namespace], int], summary: str, example: str, config: str | None = None
+    ) -> argparse.ArgumentParser:
+        sub = self.actions.add_parser(
+            name,
+            help=summary,
+            description=summary,
+            epilog=f"{EXAMPLE_HEADING}\n  {example}",
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+        )
         _verbosity(sub, argparse.SUPPRESS)
         sub.set_defaults(handler=handler, parser=sub)
+        if config is not None:
+            sub.add_argument(config, metavar="CONFIG", nargs="+" if config == "configs" else None, help=CONFIG_HELP)
         return sub
 
 
@@ -118,8 +136,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _add_run(commands: _Commands) -> None:
     """run: the segments to write and where they go (executor, catalog, a viewer, a report)."""
-    run = commands.add_parser("run", cmd_run, help="validate CONFIG, compute forward kinematics and write the .rrd of every segment")
-    run.add_argument("config")
+    run = commands.add_parser(
+        "run",
+        cmd_run,
+        "validate CONFIG, compute forward kinematics and write the .rrd of every segment",
+        "urdf-pipeline run configs/so101_dataset.yaml --episodes 0,1",
+        config="config",
+    )
     run.add_argument("--episodes", metavar="SPEC", help="override output.episodes: all, 0,3,7 or 10:20")
     run.add_argument(
         "--jobs", type=_positive, help="segments written in parallel (default: the CPUs this process may use: affinity, cgroup quota)"
@@ -148,9 +171,12 @@ def _add_run(commands: _Commands) -> None:
 def _add_validate(commands: _Commands) -> None:
     """validate: many configs at once, the output form for CI, and what to skip (the data, files that are no config)."""
     validate = commands.add_parser(
-        "validate", cmd_validate, help="check configs against the schema, URDFs and source metadata (no joint values read)"
+        "validate",
+        cmd_validate,
+        "check configs against the schema, URDFs and source metadata (no joint values read)",
+        "urdf-pipeline validate --no-data configs/demo.yaml configs/ur5_ros2_bag.yaml",
+        config="configs",
     )
-    validate.add_argument("configs", nargs="+", metavar="CONFIG")
     validate.add_argument(
         "--format",
         choices=("text", "github", "json"),
@@ -182,12 +208,10 @@ def _add_live(commands: _Commands) -> None:
     live = commands.add_parser(
         "live",
         cmd_live,
-        help="drive CONFIG's robots from a live stream (a Foxglove WebSocket server, an MCAP file being written) into a viewer",
-        description="Subscribe to the JointState topics CONFIG's MCAP sources name, on a Foxglove WebSocket server "
-        "(foxglove_bridge, the Foxglove SDK) or in an MCAP file still being written, and show the robots move, with the "
-        "config's mapping, units, limits and edges. The config is checked before anything is subscribed. Ctrl-C ends.",
+        "drive CONFIG's robots from a live stream (a Foxglove WebSocket server, an MCAP file being written) into a viewer",
+        "urdf-pipeline live configs/ur5_ros2_bag.yaml --from configs/data/ur5_joint_states.mcap --save configs/out/live.rrd",
+        config="config",
     )
-    live.add_argument("config")
     live.add_argument(
         "--from", dest="source", required=True, metavar="URL", help="ws://HOST:PORT, or the path of an MCAP file being written"
     )
@@ -205,17 +229,25 @@ def _add_live(commands: _Commands) -> None:
 def _add_check(commands: _Commands) -> None:
     """check: how much of each source it samples."""
     check = commands.add_parser(
-        "check", cmd_check, help="read a sample of each source and say which corrections put every mapped joint inside its URDF limits"
+        "check",
+        cmd_check,
+        "read a sample of each source and say which corrections put every mapped joint inside its URDF limits",
+        "urdf-pipeline check configs/so101_lerobot.yaml",
+        config="config",
     )
-    check.add_argument("config")
     check.add_argument("--format", choices=("text", "json"), default="text")
     check.add_argument("--rows", type=_positive, default=100_000, help="rows to sample from the start of each source (default 100000)")
 
 
 def _add_plan(commands: _Commands) -> None:
     """plan: the report's form, an optional sample of the data and optional pictures."""
-    plan = commands.add_parser("plan", cmd_plan, help="validate CONFIG and print what a run would do")
-    plan.add_argument("config")
+    plan = commands.add_parser(
+        "plan",
+        cmd_plan,
+        "validate CONFIG and print what a run would do",
+        "urdf-pipeline plan configs/demo.yaml --format markdown",
+        config="config",
+    )
     plan.add_argument(
         "--format",
         choices=("text", "markdown", "json"),
@@ -233,12 +265,10 @@ def _add_snapshot(commands: _Commands) -> None:
     snapshot = commands.add_parser(
         "snapshot",
         cmd_snapshot,
-        help="draw PNGs of a written recording with the Rerun viewer (headless) and print their paths",
-        description="Draw pictures of a segment's recording (written by `run`) at times on its timeline, 3D view only, "
-        "from a three-quarter camera that frames the robots' links over the whole segment. Needs a Vulkan driver "
-        "(apt-get install mesa-vulkan-drivers on a machine without a GPU).",
+        "draw PNGs of a written recording with the Rerun viewer (headless) and print their paths",
+        "urdf-pipeline snapshot configs/demo.yaml --at first,last --size 640x480",
+        config="config",
     )
-    snapshot.add_argument("config")
     snapshot.add_argument("--segment", metavar="ID", help="the segment (recording id) to draw (default: the first)")
     snapshot.add_argument(
         "--at",
@@ -253,14 +283,19 @@ def _add_snapshot(commands: _Commands) -> None:
 
 def _add_schema(commands: _Commands) -> None:
     """schema: where the JSON Schema goes."""
-    schema = commands.add_parser("schema", cmd_schema, help="print the config's JSON Schema")
+    schema = commands.add_parser(
+        "schema", cmd_schema, "print the config's JSON Schema", "urdf-pipeline schema -o configs/out/urdf-pipeline.schema.json"
+    )
     schema.add_argument("-o", "--output", metavar="FILE", help="write it to FILE (schemas/urdf-pipeline.schema.json: init finds it)")
 
 
 def _add_init(commands: _Commands) -> None:
     """init: exactly one form of URDF (as run loads it), an optional source to match names against, the output file."""
     init = commands.add_parser(
-        "init", cmd_init, help="scaffold a config from a URDF, pre-matched to a source's names when --source is given"
+        "init",
+        cmd_init,
+        "scaffold a config from a URDF, pre-matched to a source's names when --source is given",
+        "urdf-pipeline init --urdf configs/robots/panda.urdf --source parquet:configs/data/episode_000.parquet#observation.state",
     )
     robot = init.add_mutually_exclusive_group(required=True)
     robot.add_argument("--urdf", metavar="PATH", help="a plain URDF file")
@@ -281,10 +316,8 @@ def _add_diff(commands: _Commands) -> None:
     diff = commands.add_parser(
         "diff",
         cmd_diff,
-        help="print the semantic difference of two configs' compiled plans (OLD NEW, or CONFIG --git REV)",
-        description="Compile both configs and print what differs in their plans, one line per change (nothing when they are "
-        "equivalent: key order, comments and equal spellings do not count). With --git REV, CONFIG's text at REV is compared "
-        "with the working tree's; the files the old config refers to (URDF, data, sidecar edge files) are read from the working tree.",
+        "print the semantic difference of two configs' compiled plans (OLD NEW, or CONFIG --git REV)",
+        "urdf-pipeline diff configs/demo.yaml configs/bimanual_pandas.yaml",
     )
     diff.add_argument("old", metavar="OLD", help="the old config (with --git: the config)")
     diff.add_argument("new", metavar="NEW", nargs="?", help="the new config (not with --git)")
@@ -317,13 +350,10 @@ def _add_browse(commands: _Commands) -> None:
     browse = commands.add_parser(
         "browse",
         cmd_browse,
-        help="write a dataset browser (a static site) over CONFIG's written outputs into DIR",
-        description="Write a static site listing every segment of CONFIG's run (id, frames, duration and time range, "
-        "robots, the run's notes, a sparkline of the joint values) with search and paging, each segment opening in "
-        "Rerun's web viewer beside the list. Reads the run's manifest only (run CONFIG first); `serve DIR` shows it. With --base, each segment opens "
-        "together with its base recording (same recording_id: the viewer merges them).",
+        "write a dataset browser (a static site) over CONFIG's written outputs (run CONFIG first) into DIR",
+        "urdf-pipeline browse configs/demo.yaml -o configs/out/site",
+        config="config",
     )
-    browse.add_argument("config")
     browse.add_argument("-o", "--output", required=True, metavar="DIR", help="the site's folder (new, empty, or a site written before)")
     browse.add_argument(
         "--base",
@@ -337,9 +367,8 @@ def _add_serve(commands: _Commands) -> None:
     serve = commands.add_parser(
         "serve",
         cmd_serve,
-        help="serve a site (plan --html, diff --html, browse -o) on http://127.0.0.1:PORT/ and print its URL",
-        description="Serve the static site in DIR to this machine only (127.0.0.1), for a browser: Rerun's web viewer "
-        "does not load from file://. The URL is printed on stdout; Ctrl-C stops.",
+        "serve a site (plan --html, diff --html, browse -o) on http://127.0.0.1:PORT/ and print its URL; Ctrl-C stops",
+        "urdf-pipeline serve configs/out/site",
     )
     serve.add_argument("dir", metavar="DIR", help="the site's folder (it holds an index.html)")
     serve.add_argument("--port", type=_port, default=0, metavar="N", help="the port to listen on (default 0: a free port, printed)")
