@@ -11,19 +11,26 @@ Rerun stays the reference: the constants (parent and child frames, frame prefix 
 parse of the URDF, and every instance is checked against Rerun's FK at construction on probe values; if any
 transform differs by more than `AGREEMENT` (a joint kind or convention this code does not know), Rerun's FK is
 used for that robot, never a different pose. The URDF sweep checks the poses against pinocchio as before.
+
+`compose` is the one composition of transforms down a tree of frames, in float64 over whole columns: the API's
+link poses (`link_poses`), the trails' reference and the pictures' frames read back from a recording all use it.
 """
 
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable, Hashable, Iterable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 import pyarrow as pa
 
 if TYPE_CHECKING:
     from rerun.urdf import UrdfTree
+
+Frame = TypeVar("Frame", bound=Hashable)
+Pose = tuple[np.ndarray, np.ndarray]  # rows x 3 translations (metres), rows x 4 (x, y, z, w) quaternions; float64
 
 AGREEMENT = 1e-5  # m and quaternion components: Rerun computes in float32 (~1e-7), a wrong formula is off by far more
 PROBES = np.array([0.0, 0.37, -1.21, 2.53, -3.07, 0.0031])  # every joint at each value, and one row of mixed values
@@ -88,12 +95,6 @@ class ClosedFormJointTransforms:
         structs = pa.StructArray.from_arrays([translation, quaternions, fixed.parents, fixed.children], fields=self.fields)
         return pa.ListArray.from_arrays(fixed.offsets, structs, type=self.type)
 
-    def frame_names(self) -> tuple[list[str], list[str]]:
-        """Each joint's parent and child frame, frame prefix included, as Rerun's FK names them (a live view sends
-        the transforms of `arrays` with these)."""
-        frames = self._rerun(np.zeros((1, len(self.names)))).values
-        return frames.field("parent_frame").to_pylist(), frames.field("child_frame").to_pylist()
-
     def arrays(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The same transforms as numpy arrays in float64 (rows x joints x 3 translations, x 4 quaternions), for
         analysis (`kinematics.py`): not rounded to float32 as the recording's are."""
@@ -107,6 +108,23 @@ class ClosedFormJointTransforms:
             quaternion = np.sin(half)[..., None] * self.axis_q + np.cos(half)[..., None] * self.origin_q
             translation = self.origin_t + (values * self.sliding)[..., None] * self.slide_axes
         return translation, quaternion
+
+    def link_poses(self, values: np.ndarray, root: str | None = None, at: Pose | None = None) -> dict[str, Pose]:
+        """Every link below `root` (default: the tree's root link) placed in its frame at each row of `values`, in
+        float64 (`at`: root's own pose, to place them in a frame above it): the joints of `names` by `arrays`, every
+        other joint (fixed, floating, planar) at its URDF origin, as Rerun's model logs it."""
+        local_t, local_q = self.arrays(values)
+        moving = {name: index for index, name in enumerate(self.names)}
+        above = {joint.child_link: joint for joint in self.tree.joints()}
+
+        def local(link: str) -> Pose:
+            joint = above[link]
+            if joint.name in moving:
+                return local_t[:, moving[joint.name]], local_q[:, moving[joint.name]]
+            return np.array(joint.origin_xyz, dtype=np.float64), np.array(quaternion_from_rpy(*joint.origin_rpy), dtype=np.float64)
+
+        top = self.tree.root_link().name if root is None else root
+        return compose(top, [(joint.parent_link, joint.child_link) for joint in self.tree.joints()], local, len(values), at)
 
     def _per_size(self, rows: int) -> _SizeConstants:
         """What depends only on the row count (frames, offsets, the translations of a robot without prismatic
@@ -175,6 +193,34 @@ class _Repeated:
         kind = pa.string() if offsets.dtype == np.int32 else pa.large_string()
         array = pa.Array.from_buffers(kind, rows * len(self.lengths), [None, pa.py_buffer(offsets), pa.py_buffer(np.tile(self.data, rows))])
         return array if kind == pa.string() else array.cast(pa.string())  # past 2 GiB the cast raises, as Rerun's FK would fail
+
+
+def compose(
+    root: Frame, edges: Iterable[tuple[Frame, Frame]], local: Callable[[Frame], Pose], rows: int, at: Pose | None = None
+) -> dict[Frame, Pose]:
+    """Every frame below `root` placed in root's frame (or, given root's pose `at`, in the frame above it) at each of
+    `rows` rows: each child's `local` transform (parent from child; one pose is broadcast to every row) composed from
+    the root down, one step per frame over all rows. `edges` are (parent, child); a frame reached twice keeps its
+    first placement (the frame graph check refuses that before anything is written)."""
+    children: dict[Frame, list[Frame]] = {}
+    for parent, child in edges:
+        children.setdefault(parent, []).append(child)
+    start_t, start_q = at or (np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]))
+    placed = {root: (np.broadcast_to(start_t, (rows, 3)), np.broadcast_to(start_q, (rows, 4)))}
+    stack = [root]
+    while stack:
+        parent = stack.pop()
+        parent_t, parent_q = placed[parent]
+        for child in children.get(parent, ()):
+            if child in placed:
+                continue
+            t, q = local(child)
+            placed[child] = (
+                parent_t + rotate(parent_q, np.broadcast_to(t, (rows, 3))),
+                multiply_quaternions(parent_q, np.broadcast_to(q, (rows, 4))),
+            )
+            stack.append(child)
+    return placed
 
 
 def quaternion_from_rpy(roll: float, pitch: float, yaw: float) -> list[float]:

@@ -12,7 +12,7 @@ import pyarrow as pa
 
 from ..compile import describe_temporal_edge
 from ..errors import Problems
-from ..plan import RecordingPlan, SourcePlan, TemporalEdgePlan
+from ..plan import NamedSource, RecordingPlan, TemporalEdgePlan
 from ..sources import CallbackErrors, raw_matrix
 from .transform_lenses import transform_lenses, transform_stream
 
@@ -52,7 +52,7 @@ class EdgeRows(Protocol):
 class TemporalEdgeValues:
     """The first lens's function: source vectors -> one list<struct> Transform3D batch per row, with statistics."""
 
-    def __init__(self, edge: TemporalEdgePlan, source: SourcePlan) -> None:
+    def __init__(self, edge: TemporalEdgePlan, source: NamedSource) -> None:
         self.edge = edge
         self.source = source
         self.width = len(source.names)

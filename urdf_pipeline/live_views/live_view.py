@@ -62,11 +62,10 @@ class LiveView:
         self.source = plan.source_named(robot.source)
         self.timeline = timeline or self.source.timeline
         self.time_kind: TimeKind = time_kind
-        self.mapper = JointValueMapper(robot, self.source)  # type: ignore[arg-type]  # a LiveSource has what it reads
+        self.mapper = JointValueMapper(robot, self.source)
         tree = cached_tree(robot)
         self.fk = ClosedFormJointTransforms(tree, list(self.mapper.joint_names))
-        self.parents, self.children = (np.array(frames) for frames in self.fk.frame_names())
-        self.temporal = [TemporalEdgeValues(e, self.source) for e in plan.temporal_edges if e.source == self.source.name]  # type: ignore[arg-type]
+        self.temporal = [TemporalEdgeValues(e, self.source) for e in plan.temporal_edges if e.source == self.source.name]
         read = [self.mapper.columns, *(v.columns for v in self.temporal)]
         self.rows = ValueRows(self.source, np.unique(np.concatenate(read)), f"urdf_pipeline.live robot '{robot.key}'")
         self.reports = LimitReports(self.mapper, self.temporal, self.source, report_every)
@@ -225,7 +224,7 @@ class LiveView:
     def _send_joints(self, values: np.ndarray, times: np.ndarray) -> None:
         """The run's FK batches (one list of joint transforms per row, float32 as a run writes them), scattered to
         one Transform3D row per joint as the run's scatter lens does."""
-        self._send_transforms(self.robot.fk_entity, self.fk(values).values, np.repeat(times, len(self.parents)))
+        self._send_transforms(self.robot.fk_entity, self.fk(values).values, np.repeat(times, len(self.fk.names)))
 
     def _send_edge(self, edge: TemporalEdgeValues, raw: np.ndarray, times: np.ndarray) -> None:
         """A temporal edge's rows through the run's own function (its checks and statistics); rows it cannot place
