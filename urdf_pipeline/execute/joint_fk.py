@@ -26,6 +26,8 @@ from typing import TYPE_CHECKING, TypeVar
 import numpy as np
 import pyarrow as pa
 
+from .transform_lenses import float_vectors, transform_lists
+
 if TYPE_CHECKING:
     from rerun.urdf import UrdfTree
 
@@ -61,8 +63,6 @@ class ClosedFormJointTransforms:
         self.axis_q32 = self.axis_q.astype(np.float32)
         self.slide_axes = rotate(origin_q, axes)
         reference = self._rerun(np.zeros((1, len(names))))
-        self.type = reference.type
-        self.fields = list(reference.type.value_type)
         self._sizes: dict[int, _SizeConstants] = {}
         self._lock = threading.Lock()
         frames = reference.values
@@ -86,14 +86,10 @@ class ClosedFormJointTransforms:
         quaternion = np.empty((rows, count, 4), dtype=np.float32)
         np.multiply(sines[..., None], self.axis_q32, out=quaternion)
         quaternion += cosines[..., None] * self.origin_q32
-        if fixed.translation is not None:
-            translation = fixed.translation
-        else:
-            moved = self.origin_t + (values * self.sliding)[..., None] * self.slide_axes
-            translation = pa.FixedSizeListArray.from_arrays(pa.array(moved.astype(np.float32).reshape(-1)), 3).cast(self.fields[0].type)
-        quaternions = pa.FixedSizeListArray.from_arrays(pa.array(quaternion.reshape(-1)), 4).cast(self.fields[1].type)
-        structs = pa.StructArray.from_arrays([translation, quaternions, fixed.parents, fixed.children], fields=self.fields)
-        return pa.ListArray.from_arrays(fixed.offsets, structs, type=self.type)
+        translation = fixed.translation
+        if translation is None:
+            translation = float_vectors(self.origin_t + (values * self.sliding)[..., None] * self.slide_axes)
+        return transform_lists(fixed.offsets, translation, float_vectors(quaternion), fixed.parents, fixed.children)
 
     def arrays(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The same transforms as numpy arrays in float64 (rows x joints x 3 translations, x 4 quaternions), for
@@ -140,8 +136,7 @@ class ClosedFormJointTransforms:
     def _size_constants(self, rows: int) -> _SizeConstants:
         translation = None
         if not self.sliding.any():
-            repeated = np.tile(self.origin_t.astype(np.float32), (rows, 1))
-            translation = pa.FixedSizeListArray.from_arrays(pa.array(repeated.reshape(-1)), 3).cast(self.fields[0].type)
+            translation = float_vectors(np.tile(self.origin_t.astype(np.float32), (rows, 1)))
         offsets = pa.array(np.arange(rows + 1, dtype=np.int32) * len(self.names))
         return _SizeConstants(offsets, self.parents.rows(rows), self.children.rows(rows), translation)
 

@@ -21,6 +21,7 @@ import pyarrow as pa
 
 from ..plan import TrailPlan
 from .joint_fk import PROBES, ClosedFormJointTransforms, Pose, compose, quaternion_from_rpy, rotation_matrices
+from .transform_lenses import float_vectors
 
 if TYPE_CHECKING:
     import rerun.blueprint as rrb
@@ -96,7 +97,7 @@ class TrailPositions:
         mask = None if left_out is None else pa.array(left_out)
         offsets = pa.array(np.arange(rows + 1, dtype=np.int32))
         if self.trail.style == "points":
-            return pa.ListArray.from_arrays(offsets, _vectors(here), mask=mask)
+            return pa.ListArray.from_arrays(offsets, float_vectors(here), mask=mask)
         with self._lock:
             kept = np.flatnonzero(keep)
             before = np.empty_like(here)
@@ -105,7 +106,7 @@ class TrailPositions:
                 before[kept] = np.vstack([previous[None], here[kept[:-1]]])
                 self._last = here[kept[-1]].copy()
         points = np.stack([before, here], axis=1).reshape(-1, 3)
-        strips = pa.ListArray.from_arrays(pa.array(np.arange(rows + 1, dtype=np.int32) * 2), _vectors(points), type=STRIP_TYPE)
+        strips = pa.ListArray.from_arrays(pa.array(np.arange(rows + 1, dtype=np.int32) * 2), float_vectors(points), type=STRIP_TYPE)
         return pa.ListArray.from_arrays(offsets, strips, mask=mask)
 
 
@@ -142,13 +143,6 @@ class _Step:
         if self.column is not None:
             return moved + values[:, self.column, None] * self.slide + self.origin
         return moved + self.origin
-
-
-def _vectors(points: np.ndarray) -> pa.Array:
-    """Positions as Rerun's Position3D/Vec3D arrays: fixed_size_list<float32 not null>[3] (the viewer refuses a
-    nullable item type, which is pyarrow's default)."""
-    flat = pa.array(np.ascontiguousarray(points, dtype=np.float32).reshape(-1))
-    return pa.FixedSizeListArray.from_arrays(flat, type=VECTOR_TYPE)
 
 
 def _chain(tree: UrdfTree, start: str, link: str) -> list:

@@ -26,6 +26,7 @@ from ..execute import (
     calibration_stream,
     provenance_stream,
     robot_model_stream,
+    transform_fields,
 )
 from ..plan import RobotPlan
 from ..sources import JointValueMapper
@@ -240,7 +241,7 @@ class LiveView:
         """{translation, quaternion, parent_frame, child_frame} structs, one Transform3D row each, in one call."""
         import rerun as rr
 
-        columns = [rr.ComponentColumn(descriptor(), _Arrow(structs.field(name))) for name, descriptor in _transform_fields()]
+        columns = [rr.ComponentColumn(descriptor, _Arrow(structs.field(name))) for name, descriptor in transform_fields()]
         self.recording.send_columns(entity, indexes=[self._time_column(times)], columns=columns)
 
     def _time_column(self, times: np.ndarray) -> Any:
@@ -264,14 +265,3 @@ class _Arrow:
 
     def as_arrow_array(self) -> pa.Array:
         return self.array
-
-
-def _transform_fields() -> list[tuple[str, Any]]:
-    import rerun as rr
-
-    return [
-        ("translation", rr.Transform3D.descriptor_translation),
-        ("quaternion", rr.Transform3D.descriptor_quaternion),
-        ("parent_frame", rr.Transform3D.descriptor_parent_frame),
-        ("child_frame", rr.Transform3D.descriptor_child_frame),
-    ]
