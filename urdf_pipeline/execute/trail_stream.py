@@ -21,15 +21,14 @@ import pyarrow as pa
 
 from ..plan import TrailPlan
 from .joint_fk import PROBES, ClosedFormJointTransforms, Pose, compose, quaternion_from_rpy, rotation_matrices
-from .transform_lenses import float_vectors
+from .transform_lenses import float_type, float_vectors
 
 if TYPE_CHECKING:
     import rerun.blueprint as rrb
     from rerun.chunk import DeriveLens, LazyChunkStream
     from rerun.urdf import UrdfJoint, UrdfTree
 
-VECTOR_TYPE = pa.list_(pa.field("item", pa.float32(), nullable=False), 3)  # rerun.components.Position3D's arrow type
-STRIP_TYPE = pa.list_(pa.field("item", VECTOR_TYPE, nullable=False))  # LineStrip3D's
+STRIP_TYPE = pa.list_(pa.field("item", float_type(3), nullable=False))  # LineStrip3D's
 TRAIL_RADIUS = 0.004  # m: points and lines thin enough not to hide the link they follow
 
 

@@ -21,11 +21,17 @@ if TYPE_CHECKING:
 
     from ..sources import CallbackErrors, SourceStream
 
-_FIELDS = ("translation", "quaternion", "parent_frame", "child_frame")
+
+def float_type(width: int) -> pa.DataType:
+    """Rerun's vector type (Translation3D, Position3D, a quaternion): fixed_size_list<float32 not null>[width] (the
+    viewer refuses a nullable item type, which is pyarrow's default)."""
+    return pa.list_(pa.field("item", pa.float32(), nullable=False), width)
+
+
 TRANSFORM = pa.struct(
     [
-        pa.field("translation", pa.list_(pa.field("item", pa.float32(), nullable=False), 3), nullable=False),
-        pa.field("quaternion", pa.list_(pa.field("item", pa.float32(), nullable=False), 4), nullable=False),
+        pa.field("translation", float_type(3), nullable=False),
+        pa.field("quaternion", float_type(4), nullable=False),
         pa.field("parent_frame", pa.string(), nullable=False),
         pa.field("child_frame", pa.string(), nullable=False),
     ]
@@ -34,10 +40,9 @@ TRANSFORMS = pa.list_(pa.field("item", TRANSFORM, nullable=False))  # one list o
 
 
 def float_vectors(values: np.ndarray) -> pa.Array:
-    """rows x N numbers as Rerun's vectors (Translation3D, Position3D, a quaternion): fixed_size_list<float32 not
-    null>[N] (the viewer refuses a nullable item type, which is pyarrow's default)."""
+    """rows x N numbers as `float_type(N)` vectors."""
     flat = pa.array(np.ascontiguousarray(values, dtype=np.float32).reshape(-1))
-    return pa.FixedSizeListArray.from_arrays(flat, type=pa.list_(pa.field("item", pa.float32(), nullable=False), values.shape[-1]))
+    return pa.FixedSizeListArray.from_arrays(flat, type=float_type(values.shape[-1]))
 
 
 def transform_lists(offsets: pa.Array, translations: pa.Array, quaternions: pa.Array, parents: pa.Array, children: pa.Array) -> pa.Array:
@@ -50,7 +55,7 @@ def transform_fields() -> list[tuple[str, ComponentDescriptor]]:
     """Each field of `TRANSFORM` and the Transform3D component it is written as."""
     import rerun as rr
 
-    return [(name, getattr(rr.Transform3D, f"descriptor_{name}")()) for name in _FIELDS]
+    return [(field.name, getattr(rr.Transform3D, f"descriptor_{field.name}")()) for field in TRANSFORM]
 
 
 def transform_lenses(

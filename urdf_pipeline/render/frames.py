@@ -73,11 +73,10 @@ class RecordedTransforms:
         wanted = list(frames)
         placed = _compose(self, root, times, set(wanted))
         count = len(times)
-        nowhere = (np.full((count, 3, 3), np.nan), np.full((count, 3), np.nan))
         if not wanted:
             return np.zeros((count, 0, 3, 3)), np.zeros((count, 0, 3))
-        found = [placed.get(frame, nowhere) for frame in wanted]
-        return np.stack([rotation for rotation, _ in found], axis=1), np.stack([position for _, position in found], axis=1)
+        found = [placed.get(frame, (np.full((count, 3), np.nan), np.full((count, 4), np.nan))) for frame in wanted]
+        return rotation_matrices(np.stack([q for _, q in found], axis=1)), np.stack([t for t, _ in found], axis=1)
 
     def sampled_times(self) -> np.ndarray:
         times = self.times
@@ -184,8 +183,8 @@ def _concatenate(parts: list[_Edges]) -> _Edges:
     )
 
 
-def _compose(transforms: RecordedTransforms, root: str, times: np.ndarray, wanted: set[str]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """World rotations (times x 3 x 3) and positions (times x 3) of the frames in `wanted` that reach `root`; the latest temporal value at or
+def _compose(transforms: RecordedTransforms, root: str, times: np.ndarray, wanted: set[str]) -> dict[str, Pose]:
+    """World poses (times x 3, times x 4) of the frames in `wanted` that reach `root`; the latest temporal value at or
     before a time overrides the static one, as in the viewer."""
     static, temporal, names = transforms.static, transforms.temporal, transforms.frames
     parent_of = {int(c): int(p) for c, p in zip(static.child, static.parent, strict=True)}  # the last static row wins
@@ -205,7 +204,7 @@ def _compose(transforms: RecordedTransforms, root: str, times: np.ndarray, wante
     world = compose(top, [(parent, child) for child, parent in parent_of.items()], local, len(times))
     placed = {root: world[top]} if root in wanted else {}
     placed.update((names[child], pose) for child, pose in world.items() if child >= 0 and names[child] in wanted)
-    return {frame: (rotation_matrices(q), t) for frame, (t, q) in placed.items()}
+    return placed
 
 
 def _local(static: _Edges, row: int | None, temporal: _Edges, rows: np.ndarray | None, times: np.ndarray) -> Pose:
