@@ -4,9 +4,10 @@ The FK's compute lens already holds each block's URDF values (rows x joints, cor
 it moves the link's origin up, over the whole block with numpy in float64, through the URDF joints to the robot's
 root link (each joint's origin and its turn or slide in closed form) and the static calibration edges to the trail's
 frame; at construction this is checked against the FK's own joint transforms (themselves checked against Rerun's
-FK) composed top down by `ClosedFormJointTransforms.link_poses`, which are used instead should they ever differ. It returns the positions beside the transforms; the second stage writes them to the trail's entity, in the same pass, one small row per source row:
-`points` a Points3D of one position, `line` a LineStrips3D of one segment from the previous row's position to this
-one's. Nothing is kept beyond a block and one position per trail, so memory does not grow with the segment or the
+FK) composed top down by `ClosedFormJointTransforms.link_poses`, which are used instead should they ever differ. It
+returns the positions beside the transforms; the second stage writes them to the trail's entity, in the same pass,
+one small row per source row: `points` a Points3D of one position, `line` a LineStrips3D of one segment from the
+previous row's position to this one's. Nothing is kept beyond a block and one position per trail, so memory does not grow with the segment or the
 window: the blueprint's visible time range (blueprint.py) shows the window's rows.
 """
 
@@ -83,8 +84,7 @@ class TrailPositions:
         mixed = np.resize(PROBES[1:], count)
         probes = np.vstack([np.repeat(PROBES[:, None], count, axis=1), mixed[None, :]])
         self.fast = True
-        agree = bool(np.abs(self.positions(probes) - self.composed(probes)).max() <= 1e-9)
-        return agree
+        return bool(np.abs(self.positions(probes) - self.composed(probes)).max() <= 1e-9)
 
     def column(self, values: np.ndarray, left_out: np.ndarray | None) -> pa.Array:
         """The trail's rows for the lens: a list of one position (points) or of one two-point strip (line); null
