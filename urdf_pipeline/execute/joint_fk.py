@@ -45,20 +45,21 @@ class ClosedFormJointTransforms:
     def __init__(self, tree: UrdfTree, names: list[str]) -> None:
         self.tree = tree
         self.names = names
-        joints = [tree.get_joint_by_name(name) for name in names]
-        self.usable = all(joint is not None and joint.joint_type in _MOVING for joint in joints)
+        found = [tree.get_joint_by_name(name) for name in names]
+        joints = [joint for joint in found if joint is not None and joint.joint_type in _MOVING]
+        self.usable = len(joints) == len(names)
         if not self.usable:
             return
-        origin_q = np.array([quaternion_from_rpy(*joint.origin_rpy) for joint in joints], dtype=np.float64)  # type: ignore[union-attr]
-        axes = np.array([joint.axis for joint in joints], dtype=np.float64)  # type: ignore[union-attr]
+        origin_q = np.array([quaternion_from_rpy(*joint.origin_rpy) for joint in joints], dtype=np.float64)
+        axes = np.array([joint.axis for joint in joints], dtype=np.float64)
         with np.errstate(invalid="ignore", divide="ignore"):  # a zero axis: NaN, then the check below leaves it to Rerun
             axes /= np.linalg.norm(axes, axis=1, keepdims=True)  # unit already (urdf.repair normalises): kept exact
-        prismatic = np.array([joint.joint_type == "prismatic" for joint in joints])  # type: ignore[union-attr]
+        prismatic = np.array([joint.joint_type == "prismatic" for joint in joints])
         self.half_turning = 0.5 * (~prismatic).astype(np.float64)
         self.sliding = prismatic.astype(np.float64)
         self.origin_q = origin_q
         self.origin_q32 = origin_q.astype(np.float32)
-        self.origin_t = np.array([joint.origin_xyz for joint in joints], dtype=np.float64)  # type: ignore[union-attr]
+        self.origin_t = np.array([joint.origin_xyz for joint in joints], dtype=np.float64)
         self.axis_q = multiply_quaternions(origin_q, np.concatenate([axes, np.zeros((len(names), 1))], axis=1))
         self.axis_q32 = self.axis_q.astype(np.float32)
         self.slide_axes = rotate(origin_q, axes)
