@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from urdf_pipeline.execute.kinematics import RobotKinematics, _compose
+from urdf_pipeline.execute.joint_fk import ClosedFormJointTransforms
+from urdf_pipeline.execute.kinematics import RobotKinematics
 
 from ..reference_fk import PinocchioRobot
 from .test_fk_against_pinocchio import assert_poses_match
@@ -26,8 +27,8 @@ ARM = """<robot name="a">
 def test_composed_poses_equal_pinocchio(tmp_path: Path) -> None:
     tree = _tree(ARM, tmp_path)
     values = np.random.default_rng(3).uniform(-1, 1, (20, 2))
-    links, translations, quaternions = _compose(tree, "", ["turn", "slide"], values)
-    kinematics = RobotKinematics("a", "base", links, {}, translations, quaternions)
+    kinematics = RobotKinematics.of("a", "base", ClosedFormJointTransforms(tree, ["turn", "slide"]).link_poses(values), {})
+    links = kinematics.links
     reference = PinocchioRobot(tmp_path / "robot.urdf")
     for row in (0, 7, 19):
         for link, expected in reference.link_poses({"turn": values[row, 0], "slide": values[row, 1]}).items():
@@ -41,7 +42,8 @@ def test_a_floating_joint_is_placed_as_rerun_logs_it(tmp_path: Path) -> None:
         '<joint name="free" type="floating"><parent link="world"/><child link="base"/><origin xyz="1 2 3" rpy="0 0 0.5"/></joint></robot>',
     )
     tree = _tree(text, tmp_path)
-    links, translations, quaternions = _compose(tree, "", ["turn", "slide"], np.zeros((4, 2)))
+    kinematics = RobotKinematics.of("a", "world", ClosedFormJointTransforms(tree, ["turn", "slide"]).link_poses(np.zeros((4, 2))), {})
+    links, translations, quaternions = kinematics.links, kinematics.translations, kinematics.quaternions
     logged = {}
     for chunk in tree.stream(include_joint_transforms=True):
         batch = chunk.to_record_batch().to_pydict()

@@ -11,19 +11,28 @@ Rerun stays the reference: the constants (parent and child frames, frame prefix 
 parse of the URDF, and every instance is checked against Rerun's FK at construction on probe values; if any
 transform differs by more than `AGREEMENT` (a joint kind or convention this code does not know), Rerun's FK is
 used for that robot, never a different pose. The URDF sweep checks the poses against pinocchio as before.
+
+`compose` is the one composition of transforms down a tree of frames, in float64 over whole columns: the API's
+link poses (`link_poses`), the trails' reference and the pictures' frames read back from a recording all use it.
 """
 
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable, Hashable, Iterable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 import pyarrow as pa
 
+from .transform_lenses import float_vectors, transform_lists
+
 if TYPE_CHECKING:
     from rerun.urdf import UrdfTree
+
+Frame = TypeVar("Frame", bound=Hashable)
+Pose = tuple[np.ndarray, np.ndarray]  # rows x 3 translations (metres), rows x 4 (x, y, z, w) quaternions; float64
 
 AGREEMENT = 1e-5  # m and quaternion components: Rerun computes in float32 (~1e-7), a wrong formula is off by far more
 PROBES = np.array([0.0, 0.37, -1.21, 2.53, -3.07, 0.0031])  # every joint at each value, and one row of mixed values
@@ -36,26 +45,25 @@ class ClosedFormJointTransforms:
     def __init__(self, tree: UrdfTree, names: list[str]) -> None:
         self.tree = tree
         self.names = names
-        joints = [tree.get_joint_by_name(name) for name in names]
-        self.usable = all(joint is not None and joint.joint_type in _MOVING for joint in joints)
+        found = [tree.get_joint_by_name(name) for name in names]
+        joints = [joint for joint in found if joint is not None and joint.joint_type in _MOVING]
+        self.usable = len(joints) == len(names)
         if not self.usable:
             return
-        origin_q = np.array([quaternion_from_rpy(*joint.origin_rpy) for joint in joints], dtype=np.float64)  # type: ignore[union-attr]
-        axes = np.array([joint.axis for joint in joints], dtype=np.float64)  # type: ignore[union-attr]
+        origin_q = np.array([quaternion_from_rpy(*joint.origin_rpy) for joint in joints], dtype=np.float64)
+        axes = np.array([joint.axis for joint in joints], dtype=np.float64)
         with np.errstate(invalid="ignore", divide="ignore"):  # a zero axis: NaN, then the check below leaves it to Rerun
             axes /= np.linalg.norm(axes, axis=1, keepdims=True)  # unit already (urdf.repair normalises): kept exact
-        prismatic = np.array([joint.joint_type == "prismatic" for joint in joints])  # type: ignore[union-attr]
+        prismatic = np.array([joint.joint_type == "prismatic" for joint in joints])
         self.half_turning = 0.5 * (~prismatic).astype(np.float64)
         self.sliding = prismatic.astype(np.float64)
         self.origin_q = origin_q
         self.origin_q32 = origin_q.astype(np.float32)
-        self.origin_t = np.array([joint.origin_xyz for joint in joints], dtype=np.float64)  # type: ignore[union-attr]
+        self.origin_t = np.array([joint.origin_xyz for joint in joints], dtype=np.float64)
         self.axis_q = multiply_quaternions(origin_q, np.concatenate([axes, np.zeros((len(names), 1))], axis=1))
         self.axis_q32 = self.axis_q.astype(np.float32)
         self.slide_axes = rotate(origin_q, axes)
         reference = self._rerun(np.zeros((1, len(names))))
-        self.type = reference.type
-        self.fields = list(reference.type.value_type)
         self._sizes: dict[int, _SizeConstants] = {}
         self._lock = threading.Lock()
         frames = reference.values
@@ -79,20 +87,10 @@ class ClosedFormJointTransforms:
         quaternion = np.empty((rows, count, 4), dtype=np.float32)
         np.multiply(sines[..., None], self.axis_q32, out=quaternion)
         quaternion += cosines[..., None] * self.origin_q32
-        if fixed.translation is not None:
-            translation = fixed.translation
-        else:
-            moved = self.origin_t + (values * self.sliding)[..., None] * self.slide_axes
-            translation = pa.FixedSizeListArray.from_arrays(pa.array(moved.astype(np.float32).reshape(-1)), 3).cast(self.fields[0].type)
-        quaternions = pa.FixedSizeListArray.from_arrays(pa.array(quaternion.reshape(-1)), 4).cast(self.fields[1].type)
-        structs = pa.StructArray.from_arrays([translation, quaternions, fixed.parents, fixed.children], fields=self.fields)
-        return pa.ListArray.from_arrays(fixed.offsets, structs, type=self.type)
-
-    def frame_names(self) -> tuple[list[str], list[str]]:
-        """Each joint's parent and child frame, frame prefix included, as Rerun's FK names them (a live view sends
-        the transforms of `arrays` with these)."""
-        frames = self._rerun(np.zeros((1, len(self.names)))).values
-        return frames.field("parent_frame").to_pylist(), frames.field("child_frame").to_pylist()
+        translation = fixed.translation
+        if translation is None:
+            translation = float_vectors(self.origin_t + (values * self.sliding)[..., None] * self.slide_axes)
+        return transform_lists(fixed.offsets, translation, float_vectors(quaternion), fixed.parents, fixed.children)
 
     def arrays(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The same transforms as numpy arrays in float64 (rows x joints x 3 translations, x 4 quaternions), for
@@ -108,6 +106,23 @@ class ClosedFormJointTransforms:
             translation = self.origin_t + (values * self.sliding)[..., None] * self.slide_axes
         return translation, quaternion
 
+    def link_poses(self, values: np.ndarray, root: str | None = None, at: Pose | None = None) -> dict[str, Pose]:
+        """Every link below `root` (default: the tree's root link) placed in its frame at each row of `values`, in
+        float64 (`at`: root's own pose, to place them in a frame above it): the joints of `names` by `arrays`, every
+        other joint (fixed, floating, planar) at its URDF origin, as Rerun's model logs it."""
+        local_t, local_q = self.arrays(values)
+        moving = {name: index for index, name in enumerate(self.names)}
+        above = {joint.child_link: joint for joint in self.tree.joints()}
+
+        def local(link: str) -> Pose:
+            joint = above[link]
+            if joint.name in moving:
+                return local_t[:, moving[joint.name]], local_q[:, moving[joint.name]]
+            return np.array(joint.origin_xyz, dtype=np.float64), np.array(quaternion_from_rpy(*joint.origin_rpy), dtype=np.float64)
+
+        top = self.tree.root_link().name if root is None else root
+        return compose(top, [(joint.parent_link, joint.child_link) for joint in self.tree.joints()], local, len(values), at)
+
     def _per_size(self, rows: int) -> _SizeConstants:
         """What depends only on the row count (frames, offsets, the translations of a robot without prismatic
         joints): blocks mostly share one size, so these are made a few times per run, not per block."""
@@ -122,8 +137,7 @@ class ClosedFormJointTransforms:
     def _size_constants(self, rows: int) -> _SizeConstants:
         translation = None
         if not self.sliding.any():
-            repeated = np.tile(self.origin_t.astype(np.float32), (rows, 1))
-            translation = pa.FixedSizeListArray.from_arrays(pa.array(repeated.reshape(-1)), 3).cast(self.fields[0].type)
+            translation = float_vectors(np.tile(self.origin_t.astype(np.float32), (rows, 1)))
         offsets = pa.array(np.arange(rows + 1, dtype=np.int32) * len(self.names))
         return _SizeConstants(offsets, self.parents.rows(rows), self.children.rows(rows), translation)
 
@@ -175,6 +189,34 @@ class _Repeated:
         kind = pa.string() if offsets.dtype == np.int32 else pa.large_string()
         array = pa.Array.from_buffers(kind, rows * len(self.lengths), [None, pa.py_buffer(offsets), pa.py_buffer(np.tile(self.data, rows))])
         return array if kind == pa.string() else array.cast(pa.string())  # past 2 GiB the cast raises, as Rerun's FK would fail
+
+
+def compose(
+    root: Frame, edges: Iterable[tuple[Frame, Frame]], local: Callable[[Frame], Pose], rows: int, at: Pose | None = None
+) -> dict[Frame, Pose]:
+    """Every frame below `root` placed in root's frame (or, given root's pose `at`, in the frame above it) at each of
+    `rows` rows: each child's `local` transform (parent from child; one pose is broadcast to every row) composed from
+    the root down, one step per frame over all rows. `edges` are (parent, child); a frame reached twice keeps its
+    first placement (the frame graph check refuses that before anything is written)."""
+    children: dict[Frame, list[Frame]] = {}
+    for parent, child in edges:
+        children.setdefault(parent, []).append(child)
+    start_t, start_q = at or (np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]))
+    placed = {root: (np.broadcast_to(start_t, (rows, 3)), np.broadcast_to(start_q, (rows, 4)))}
+    stack = [root]
+    while stack:
+        parent = stack.pop()
+        parent_t, parent_q = placed[parent]
+        for child in children.get(parent, ()):
+            if child in placed:
+                continue
+            t, q = local(child)
+            placed[child] = (
+                parent_t + rotate(parent_q, np.broadcast_to(t, (rows, 3))),
+                multiply_quaternions(parent_q, np.broadcast_to(q, (rows, 4))),
+            )
+            stack.append(child)
+    return placed
 
 
 def quaternion_from_rpy(roll: float, pitch: float, yaw: float) -> list[float]:

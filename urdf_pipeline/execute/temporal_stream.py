@@ -12,26 +12,14 @@ import pyarrow as pa
 
 from ..compile import describe_temporal_edge
 from ..errors import Problems
-from ..plan import RecordingPlan, SourcePlan, TemporalEdgePlan
+from ..plan import NamedSource, RecordingPlan, TemporalEdgePlan
 from ..sources import CallbackErrors, raw_matrix
-from .transform_lenses import transform_lenses, transform_stream
+from .transform_lenses import float_vectors, transform_lenses, transform_lists, transform_stream
 
 if TYPE_CHECKING:
     from rerun.chunk import LazyChunkStream
 
     from ..sources import SourceStream
-
-
-_FLOAT3 = pa.list_(pa.field("item", pa.float32(), nullable=False), 3)
-_FLOAT4 = pa.list_(pa.field("item", pa.float32(), nullable=False), 4)
-_EDGE_STRUCT = pa.struct(
-    [
-        pa.field("translation", _FLOAT3, nullable=False),
-        pa.field("quaternion", _FLOAT4, nullable=False),
-        pa.field("parent_frame", pa.string(), nullable=False),
-        pa.field("child_frame", pa.string(), nullable=False),
-    ]
-)
 
 
 @dataclass
@@ -52,7 +40,7 @@ class EdgeRows(Protocol):
 class TemporalEdgeValues:
     """The first lens's function: source vectors -> one list<struct> Transform3D batch per row, with statistics."""
 
-    def __init__(self, edge: TemporalEdgePlan, source: SourcePlan) -> None:
+    def __init__(self, edge: TemporalEdgePlan, source: NamedSource) -> None:
         self.edge = edge
         self.source = source
         self.width = len(source.names)
@@ -73,17 +61,9 @@ class TemporalEdgeValues:
         bad_rows = ~finite.all(axis=1)
         translation, quaternion, usable = placed_poses(picked[:, :3], picked[:, 3:])
         self._record(rows, finite, bad_rows, ~bad_rows & ~usable)
-        structs = pa.StructArray.from_arrays(
-            [
-                pa.FixedSizeListArray.from_arrays(pa.array(translation.astype(np.float32).reshape(-1)), 3).cast(_FLOAT3),
-                pa.FixedSizeListArray.from_arrays(pa.array(quaternion.astype(np.float32).reshape(-1)), 4).cast(_FLOAT4),
-                pa.array([self.edge.parent] * rows, pa.string()),
-                pa.array([self.edge.child] * rows, pa.string()),
-            ],
-            fields=list(_EDGE_STRUCT),
-        )
         offsets = pa.array(np.arange(rows + 1, dtype=np.int32))
-        return pa.ListArray.from_arrays(offsets, structs, type=pa.list_(pa.field("item", _EDGE_STRUCT, nullable=False))), usable
+        frames = (pa.array([frame] * rows, pa.string()) for frame in (self.edge.parent, self.edge.child))
+        return transform_lists(offsets, float_vectors(translation), float_vectors(quaternion), *frames), usable
 
     def _record(self, rows: int, finite: np.ndarray, bad_rows: np.ndarray, zero: np.ndarray) -> None:
         per_value = (~finite).sum(axis=0)

@@ -3,11 +3,11 @@
 The FK's compute lens already holds each block's URDF values (rows x joints, corrections applied). For each trail
 it moves the link's origin up, over the whole block with numpy in float64, through the URDF joints to the robot's
 root link (each joint's origin and its turn or slide in closed form) and the static calibration edges to the trail's
-frame; at construction this is checked against the FK's own joint transforms (`ClosedFormJointTransforms.arrays`,
-themselves checked against Rerun's FK) composed top down as `kinematics.py` does, which are used instead should they
-ever differ. It returns the positions beside the transforms; the second stage writes them to the trail's entity, in the same pass, one small row per source row:
-`points` a Points3D of one position, `line` a LineStrips3D of one segment from the previous row's position to this
-one's. Nothing is kept beyond a block and one position per trail, so memory does not grow with the segment or the
+frame; at construction this is checked against the FK's own joint transforms (themselves checked against Rerun's
+FK) composed top down by `ClosedFormJointTransforms.link_poses`, which are used instead should they ever differ. It
+returns the positions beside the transforms; the second stage writes them to the trail's entity, in the same pass,
+one small row per source row: `points` a Points3D of one position, `line` a LineStrips3D of one segment from the
+previous row's position to this one's. Nothing is kept beyond a block and one position per trail, so memory does not grow with the segment or the
 window: the blueprint's visible time range (blueprint.py) shows the window's rows.
 """
 
@@ -21,15 +21,15 @@ import numpy as np
 import pyarrow as pa
 
 from ..plan import TrailPlan
-from .joint_fk import PROBES, ClosedFormJointTransforms, multiply_quaternions, quaternion_from_rpy, rotate, rotation_matrices
+from .joint_fk import PROBES, ClosedFormJointTransforms, Pose, compose, quaternion_from_rpy, rotation_matrices
+from .transform_lenses import float_type, float_vectors
 
 if TYPE_CHECKING:
     import rerun.blueprint as rrb
     from rerun.chunk import DeriveLens, LazyChunkStream
     from rerun.urdf import UrdfJoint, UrdfTree
 
-VECTOR_TYPE = pa.list_(pa.field("item", pa.float32(), nullable=False), 3)  # rerun.components.Position3D's arrow type
-STRIP_TYPE = pa.list_(pa.field("item", VECTOR_TYPE, nullable=False))  # LineStrip3D's
+STRIP_TYPE = pa.list_(pa.field("item", float_type(3), nullable=False))  # LineStrip3D's
 TRAIL_RADIUS = 0.004  # m: points and lines thin enough not to hide the link they follow
 
 
@@ -42,23 +42,18 @@ class TrailPositions:
 
     def __init__(self, trail: TrailPlan, tree: UrdfTree, names: list[str]) -> None:
         self.trail = trail
-        top_t, top_q = np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0])
-        for edge in trail.edges:  # the static edges from the frame down to the robot's root link, folded into one
-            edge_q = np.array(edge.quaternion_xyzw, dtype=np.float64) / np.linalg.norm(edge.quaternion_xyzw)
-            top_t = top_t + rotate(top_q[None], np.array(edge.translation)[None])[0]
-            top_q = multiply_quaternions(top_q[None], edge_q[None])[0]
-        self.top = (top_t, top_q)
-        self.top_rotation = rotation_matrices(top_q).T  # rows of positions times it: rotated by the top edge
+        edges = {edge.child: edge for edge in trail.edges}  # the static edges from the frame down to the robot's root link
+
+        def edge_pose(child: str) -> Pose:
+            edge = edges[child]
+            return np.array(edge.translation), np.array(edge.quaternion_xyzw, dtype=np.float64) / np.linalg.norm(edge.quaternion_xyzw)
+
+        placed = compose(trail.frame, [(edge.parent, edge.child) for edge in trail.edges], edge_pose, 1)
+        top_t, top_q = placed[trail.edges[-1].child if trail.edges else trail.frame]
+        self.top = (top_t[0], top_q[0])
+        self.top_rotation = rotation_matrices(self.top[1]).T  # rows of positions times it: rotated by the top edge
+        self.transforms = ClosedFormJointTransforms(tree, names)
         joints = _chain(tree, trail.start_link, trail.link)
-        moving = [joint.name for joint in joints if joint.name in names]
-        self.columns = [names.index(name) for name in moving]
-        self.transforms = ClosedFormJointTransforms(tree, moving) if moving else None
-        self.steps: list[tuple[int | None, np.ndarray, np.ndarray]] = []  # (moving joint's position in `moving`, t, q)
-        for joint in joints:
-            if joint.name in moving:
-                self.steps.append((moving.index(joint.name), np.zeros(3), np.zeros(4)))
-            else:  # a joint no value drives: its URDF origin, as Rerun's model and kinematics.py place it
-                self.steps.append((None, np.array(joint.origin_xyz, dtype=np.float64), np.array(quaternion_from_rpy(*joint.origin_rpy))))
         self.vectors = [_Step.of(joint, names) for joint in joints]
         self.fast = self._agrees()
         self._last: np.ndarray | None = None  # the previous row's position: a line's first segment of the next block
@@ -78,29 +73,18 @@ class TrailPositions:
             return position @ self.top_rotation + self.top[0]
 
     def composed(self, values: np.ndarray) -> np.ndarray:
-        """The same positions from the FK's joint transforms (`ClosedFormJointTransforms.arrays`), composed top
-        down as `kinematics.py` does: the reference `positions` is checked against."""
-        rows = len(values)
-        t = np.broadcast_to(self.top[0], (rows, 3))
-        q = np.broadcast_to(self.top[1], (rows, 4))
-        local_t, local_q = self.transforms.arrays(values[:, self.columns]) if self.transforms is not None else (None, None)
-        for moving, step_t, step_q in self.steps:
-            if moving is not None:
-                assert local_t is not None and local_q is not None
-                step_t, step_q = local_t[:, moving], local_q[:, moving]
-            t = t + rotate(q, np.broadcast_to(step_t, (rows, 3)))
-            q = multiply_quaternions(q, np.broadcast_to(step_q, (rows, 4)))
-        return t
+        """The same positions from the FK's joint transforms, composed top down (`link_poses`): the reference
+        `positions` is checked against."""
+        return self.transforms.link_poses(values, self.trail.start_link, self.top)[self.trail.link][0]
 
     def _agrees(self) -> bool:
         """The bottom-up composition against the FK's transforms on probe values (every joint at each probe, and a
         row of mixed ones): a joint kind this code does not know keeps the reference, never a different path."""
-        count = max((step.column for step in self.vectors if step.column is not None), default=-1) + 1
+        count = len(self.transforms.names)
         mixed = np.resize(PROBES[1:], count)
         probes = np.vstack([np.repeat(PROBES[:, None], count, axis=1), mixed[None, :]])
         self.fast = True
-        agree = bool(np.abs(self.positions(probes) - self.composed(probes)).max() <= 1e-9)
-        return agree
+        return bool(np.abs(self.positions(probes) - self.composed(probes)).max() <= 1e-9)
 
     def column(self, values: np.ndarray, left_out: np.ndarray | None) -> pa.Array:
         """The trail's rows for the lens: a list of one position (points) or of one two-point strip (line); null
@@ -112,7 +96,7 @@ class TrailPositions:
         mask = None if left_out is None else pa.array(left_out)
         offsets = pa.array(np.arange(rows + 1, dtype=np.int32))
         if self.trail.style == "points":
-            return pa.ListArray.from_arrays(offsets, _vectors(here), mask=mask)
+            return pa.ListArray.from_arrays(offsets, float_vectors(here), mask=mask)
         with self._lock:
             kept = np.flatnonzero(keep)
             before = np.empty_like(here)
@@ -121,7 +105,7 @@ class TrailPositions:
                 before[kept] = np.vstack([previous[None], here[kept[:-1]]])
                 self._last = here[kept[-1]].copy()
         points = np.stack([before, here], axis=1).reshape(-1, 3)
-        strips = pa.ListArray.from_arrays(pa.array(np.arange(rows + 1, dtype=np.int32) * 2), _vectors(points), type=STRIP_TYPE)
+        strips = pa.ListArray.from_arrays(pa.array(np.arange(rows + 1, dtype=np.int32) * 2), float_vectors(points), type=STRIP_TYPE)
         return pa.ListArray.from_arrays(offsets, strips, mask=mask)
 
 
@@ -158,13 +142,6 @@ class _Step:
         if self.column is not None:
             return moved + values[:, self.column, None] * self.slide + self.origin
         return moved + self.origin
-
-
-def _vectors(points: np.ndarray) -> pa.Array:
-    """Positions as Rerun's Position3D/Vec3D arrays: fixed_size_list<float32 not null>[3] (the viewer refuses a
-    nullable item type, which is pyarrow's default)."""
-    flat = pa.array(np.ascontiguousarray(points, dtype=np.float32).reshape(-1))
-    return pa.FixedSizeListArray.from_arrays(flat, type=VECTOR_TYPE)
 
 
 def _chain(tree: UrdfTree, start: str, link: str) -> list:

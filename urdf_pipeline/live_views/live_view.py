@@ -26,6 +26,7 @@ from ..execute import (
     calibration_stream,
     provenance_stream,
     robot_model_stream,
+    transform_fields,
 )
 from ..plan import RobotPlan
 from ..sources import JointValueMapper
@@ -62,11 +63,10 @@ class LiveView:
         self.source = plan.source_named(robot.source)
         self.timeline = timeline or self.source.timeline
         self.time_kind: TimeKind = time_kind
-        self.mapper = JointValueMapper(robot, self.source)  # type: ignore[arg-type]  # a LiveSource has what it reads
+        self.mapper = JointValueMapper(robot, self.source)
         tree = cached_tree(robot)
         self.fk = ClosedFormJointTransforms(tree, list(self.mapper.joint_names))
-        self.parents, self.children = (np.array(frames) for frames in self.fk.frame_names())
-        self.temporal = [TemporalEdgeValues(e, self.source) for e in plan.temporal_edges if e.source == self.source.name]  # type: ignore[arg-type]
+        self.temporal = [TemporalEdgeValues(e, self.source) for e in plan.temporal_edges if e.source == self.source.name]
         read = [self.mapper.columns, *(v.columns for v in self.temporal)]
         self.rows = ValueRows(self.source, np.unique(np.concatenate(read)), f"urdf_pipeline.live robot '{robot.key}'")
         self.reports = LimitReports(self.mapper, self.temporal, self.source, report_every)
@@ -225,7 +225,7 @@ class LiveView:
     def _send_joints(self, values: np.ndarray, times: np.ndarray) -> None:
         """The run's FK batches (one list of joint transforms per row, float32 as a run writes them), scattered to
         one Transform3D row per joint as the run's scatter lens does."""
-        self._send_transforms(self.robot.fk_entity, self.fk(values).values, np.repeat(times, len(self.parents)))
+        self._send_transforms(self.robot.fk_entity, self.fk(values).values, np.repeat(times, len(self.fk.names)))
 
     def _send_edge(self, edge: TemporalEdgeValues, raw: np.ndarray, times: np.ndarray) -> None:
         """A temporal edge's rows through the run's own function (its checks and statistics); rows it cannot place
@@ -241,7 +241,7 @@ class LiveView:
         """{translation, quaternion, parent_frame, child_frame} structs, one Transform3D row each, in one call."""
         import rerun as rr
 
-        columns = [rr.ComponentColumn(descriptor(), _Arrow(structs.field(name))) for name, descriptor in _transform_fields()]
+        columns = [rr.ComponentColumn(descriptor, _Arrow(structs.field(name))) for name, descriptor in transform_fields()]
         self.recording.send_columns(entity, indexes=[self._time_column(times)], columns=columns)
 
     def _time_column(self, times: np.ndarray) -> Any:
@@ -265,14 +265,3 @@ class _Arrow:
 
     def as_arrow_array(self) -> pa.Array:
         return self.array
-
-
-def _transform_fields() -> list[tuple[str, Any]]:
-    import rerun as rr
-
-    return [
-        ("translation", rr.Transform3D.descriptor_translation),
-        ("quaternion", rr.Transform3D.descriptor_quaternion),
-        ("parent_frame", rr.Transform3D.descriptor_parent_frame),
-        ("child_frame", rr.Transform3D.descriptor_child_frame),
-    ]

@@ -25,6 +25,7 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
         IndexPlan,
         LeRobotSourcePlan,
         McapSourcePlan,
+        NamedSource,
         NanPolicy,
         OnViolation,
         ParquetSourcePlan,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Literal
+from typing import Literal, Protocol
 
 from ..errors import Where
 
@@ -130,6 +130,18 @@ class CsvSourcePlan:
     where: Where
     duplicates: str = "error"  # two rows at one index value: "error" or "keep_last" (the later row wins)
     remote: RemoteObject | None = None  # `csv: s3://...`: the object `path` is downloaded from
+
+
+class NamedSource(Protocol):
+    """What reading a source's rows needs of it (`raw_matrix`, a robot's `JointValueMapper`, a temporal edge's values):
+    a `SourcePlan`, or the source of a live view."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def names(self) -> tuple[str, ...]: ...
+    @property
+    def where(self) -> Where: ...
 
 
 SourcePlan = ParquetSourcePlan | LeRobotSourcePlan | McapSourcePlan | Hdf5SourcePlan | RrdSourcePlan | CsvSourcePlan

@@ -4,7 +4,7 @@ The camera of a picture frames the robots' links and the visuals hanging on them
 `plan` and `diff` at rest), so it must know where every link is, and how it is turned, at any time. That is read
 from the recording itself (static edges, the forward kinematics and temporal edges as
 written: Rerun's own FK results), not computed again: column by column, one array per child frame, composed down the
-tree from the root with one matrix product per frame over all the times asked for.
+tree from the root by the run's own `execute.compose`, one step per frame over all the times asked for.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 
-from ..execute import rotation_matrices
+from ..execute import Pose, compose, rotation_matrices
 
 if TYPE_CHECKING:
     from rerun.chunk import Chunk
@@ -37,13 +37,13 @@ class Timeline:
 @dataclass(frozen=True)
 class _Edges:
     """Rows of one kind (static, or temporal on one timeline): child and parent frame (codes into the frame names)
-    per row, rotation and translation."""
+    per row, translation and unit quaternion."""
 
     times: np.ndarray  # int64 (sequence, or nanoseconds); zeros for static rows
     child: np.ndarray  # int64 codes
     parent: np.ndarray  # int64 codes, -1 when the row names no parent
-    rotation: np.ndarray  # N x 3 x 3
     translation: np.ndarray  # N x 3
+    quaternion: np.ndarray  # N x 4, (x, y, z, w)
 
 
 @dataclass(frozen=True)
@@ -73,11 +73,10 @@ class RecordedTransforms:
         wanted = list(frames)
         placed = _compose(self, root, times, set(wanted))
         count = len(times)
-        nowhere = (np.full((count, 3, 3), np.nan), np.full((count, 3), np.nan))
         if not wanted:
             return np.zeros((count, 0, 3, 3)), np.zeros((count, 0, 3))
-        found = [placed.get(frame, nowhere) for frame in wanted]
-        return np.stack([rotation for rotation, _ in found], axis=1), np.stack([position for _, position in found], axis=1)
+        found = [placed.get(frame, (np.full((count, 3), np.nan), np.full((count, 4), np.nan))) for frame in wanted]
+        return rotation_matrices(np.stack([q for _, q in found], axis=1)), np.stack([t for t, _ in found], axis=1)
 
     def sampled_times(self) -> np.ndarray:
         times = self.times
@@ -145,7 +144,7 @@ def _edges(batch: pa.RecordBatch, timeline: str | None, names: dict[str, int]) -
     translation = np.nan_to_num(_instances(batch, TRANSLATION, counts, 3), nan=0.0)
     quaternion = _instances(batch, QUATERNION, counts, 4)
     quaternion[~np.isfinite(quaternion).all(axis=1)] = (0.0, 0.0, 0.0, 1.0)
-    return _Edges(times, child, parent, rotation_matrices(quaternion), translation)
+    return _Edges(times, child, parent, translation, quaternion / np.linalg.norm(quaternion, axis=1, keepdims=True))
 
 
 def _codes(text: pa.Array, names: dict[str, int]) -> np.ndarray:
@@ -178,14 +177,14 @@ def _instances(batch: pa.RecordBatch, name: str, counts: np.ndarray, width: int 
 def _concatenate(parts: list[_Edges]) -> _Edges:
     if not parts:
         none = np.zeros(0, dtype=np.int64)
-        return _Edges(none, none, none, np.zeros((0, 3, 3)), np.zeros((0, 3)))
+        return _Edges(none, none, none, np.zeros((0, 3)), np.zeros((0, 4)))
     return _Edges(
-        *(np.concatenate([getattr(p, field) for p in parts]) for field in ("times", "child", "parent", "rotation", "translation"))
+        *(np.concatenate([getattr(p, field) for p in parts]) for field in ("times", "child", "parent", "translation", "quaternion"))
     )
 
 
-def _compose(transforms: RecordedTransforms, root: str, times: np.ndarray, wanted: set[str]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """World rotations (times x 3 x 3) and positions (times x 3) of the frames in `wanted` that reach `root`; the latest temporal value at or
+def _compose(transforms: RecordedTransforms, root: str, times: np.ndarray, wanted: set[str]) -> dict[str, Pose]:
+    """World poses (times x 3, times x 4) of the frames in `wanted` that reach `root`; the latest temporal value at or
     before a time overrides the static one, as in the viewer."""
     static, temporal, names = transforms.static, transforms.temporal, transforms.frames
     parent_of = {int(c): int(p) for c, p in zip(static.child, static.parent, strict=True)}  # the last static row wins
@@ -196,42 +195,28 @@ def _compose(transforms: RecordedTransforms, root: str, times: np.ndarray, wante
     temporal_rows = {int(c): order[s:e] for c, s, e in zip(children, starts, ends, strict=True)}
     for child, rows in temporal_rows.items():
         parent_of.setdefault(child, int(temporal.parent[rows[0]]))
-    kids: dict[int, list[int]] = {}
-    for child, parent in parent_of.items():
-        kids.setdefault(parent, []).append(child)
-    count = len(times)
     code = {name: index for index, name in enumerate(names)}
     top = code.get(root, -2)
-    world = {top: (np.broadcast_to(np.eye(3), (count, 3, 3)), np.zeros((count, 3)))}
+
+    def local(child: int) -> Pose:
+        return _local(static, static_row.get(child), temporal, temporal_rows.get(child), times)
+
+    world = compose(top, [(parent, child) for child, parent in parent_of.items()], local, len(times))
     placed = {root: world[top]} if root in wanted else {}
-    stack = [top]
-    while stack:
-        parent = stack.pop()
-        parent_rotation, parent_translation = world[parent]
-        for child in kids.get(parent, ()):
-            if child in world:
-                continue  # a second path to a frame: the frame graph check refuses it before anything is written
-            rotation, translation = _local(static, static_row.get(child), temporal, temporal_rows.get(child), times)
-            world[child] = (
-                np.einsum("tij,tjk->tik", parent_rotation, rotation),
-                np.einsum("tij,tj->ti", parent_rotation, translation) + parent_translation,
-            )
-            if names[child] in wanted:
-                placed[names[child]] = world[child]
-            stack.append(child)
+    placed.update((names[child], pose) for child, pose in world.items() if child >= 0 and names[child] in wanted)
     return placed
 
 
-def _local(static: _Edges, row: int | None, temporal: _Edges, rows: np.ndarray | None, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _local(static: _Edges, row: int | None, temporal: _Edges, rows: np.ndarray | None, times: np.ndarray) -> Pose:
     """A child's transform at each time: its latest temporal row at or before it, else its static edge (NaN if none)."""
-    rotation = np.full((len(times), 3, 3), np.nan)
     translation = np.full((len(times), 3), np.nan)
+    quaternion = np.full((len(times), 4), np.nan)
     if row is not None:
-        rotation[:] = static.rotation[row]
         translation[:] = static.translation[row]
+        quaternion[:] = static.quaternion[row]
     if rows is not None:
         at = np.searchsorted(temporal.times[rows], times, side="right") - 1
         known = at >= 0
-        rotation[known] = temporal.rotation[rows[at[known]]]
         translation[known] = temporal.translation[rows[at[known]]]
-    return rotation, translation
+        quaternion[known] = temporal.quaternion[rows[at[known]]]
+    return translation, quaternion

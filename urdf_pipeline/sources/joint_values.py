@@ -13,7 +13,7 @@ import numpy as np
 import pyarrow as pa
 
 from ..errors import UserError
-from ..plan import RobotPlan, SourcePlan
+from ..plan import NamedSource, RobotPlan
 from .named_rows import is_named_rows, named_matrix
 
 
@@ -47,7 +47,7 @@ def wrapped(values: np.ndarray, center: np.ndarray | float, period: np.ndarray |
     return low + np.mod(values - low, period)
 
 
-def vector_matrix(source: SourcePlan, vectors: pa.Array) -> np.ndarray:
+def vector_matrix(source: NamedSource, vectors: pa.Array) -> np.ndarray:
     """(rows x names) float64 from one list of values per row; every row holds exactly one value per name."""
     width = len(source.names)
     if vectors.null_count:
@@ -67,7 +67,7 @@ def vector_matrix(source: SourcePlan, vectors: pa.Array) -> np.ndarray:
     return flat.reshape(len(vectors), width)
 
 
-def raw_matrix(source: SourcePlan, rows: pa.Array, required: np.ndarray | None = None, consumer: str = "") -> np.ndarray:
+def raw_matrix(source: NamedSource, rows: pa.Array, required: np.ndarray | None = None, consumer: str = "") -> np.ndarray:
     """Any source's rows as a (rows x names) matrix: vectors, or rows that name their values (mapped by name).
 
     For named rows, `required` are the name positions the consumer reads (a row lacking one is an error);
@@ -82,7 +82,7 @@ def raw_matrix(source: SourcePlan, rows: pa.Array, required: np.ndarray | None =
 class JointValueMapper:
     """Turns (rows x source width) matrices into (rows x joints) URDF values for one robot."""
 
-    def __init__(self, robot: RobotPlan, source: SourcePlan) -> None:
+    def __init__(self, robot: RobotPlan, source: NamedSource) -> None:
         self.robot = robot
         self.source = source
         self.width = len(source.names)

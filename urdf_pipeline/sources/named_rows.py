@@ -19,7 +19,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 
 from ..errors import UserError, listing
-from ..plan import SourcePlan
+from ..plan import NamedSource
 
 NAMED_COMPONENT = "urdf_pipeline:named_joint_values"
 NAME_FIELD = "name"
@@ -37,7 +37,7 @@ def named_rows_column(names: pa.Array, values: pa.Array) -> pa.ListArray:
     return pa.ListArray.from_arrays(pa.array(np.arange(len(struct) + 1, dtype=np.int32)), struct)
 
 
-def named_matrix(rows: pa.Array, source: SourcePlan, required: Sequence[int] | np.ndarray, consumer: str) -> np.ndarray:
+def named_matrix(rows: pa.Array, source: NamedSource, required: Sequence[int] | np.ndarray, consumer: str) -> np.ndarray:
     """(rows x len(source.names)) float64 matrix; cells of names a row lacks are NaN.
 
     `required` are the positions (in source.names) the consumer reads, `consumer` says who it is ("robot 'arm'").
