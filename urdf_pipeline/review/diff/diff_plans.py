@@ -103,7 +103,7 @@ def _kind(source: SourcePlan) -> str:
 
 
 def _source_changes(report: _Report, old: Plan, new: Plan) -> None:
-    old_sources, new_sources = {s.name: s for s in old.segments[0].sources}, {s.name: s for s in new.segments[0].sources}
+    old_sources, new_sources = {s.name: s for s in old.review_segment.sources}, {s.name: s for s in new.review_segment.sources}
     for name in sorted(old_sources.keys() | new_sources.keys()):
         subject = f"source {name}"
         if name not in new_sources:
@@ -144,7 +144,7 @@ def _source_files(path_value: Callable[[Path], PathValue], plan: Plan, name: str
     """The files a source reads over all segments (one, or every file of a glob), in segment order."""
     files: list[PathValue] = []
     segments = plan.dataset.segments
-    plans = [s for segment in segments for s in segment.sources if s.name == name] or [plan.for_segment(plan.segments[0]).source(name)]
+    plans = [s for segment in segments for s in segment.sources if s.name == name] or [plan.review_segment.source(name)]
     for source in plans:
         remote = getattr(source, "remote", None)
         if remote is not None:  # a remote file is its URL (a new version of it is no change to the config)

@@ -47,8 +47,8 @@ def _robot_changes(report: _Report, subject: str, old_plan: Plan, old: RobotPlan
     report.field(group, subject, "NaN policy", old.nan_policy, new.nan_policy)
     report.field(group, subject, "limits slack", _slack(old), _slack(new))
     report.field(group, subject, "limits on_violation", old.on_violation, new.on_violation)
-    old_names = old_plan.for_segment(old_plan.segments[0]).source(old.source).names  # the first segment's, as plan shows them
-    new_names = new_plan.for_segment(new_plan.segments[0]).source(new.source).names
+    old_names = old_plan.review_segment.source(old.source).names  # the first segment's, as plan shows them
+    new_names = new_plan.review_segment.source(new.source).names
     _mapping_changes(report, subject, old_names, old, new_names, new)
     _hold_changes(report, subject, old, new)
 

@@ -99,7 +99,7 @@ def read_plan_sample(plan: Plan, rows: int) -> SampleEntry:
     """check.read_sample on every robot source of the plan (the first segment's), then check's per-joint verdict."""
     from ..check.check_joints import check_plan, read_sample
 
-    matrices = {source.name: read_sample(source, rows) for source in plan.segments[0].sources if plan.robots_for(source.name)}
+    matrices = {source.name: read_sample(source, rows) for source in plan.review_segment.sources if plan.robots_for(source.name)}
     read = tuple(sorted((name, len(matrix)) for name, matrix in matrices.items()))
     return SampleEntry(rows, read, tuple(check_plan(plan, matrices)))
 
@@ -146,7 +146,7 @@ def build_report(plan: Plan, warnings: Sequence[ConfigWarning] = (), sample: Sam
     return PlanReport(
         config=paths(plan.config_path),
         root_frame=plan.root_frame,
-        sources=tuple(_source(source, paths) for source in plan.segments[0].sources),
+        sources=tuple(_source(source, paths) for source in plan.review_segment.sources),
         robots=tuple(_robot(plan, robot, models[robot.key], observed) for robot in plan.robots),
         edges=tuple(edges),
         configured_edges=tuple(configured),
@@ -181,7 +181,7 @@ def _source(source: SourcePlan, paths: _Paths) -> SourceEntry:
 def _robot(plan: Plan, robot: RobotPlan, model: UrdfModel, observed: dict[tuple[str, str, str], JointReport]) -> RobotEntry:
     counts = {kind: sum(1 for j in model.joints if j.type == kind) for kind in JOINT_TYPES}
     counts["mimic"] = sum(1 for j in model.joints if j.mimic is not None)
-    source = next((s for s in plan.segments[0].sources if s.name == robot.source), None)
+    source = next((s for s in plan.review_segment.sources if s.name == robot.source), None)
     mapped = {c.source_name for c in robot.channels}
     return RobotEntry(
         key=robot.key,
@@ -355,8 +355,8 @@ def _output(plan: Plan, paths: _Paths) -> OutputEntry:
     return OutputEntry(
         layout=dataset.layout,
         application_id=plan.application_id,
-        recording_id=dataset.segments[0].id,
-        path=paths(dataset.segments[0].output),
+        recording_id=plan.review_segment.output.recording_id,
+        path=paths(plan.review_segment.output.path),
         segments=segments,
         model=paths(dataset.model) if dataset.model is not None else None,
         manifest=paths(dataset.manifest),
