@@ -114,7 +114,7 @@ def _sources(sources: Sequence[SourceEntry], many_segments: bool) -> list[str]:
             code(s.name),
             text(s.kind),
             code(s.file.relative),
-            "; ".join(f"{text(key)}: {_setting(key, value)}" for key, value in s.settings),
+            "; ".join(f"{text(key)}: {_setting(key, value)}" for key, value in s.settings.items()),
             f"{len(s.names):,}",
         ]
         for s in sources
@@ -147,7 +147,7 @@ def _robot(robot: RobotEntry, sample: SampleEntry | None) -> list[str]:
     counts = robot.joint_counts
     prefix = code(robot.frame_prefix) if robot.frame_prefix else "none"
     items = [
-        f"URDF {code(robot.urdf_origin)}, sha256 {code(robot.urdf_sha256)}",
+        f"URDF {code(robot.urdf.origin)}, sha256 {code(robot.urdf.sha256)}",
         f"entity path {code(robot.entity_path_prefix)}, frame prefix {prefix}, root frame {code(robot.root_frame)}, "
         f"collision geometries {'kept' if robot.collision_geometries == 'keep' else 'dropped'}",
         "URDF joints: " + ", ".join(f"{counts[kind]:,} {kind}" for kind in JOINT_TYPES) + f"; {counts['mimic']:,} mimic",
@@ -163,7 +163,7 @@ def _robot(robot: RobotEntry, sample: SampleEntry | None) -> list[str]:
     )
     items.append("ignored source values: " + (_names(robot.ignored_source_values) if robot.ignored_source_values else "none"))
     if sample is not None:
-        read = sample.rows_read(robot.source)
+        read = sample.read.get(robot.source, 0)
         items.append(f"sampled: the first {plural(read, 'row')} of source {code(robot.source)} (at most {sample.rows:,})")
     header = ["source name", "URDF joint", "type", "unit", "sign", "offset (URDF units)", "scale / range map"]
     header += ["limits (source units)", "mimic driver / hold", *(["observed (source units)"] if sample is not None else [])]

@@ -56,7 +56,7 @@ def _plural(count: int, word: str) -> str:
 
 def _source_details(source: SourceEntry) -> str:
     parts = []
-    for key, value in source.settings:
+    for key, value in source.settings.items():
         if isinstance(value, IndexPlan):
             shown = f"{plain(value.column)} ({value.kind}{', ' + value.unit if value.unit else ''})"
         elif isinstance(value, bool):
@@ -75,7 +75,7 @@ def _robot_markdown(robot: RobotEntry, sample: SampleEntry | None) -> list[str]:
     lines = [
         f"#### Robot {_code(robot.key)}: URDF {_code(robot.robot_name)}",
         "",
-        f"- URDF: {code_path(robot.urdf_origin)}, sha256 {_code(robot.urdf_sha256)}",
+        f"- URDF: {code_path(robot.urdf.origin)}, sha256 {_code(robot.urdf.sha256)}",
         f"- entity path {_code(robot.entity_path_prefix)}, frame prefix {prefix}, root frame {_code(robot.root_frame)}, "
         f"collision geometries {'kept' if robot.collision_geometries == 'keep' else 'dropped'}",
         "- URDF joints: " + ", ".join(f"{counts[kind]} {kind}" for kind in JOINT_TYPES) + f"; {counts['mimic']} mimic",
@@ -90,7 +90,7 @@ def _robot_markdown(robot: RobotEntry, sample: SampleEntry | None) -> list[str]:
     ignored = robot.ignored_source_values
     lines.append("- ignored source values: " + (_names(ignored) if ignored else "none"))
     if sample is not None:
-        read = sample.rows_read(robot.source)
+        read = sample.read.get(robot.source, 0)
         lines.append(f"- sampled: the first {_plural(read, 'row')} of source {_code(robot.source)} (at most {sample.rows})")
     header = [
         "source name", "URDF joint", "type", "unit", "sign", "offset (URDF units)", "scale / range map", "limits (source units)", "mimic driver / hold",
@@ -172,9 +172,9 @@ def render_markdown(report: PlanReport) -> str:
         "",
         "#### Frame tree",
         "",
-        fence_for(report.mermaid) + "mermaid",
-        report.mermaid,
-        fence_for(report.mermaid),
+        fence_for(report.frame_tree.mermaid) + "mermaid",
+        report.frame_tree.mermaid,
+        fence_for(report.frame_tree.mermaid),
         "",
         "`-->` URDF moving joint, `-.->` URDF fixed joint, `==>` an edge of the config (`-.->` when its identity is assumed).",
         "",
