@@ -20,13 +20,13 @@ from typing import Any
 
 from ...errors import listing
 from ...plan import EdgePlan, IndexPlan, LeRobotSourcePlan, Plan, SourcePlan, TemporalEdgePlan
-from .diff_base import Change, PathValue, _moved, _Report, _rounded, _same, _text
+from .diff_base import Change, Changes, PathValue, pose_change, rounded_text, same, value_text
 from .diff_robots import robot_changes
 
 
 def diff_plans(old: Plan, new: Plan) -> tuple[Change, ...]:
     """Every semantic difference from old to new, in report order (empty when the plans are equivalent)."""
-    report = _Report(old.config_path.parent, new.config_path.parent)
+    report = Changes(old.config_path.parent, new.config_path.parent)
     robot_changes(report, old, new)
     _edge_changes(report, old, new)
     _source_changes(report, old, new)
@@ -37,7 +37,7 @@ def diff_plans(old: Plan, new: Plan) -> tuple[Change, ...]:
 # ---------------------------------------------------------------------------------------------------------- edges
 
 
-def _edge_changes(report: _Report, old: Plan, new: Plan) -> None:
+def _edge_changes(report: Changes, old: Plan, new: Plan) -> None:
     report.field("edges", "frames", "root", old.root_frame, new.root_frame)
     old_edges = {(e.parent, e.child): e for e in old.edges}
     new_edges = {(e.parent, e.child): e for e in new.edges}
@@ -70,23 +70,23 @@ def _edge_summary(edge: EdgePlan) -> str:
         return f"fixed_chain {edge.fixed_chain.start} -> {edge.fixed_chain.end} of robot {edge.fixed_chain.robot}"
     if edge.kind == "assume_identity":
         return "assume_identity"
-    return f"static, translation {_text(_rounded(edge.translation))}, quaternion_xyzw {_text(_rounded(edge.quaternion_xyzw))}"
+    return f"static, translation {rounded_text(edge.translation)}, quaternion_xyzw {rounded_text(edge.quaternion_xyzw)}"
 
 
 def _temporal_summary(edge: TemporalEdgePlan) -> str:
     if edge.tf_topic is not None:
         return f"source {edge.source}, {edge.tf_topic} of its bag"
-    return f"source {edge.source}, translation {_text(edge.translation_names)}, quaternion_xyzw {_text(edge.quaternion_names)}"
+    return f"source {edge.source}, translation {value_text(edge.translation_names)}, quaternion_xyzw {value_text(edge.quaternion_names)}"
 
 
-def _static_edge_changes(report: _Report, subject: str, old: EdgePlan, new: EdgePlan) -> None:
+def _static_edge_changes(report: Changes, subject: str, old: EdgePlan, new: EdgePlan) -> None:
     report.field("edges", subject, "kind", old.kind, new.kind)
     if old.fixed_chain is not None and new.fixed_chain is not None:
         report.field("edges", subject, "fixed_chain robot", old.fixed_chain.robot, new.fixed_chain.robot)
         report.field("edges", subject, "fixed_chain from", old.fixed_chain.start, new.fixed_chain.start)
         report.field("edges", subject, "fixed_chain to", old.fixed_chain.end, new.fixed_chain.end)
         report.field("edges", subject, "fixed_chain joints", old.fixed_chain.joints, new.fixed_chain.joints)
-    moved = _moved(old.translation, old.quaternion_xyzw, new.translation, new.quaternion_xyzw)
+    moved = pose_change(old.translation, old.quaternion_xyzw, new.translation, new.quaternion_xyzw)
     if moved is not None:
         report.add("edges", subject, moved, [*old.translation, *old.quaternion_xyzw], [*new.translation, *new.quaternion_xyzw])
 
@@ -102,7 +102,7 @@ def _kind(source: SourcePlan) -> str:
     return type(source).__name__.removesuffix("SourcePlan").lower()
 
 
-def _source_changes(report: _Report, old: Plan, new: Plan) -> None:
+def _source_changes(report: Changes, old: Plan, new: Plan) -> None:
     old_sources, new_sources = {s.name: s for s in old.review_segment.sources}, {s.name: s for s in new.review_segment.sources}
     for name in sorted(old_sources.keys() | new_sources.keys()):
         subject = f"source {name}"
@@ -118,7 +118,7 @@ def _source_changes(report: _Report, old: Plan, new: Plan) -> None:
         old_files, new_files = _source_files(report.old_path, old, name), _source_files(report.new_path, new, name)
         if len(old_files) == 1 and len(new_files) == 1:
             report.field("sources", subject, _KIND_PATHS[_kind(n)], old_files[0], new_files[0])
-        elif not _same(old_files, new_files):
+        elif not same(old_files, new_files):
             added = [str(f) for f in new_files if f not in old_files]
             removed = [str(f) for f in old_files if f not in new_files]
             what = "; ".join(
@@ -166,13 +166,13 @@ def _source_value(value: Any) -> Any:
     return value
 
 
-def _names_changes(report: _Report, subject: str, old: tuple[str, ...], new: tuple[str, ...]) -> None:
+def _names_changes(report: Changes, subject: str, old: tuple[str, ...], new: tuple[str, ...]) -> None:
     if old == new:
         return
     added = [n for n in new if n not in old]
     removed = [n for n in old if n not in new]
     if not added and not removed:
-        report.add("sources", subject, f"names reordered: {_text(old)} -> {_text(new)}", list(old), list(new))
+        report.add("sources", subject, f"names reordered: {value_text(old)} -> {value_text(new)}", list(old), list(new))
         return
     parts = ([f"added {listing(added)}"] if added else []) + ([f"removed {listing(removed)}"] if removed else [])
     report.add("sources", subject, f"names: {'; '.join(parts)}", list(old), list(new))
@@ -181,7 +181,7 @@ def _names_changes(report: _Report, subject: str, old: tuple[str, ...], new: tup
 # ---------------------------------------------------------------------------------------------------------- output
 
 
-def _output_changes(report: _Report, old: Plan, new: Plan) -> None:
+def _output_changes(report: Changes, old: Plan, new: Plan) -> None:
     subject = "output"
     report.field("output", subject, "application_id", old.application_id, new.application_id)
     report.field("output", subject, "layout", old.dataset.layout, new.dataset.layout)

@@ -9,10 +9,10 @@ from pathlib import Path
 from ...errors import listing
 from ...plan import JointChannel, Plan, RobotPlan
 from ...urdf import Joint, UrdfModel, UrdfParseError, parse_urdf_text, quaternion_from_rpy
-from .diff_base import PathValue, _moved, _path_value, _Report, _same, _text
+from .diff_base import Changes, PathValue, path_value, pose_change, same, value_text
 
 
-def robot_changes(report: _Report, old: Plan, new: Plan) -> None:
+def robot_changes(report: Changes, old: Plan, new: Plan) -> None:
     """Robots by key: removed, added (with a summary), or compared."""
     old_robots, new_robots = {r.key: r for r in old.robots}, {r.key: r for r in new.robots}
     for key in sorted(old_robots.keys() | new_robots.keys()):
@@ -25,13 +25,13 @@ def robot_changes(report: _Report, old: Plan, new: Plan) -> None:
                 f"{len(robot.channels)} mapped value(s) from source '{robot.source}'" if robot.source else "a scene without moving joints"
             )
             report.add(
-                "robot", subject, f"added (URDF {report.new_path(robot.urdf_path)}, frame_prefix {_text(robot.frame_prefix)}, {what})"
+                "robot", subject, f"added (URDF {report.new_path(robot.urdf_path)}, frame_prefix {value_text(robot.frame_prefix)}, {what})"
             )
         else:
             _robot_changes(report, subject, old, old_robots[key], new, new_robots[key])
 
 
-def _robot_changes(report: _Report, subject: str, old_plan: Plan, old: RobotPlan, new_plan: Plan, new: RobotPlan) -> None:
+def _robot_changes(report: Changes, subject: str, old_plan: Plan, old: RobotPlan, new_plan: Plan, new: RobotPlan) -> None:
     """A robot in both plans: its URDF, prefixes and joints source; its mapping and holds only when both have a
     source (a scene has none, and a robot that became one or stopped being one says so in `joints source`)."""
     group = "robot"
@@ -53,7 +53,7 @@ def _robot_changes(report: _Report, subject: str, old_plan: Plan, old: RobotPlan
     _hold_changes(report, subject, old, new)
 
 
-def _urdf_and_mesh_changes(report: _Report, subject: str, old: RobotPlan, new: RobotPlan) -> None:
+def _urdf_and_mesh_changes(report: Changes, subject: str, old: RobotPlan, new: RobotPlan) -> None:
     """The URDF's file, origin and content; what changed inside it (joints, links) only when its hash did, and its
     meshes always (a mesh file can change under an unchanged URDF)."""
     group = "robot"
@@ -70,7 +70,7 @@ def _urdf_and_mesh_changes(report: _Report, subject: str, old: RobotPlan, new: R
 
 
 def _mapping_changes(
-    report: _Report, subject: str, old_names: tuple[str, ...], old: RobotPlan, new_names: tuple[str, ...], new: RobotPlan
+    report: Changes, subject: str, old_names: tuple[str, ...], old: RobotPlan, new_names: tuple[str, ...], new: RobotPlan
 ) -> None:
     """Per source value, in the new source's order (then the old one's): mapped, unmapped, or how its mapping changed;
     then the values that became or stopped being ignored (a source name its plan does not map is ignored)."""
@@ -102,15 +102,15 @@ def _mapping_changes(
         report.add(group, subject, f"ignore removed: {', '.join(removed)}", removed, None)
 
 
-def _hold_changes(report: _Report, subject: str, old: RobotPlan, new: RobotPlan) -> None:
+def _hold_changes(report: Changes, subject: str, old: RobotPlan, new: RobotPlan) -> None:
     """Held joints by name: removed, added, or their value changed."""
     group = "robot"
     old_holds, new_holds = {h.joint: h.value for h in old.holds}, {h.joint: h.value for h in new.holds}
     for joint in sorted(old_holds.keys() | new_holds.keys()):
         if joint not in new_holds:
-            report.add(group, subject, f"hold {joint} = {_text(old_holds[joint])}: removed", old_holds[joint], None)
+            report.add(group, subject, f"hold {joint} = {value_text(old_holds[joint])}: removed", old_holds[joint], None)
         elif joint not in old_holds:
-            report.add(group, subject, f"hold {joint} = {_text(new_holds[joint])}: added", None, new_holds[joint])
+            report.add(group, subject, f"hold {joint} = {value_text(new_holds[joint])}: added", None, new_holds[joint])
         else:
             report.field(group, subject, f"hold {joint}", old_holds[joint], new_holds[joint])
 
@@ -146,15 +146,15 @@ def _joints(channels: Sequence[JointChannel]) -> str:
 
 def _channel_summary(c: JointChannel) -> str:
     if c.source_range is not None:
-        return f"source_range {_text(c.source_range)} onto {_text(c.target_range)}"
-    parts = [f"unit {c.source_unit}", f"sign {_text(c.sign)}"]
-    parts += [f"scale {_text(c.scale)}"] if c.scale != 1 else []
-    parts += [f"offset {_text(c.offset)}"] if c.offset else []
-    parts += [f"wrap {_text(c.wrap)}"] if c.wrap else []
+        return f"source_range {value_text(c.source_range)} onto {value_text(c.target_range)}"
+    parts = [f"unit {c.source_unit}", f"sign {value_text(c.sign)}"]
+    parts += [f"scale {value_text(c.scale)}"] if c.scale != 1 else []
+    parts += [f"offset {value_text(c.offset)}"] if c.offset else []
+    parts += [f"wrap {value_text(c.wrap)}"] if c.wrap else []
     return ", ".join(parts)
 
 
-def _channel_changes(report: _Report, subject: str, name: str, old: list[JointChannel], new: list[JointChannel]) -> None:
+def _channel_changes(report: Changes, subject: str, name: str, old: list[JointChannel], new: list[JointChannel]) -> None:
     old_joints, new_joints = [c.joint for c in old], [c.joint for c in new]
     if sorted(old_joints) != sorted(new_joints):
         report.add("robot", subject, f"{name}: remapped {_joints(old)} -> {_joints(new)}", _joints(old), _joints(new))
@@ -186,7 +186,7 @@ def _limits(c: JointChannel) -> tuple[float, ...] | None:
 
 
 def _follows_limits(c: JointChannel) -> bool:
-    return c.target_range is None or _same(c.target_range, (c.lower, c.upper))
+    return c.target_range is None or same(c.target_range, (c.lower, c.upper))
 
 
 def _model(robot: RobotPlan) -> UrdfModel | None:
@@ -196,7 +196,7 @@ def _model(robot: RobotPlan) -> UrdfModel | None:
         return None
 
 
-def _urdf_changes(report: _Report, subject: str, old: UrdfModel, new: UrdfModel) -> None:
+def _urdf_changes(report: Changes, subject: str, old: UrdfModel, new: UrdfModel) -> None:
     group = "robot"
     report.field(group, subject, "URDF robot name", old.name, new.name)
     report.field(group, subject, "URDF root link", old.root_link, new.root_link)
@@ -208,7 +208,7 @@ def _urdf_changes(report: _Report, subject: str, old: UrdfModel, new: UrdfModel)
             _urdf_joint_changes(report, subject, joint, new_joints[joint.name])
 
 
-def _added_removed(report: _Report, subject: str, what: str, old: list[str], new: list[str]) -> None:
+def _added_removed(report: Changes, subject: str, what: str, old: list[str], new: list[str]) -> None:
     added = [n for n in new if n not in old]
     removed = [n for n in old if n not in new]
     if added:
@@ -217,12 +217,12 @@ def _added_removed(report: _Report, subject: str, what: str, old: list[str], new
         report.add("robot", subject, f"{what} removed: {listing(removed)}", removed, None)
 
 
-def _urdf_joint_changes(report: _Report, subject: str, old: Joint, new: Joint) -> None:
+def _urdf_joint_changes(report: Changes, subject: str, old: Joint, new: Joint) -> None:
     label = f"URDF joint {old.name}"
     report.field("robot", subject, f"{label}: type", old.type, new.type)
     report.field("robot", subject, f"{label}: parent", old.parent, new.parent)
     report.field("robot", subject, f"{label}: child", old.child, new.child)
-    moved = _moved(old.xyz, quaternion_from_rpy(*old.rpy), new.xyz, quaternion_from_rpy(*new.rpy))
+    moved = pose_change(old.xyz, quaternion_from_rpy(*old.rpy), new.xyz, quaternion_from_rpy(*new.rpy))
     if moved is not None:
         report.add("robot", subject, f"{label}: origin {moved}", [*old.xyz, *old.rpy], [*new.xyz, *new.rpy])
     report.field("robot", subject, f"{label}: axis", old.axis, new.axis)
@@ -233,13 +233,13 @@ def _urdf_joint_changes(report: _Report, subject: str, old: Joint, new: Joint) -
     report.field("robot", subject, f"{label}: mimic (joint, multiplier, offset)", old_mimic, new_mimic)
 
 
-def _mesh_changes(report: _Report, subject: str, old: UrdfModel, new: UrdfModel) -> None:
+def _mesh_changes(report: Changes, subject: str, old: UrdfModel, new: UrdfModel) -> None:
     """Meshes of the same link resolved to another file (package_paths changed, say)."""
 
     def by_link(model: UrdfModel, base: Path) -> dict[tuple[str, str], list[PathValue]]:
         meshes: dict[tuple[str, str], list[PathValue]] = {}
         for mesh in model.meshes:
-            meshes.setdefault((mesh.link, mesh.kind), []).append(_path_value(Path(mesh.uri), base))
+            meshes.setdefault((mesh.link, mesh.kind), []).append(path_value(Path(mesh.uri), base))
         return meshes
 
     old_meshes, new_meshes = by_link(old, report.old_base), by_link(new, report.new_base)
