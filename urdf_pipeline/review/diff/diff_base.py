@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -14,6 +14,7 @@ from ...urdf import Quaternion, Vector, normalized_quaternion, quaternion_multip
 from ..plan_report.report_model import PictureEntry, rounded
 
 TOLERANCE = 1e-9
+Wording = Mapping[str, "str | Callable[[Any], Any] | Wording | None"]  # per data key: how diff says its change
 
 
 @dataclass(frozen=True)
@@ -86,6 +87,8 @@ def value_text(value: Any) -> str:
         return _number(float(value))
     if isinstance(value, tuple | list):
         return "[" + ", ".join(value_text(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{key}: {value_text(v)}" for key, v in value.items()) + "}"
     if isinstance(value, str):
         return value if value else '""'
     return str(value)
@@ -156,6 +159,22 @@ class Changes:
     def field(self, group: str, subject: str, label: str, old: Any, new: Any) -> None:
         if not same(old, new):
             self.add(group, subject, f"{label} {value_text(old)} -> {value_text(new)}", old, new)
+
+    def walk(self, group: str, subject: str, old: Mapping[str, Any], new: Mapping[str, Any], wording: Wording, prefix: str = "") -> None:
+        """The keyed walk over two entries of the report's plain data (report_model.as_data): each key one field, its
+        label its name, unless `wording` words it: another label, a callable that shows its value, the wording of its
+        own keys, or None (a comparison of its own says it). A dict is walked key by key, each labelled after its own."""
+        for key in [*old, *(key for key in new if key not in old)]:
+            words = wording.get(key, key)
+            before, after = old.get(key), new.get(key)
+            if callable(words):
+                self.field(group, subject, prefix + key, words(before), words(after))
+            elif isinstance(words, Mapping):
+                self.walk(group, subject, before or {}, after or {}, words, prefix)
+            elif isinstance(before, dict) and isinstance(after, dict) and words is not None:
+                self.walk(group, subject, before, after, {}, f"{prefix}{words} ")
+            elif words is not None:
+                self.field(group, subject, prefix + words, before, after)
 
     def old_path(self, path: Path) -> PathValue:
         return path_value(path, self.old_base)

@@ -279,8 +279,8 @@ class TrailEntry:
 @dataclass(frozen=True)
 class OutputEntry:
     DATA: ClassVar[DataSpec] = {"recording_id": None, "path": None, "joint_series": when_set("joint_series"), "trails": when_set("trails")}
-    layout: str
     application_id: str
+    layout: str
     recording_id: str  # the first segment's
     path: ShownPath  # the first segment's output
     segment_count: int
