@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from ...errors import listing
-from ...plan import EdgePlan, LeRobotSourcePlan, Plan, SourcePlan, TemporalEdgePlan
+from ...plan import EdgePlan, LeRobotSourcePlan, Plan, TemporalEdgePlan
 from ..plan_report.report import build_report
 from ..plan_report.report_model import as_data
 from .diff_base import Change, Changes, PathValue, Wording, pose_change, rounded_text, same, value_text
@@ -126,12 +126,6 @@ def _static_edge_changes(report: Changes, subject: str, old: EdgePlan, new: Edge
 
 # ---------------------------------------------------------------------------------------------------------- sources
 
-_KIND_PATHS = {"parquet": "path", "lerobot": "root", "mcap": "path", "hdf5": "path", "rrd": "path", "csv": "path"}
-
-
-def _kind(source: SourcePlan) -> str:
-    return type(source).__name__.removesuffix("SourcePlan").lower()
-
 
 def _source_changes(report: Changes, old: Plan, new: Plan, old_data: dict[str, Any], new_data: dict[str, Any]) -> None:
     old_settings, new_settings = _by_key(old_data["sources"], "name"), _by_key(new_data["sources"], "name")
@@ -142,14 +136,13 @@ def _source_changes(report: Changes, old: Plan, new: Plan, old_data: dict[str, A
             report.add("sources", subject, "removed")
             continue
         if name not in old_sources:
-            source = new_sources[name]
-            report.add("sources", subject, f"added ({_kind(source)} {_source_files(report.new_path, new, name)[0]})")
+            report.add("sources", subject, f"added ({new_settings[name]['kind']} {_source_files(report.new_path, new, name)[0]})")
             continue
         o, n = old_sources[name], new_sources[name]
-        report.field("sources", subject, "kind", _kind(o), _kind(n))
+        report.field("sources", subject, "kind", old_settings[name]["kind"], new_settings[name]["kind"])
         old_files, new_files = _source_files(report.old_path, old, name), _source_files(report.new_path, new, name)
         if len(old_files) == 1 and len(new_files) == 1:
-            report.field("sources", subject, _KIND_PATHS[_kind(n)], old_files[0], new_files[0])
+            report.field("sources", subject, "root" if "root" in new_settings[name] else "path", old_files[0], new_files[0])
         elif not same(old_files, new_files):
             added = [str(f) for f in new_files if f not in old_files]
             removed = [str(f) for f in old_files if f not in new_files]
