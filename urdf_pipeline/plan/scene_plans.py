@@ -106,6 +106,11 @@ class Plan(ScenePlan):
                 return segment
         raise UserError(f"{option} {wanted}: no such segment (segments: {listing(ids)}){did_you_mean(wanted, ids)}", self.dataset.where)
 
+    @property
+    def review_segment(self) -> RecordingPlan:
+        """The recording that plan, check, diff and init read: the first segment's, the one a run without --segment makes."""
+        return self.for_segment(self.segments[0])
+
     def for_segment(self, segment: Segment) -> RecordingPlan:
         """The plan of one segment's recording: its own sources and output."""
         return self._recording(segment.sources, segment.output, segment.id)

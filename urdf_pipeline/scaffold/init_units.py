@@ -90,7 +90,7 @@ def choose_unit(channel: JointChannel, raw: np.ndarray) -> UnitChoice | None:
 
 def sample_of(plan: Plan) -> dict[str, np.ndarray]:
     """check's sample of every source that drives a robot (the first segment's)."""
-    return {source.name: read_sample(source) for source in plan.segments[0].sources if plan.robots_for(source.name)}
+    return {source.name: read_sample(source) for source in plan.review_segment.sources if plan.robots_for(source.name)}
 
 
 def sampled_units(plan: Plan, sample: dict[str, np.ndarray]) -> SampledUnits:

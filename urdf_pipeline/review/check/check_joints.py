@@ -217,7 +217,7 @@ def check_exit_code(reports: Sequence[JointReport]) -> int:
 def check_config(config: Path, rows: int = SAMPLE_ROWS) -> list[JointReport]:
     """`check CONFIG`: the first `rows` rows of every source that drives a robot, checked joint by joint."""
     plan = compile_config(config)
-    sample = {source.name: read_sample(source, rows) for source in plan.segments[0].sources if plan.robots_for(source.name)}
+    sample = {source.name: read_sample(source, rows) for source in plan.review_segment.sources if plan.robots_for(source.name)}
     return check_plan(plan, sample)
 
 

@@ -5,15 +5,16 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from ...urdf import Quaternion, Vector, normalized_quaternion, quaternion_multiply
-from ..plan_report.report_model import PictureEntry
+from ..plan_report.report_model import PictureEntry, rounded
 
 TOLERANCE = 1e-9
+Wording = Mapping[str, "str | Callable[[Any], Any] | Wording | None"]  # per data key: how diff says its change
 
 
 @dataclass(frozen=True)
@@ -61,14 +62,14 @@ class PathValue:
         return self.relative
 
 
-def _same(a: Any, b: Any) -> bool:
+def same(a: Any, b: Any) -> bool:
     """Equal, floats within TOLERANCE (nested in tuples and lists too)."""
     if isinstance(a, bool) or isinstance(b, bool):
         return a is b
     if isinstance(a, int | float) and isinstance(b, int | float):
         return math.isclose(a, b, rel_tol=TOLERANCE, abs_tol=TOLERANCE)
     if isinstance(a, tuple | list) and isinstance(b, tuple | list):
-        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+        return len(a) == len(b) and all(same(x, y) for x, y in zip(a, b, strict=True))
     return bool(a == b)
 
 
@@ -76,7 +77,7 @@ def _number(value: float) -> str:
     return f"{value + 0.0:.12g}"  # + 0.0: no "-0"
 
 
-def _text(value: Any) -> str:
+def value_text(value: Any) -> str:
     """A value as the report shows it: `1`, `-0.5`, `[0, 0, 0.5]`, `none`, `""`."""
     if value is None:
         return "none"
@@ -85,10 +86,17 @@ def _text(value: Any) -> str:
     if isinstance(value, int | float):
         return _number(float(value))
     if isinstance(value, tuple | list):
-        return "[" + ", ".join(_text(v) for v in value) + "]"
+        return "[" + ", ".join(value_text(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{key}: {value_text(v)}" for key, v in value.items()) + "}"
     if isinstance(value, str):
         return value if value else '""'
     return str(value)
+
+
+def rounded_text(values: Sequence[float]) -> str:
+    """A pose's numbers to 9 decimals (report_model.rounded), as the report shows a translation or a quaternion."""
+    return value_text([rounded(v) for v in values])
 
 
 def _json(value: Any) -> Any:
@@ -120,29 +128,25 @@ def rotation_angle_deg(a: Sequence[float], b: Sequence[float]) -> float:
 
 def _same_rotation(a: Sequence[float], b: Sequence[float]) -> bool:
     qa, qb = _unit_quaternion(a), _unit_quaternion(b)
-    return _same(qa, qb) or _same(qa, tuple(-v for v in qb))  # q and -q are the same rotation
+    return same(qa, qb) or same(qa, tuple(-v for v in qb))  # q and -q are the same rotation
 
 
-def _moved(t_old: Vector, q_old: Sequence[float], t_new: Vector, q_new: Sequence[float]) -> str | None:
+def pose_change(t_old: Vector, q_old: Sequence[float], t_new: Vector, q_new: Sequence[float]) -> str | None:
     """`moved 5.0 mm, 0.00 deg (translation [..] -> [..])`, or None for the same pose."""
-    translated, rotated = not _same(t_old, t_new), not _same_rotation(q_old, q_new)
+    translated, rotated = not same(t_old, t_new), not _same_rotation(q_old, q_new)
     if not translated and not rotated:
         return None
     mm = math.dist(t_old, t_new) * 1000 if translated else 0.0
     deg = rotation_angle_deg(q_old, q_new) if rotated else 0.0
     what = []
     if translated:
-        what.append(f"translation {_text(_rounded(t_old))} -> {_text(_rounded(t_new))}")
+        what.append(f"translation {rounded_text(t_old)} -> {rounded_text(t_new)}")
     if rotated:
-        what.append(f"quaternion_xyzw {_text(_rounded(q_old))} -> {_text(_rounded(q_new))}")
+        what.append(f"quaternion_xyzw {rounded_text(q_old)} -> {rounded_text(q_new)}")
     return f"moved {_length(mm)} mm, {_degrees(deg)} deg ({'; '.join(what)})"
 
 
-def _rounded(values: Sequence[float]) -> tuple[float, ...]:
-    return tuple(round(v, 9) + 0.0 for v in values)
-
-
-class _Report:
+class Changes:
     """The changes found so far, and the two configs' folders their paths are relative to."""
 
     def __init__(self, old_base: Path, new_base: Path) -> None:
@@ -153,16 +157,32 @@ class _Report:
         self.changes.append(Change(group, subject, detail, _json(old), _json(new)))
 
     def field(self, group: str, subject: str, label: str, old: Any, new: Any) -> None:
-        if not _same(old, new):
-            self.add(group, subject, f"{label} {_text(old)} -> {_text(new)}", old, new)
+        if not same(old, new):
+            self.add(group, subject, f"{label} {value_text(old)} -> {value_text(new)}", old, new)
+
+    def walk(self, group: str, subject: str, old: Mapping[str, Any], new: Mapping[str, Any], wording: Wording, prefix: str = "") -> None:
+        """The keyed walk over two entries of the report's plain data (report_model.as_data): each key one field, its
+        label its name, unless `wording` words it: another label, a callable that shows its value, the wording of its
+        own keys, or None (a comparison of its own says it). A dict is walked key by key, each labelled after its own."""
+        for key in [*old, *(key for key in new if key not in old)]:
+            words = wording.get(key, key)
+            before, after = old.get(key), new.get(key)
+            if callable(words):
+                self.field(group, subject, prefix + key, words(before), words(after))
+            elif isinstance(words, Mapping):
+                self.walk(group, subject, before or {}, after or {}, words, prefix)
+            elif isinstance(before, dict) and isinstance(after, dict) and words is not None:
+                self.walk(group, subject, before, after, {}, f"{prefix}{words} ")
+            elif words is not None:
+                self.field(group, subject, prefix + words, before, after)
 
     def old_path(self, path: Path) -> PathValue:
-        return _path_value(path, self.old_base)
+        return path_value(path, self.old_base)
 
     def new_path(self, path: Path) -> PathValue:
-        return _path_value(path, self.new_base)
+        return path_value(path, self.new_base)
 
 
-def _path_value(path: Path, base: Path) -> PathValue:
+def path_value(path: Path, base: Path) -> PathValue:
     absolute = os.path.abspath(path)
     return PathValue(Path(os.path.relpath(absolute, os.path.abspath(base))).as_posix(), absolute)

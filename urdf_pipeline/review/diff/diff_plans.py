@@ -9,36 +9,72 @@ config moved together with its inputs shows no change.
 The changes come in a fixed order, grouped: robots (by key: diff_robots.py), then edges (the root frame, static edges
 by (parent, child), temporal edges), then sources (by name), then the output; within a group in a fixed order, so
 the same two plans always give the same report (diff_base.DiffReport; diff_render.py prints it).
+
+What the plan report holds is compared as its plain data (`Changes.walk` over two `report_model.as_data`): a field
+added to the report is a change `diff` shows, labelled with its name. The wording tables (`*_WORDING`) name the
+fields said otherwise: with another label, or by a comparison of their own (a moved edge, a remapped value, the
+URDF's content, every segment's files), which reads the plans where the report holds less (absolute paths, meshes).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
 from ...errors import listing
-from ...plan import EdgePlan, IndexPlan, LeRobotSourcePlan, Plan, SourcePlan, TemporalEdgePlan
-from .diff_base import Change, PathValue, _moved, _Report, _rounded, _same, _text
+from ...plan import EdgePlan, LeRobotSourcePlan, Plan, TemporalEdgePlan
+from ..plan_report.report import build_report
+from ..plan_report.report_model import as_data
+from .diff_base import Change, Changes, PathValue, Wording, pose_change, rounded_text, same, value_text
 from .diff_robots import robot_changes
+
+_SAID = ("config", "root_frame", "robots", "edges", "sources", "output", "frame_tree", "warnings", "sample", "pictures", "report_version")
+PLAN_WORDING: Wording = dict.fromkeys(_SAID)  # each group below, or no change of the config's (warnings, the report's version)
+TEMPORAL_WORDING: Wording = {  # the indices follow from the names (a source's names are compared with it)
+    "translation_names": "translation",
+    "quaternion_xyzw_names": "quaternion_xyzw",
+    "tf_topic": lambda topic: topic or "none",  # a bag's /tf edge
+    **dict.fromkeys(("entity", "translation_indices", "quaternion_xyzw_indices")),
+}
+EDGE_WORDING: Wording = {"temporal": TEMPORAL_WORDING, **dict.fromkeys(("parent", "child", "origin", "translation_m", "rotation_rpy_deg"))}
+SOURCE_WORDING: Wording = {  # a source's settings: each its own field, but for the files, names and episode (compared apart)
+    "index": lambda index: index and f"{index['column']} ({index['kind']}" + (f", {index['unit']})" if index["unit"] else ")"),
+    **dict.fromkeys(("name", "kind", "path", "root", "names", "rows", "per_segment", "episode")),  # rows: the data's
+}
+OUTPUT_WORDING: Wording = {
+    "joint_series": bool,
+    "trails": lambda trails: (
+        "; ".join(f"trail of {t['robot']}'s {t['link']} in {t['frame']} ({t['style']}, window {t['window']})" for t in trails or ())
+        or "none"
+    ),
+    **dict.fromkeys(("segment_count", "segments", "model", "manifest")),  # compared apart: paths relative or absolute
+}
 
 
 def diff_plans(old: Plan, new: Plan) -> tuple[Change, ...]:
     """Every semantic difference from old to new, in report order (empty when the plans are equivalent)."""
-    report = _Report(old.config_path.parent, new.config_path.parent)
-    robot_changes(report, old, new)
-    _edge_changes(report, old, new)
-    _source_changes(report, old, new)
-    _output_changes(report, old, new)
+    report = Changes(old.config_path.parent, new.config_path.parent)
+    old_data, new_data = as_data(build_report(old)), as_data(build_report(new))
+    robot_changes(report, old, new, old_data, new_data)
+    _edge_changes(report, old, new, old_data, new_data)
+    _source_changes(report, old, new, old_data, new_data)
+    _output_changes(report, old, new, old_data["output"], new_data["output"])
+    report.walk("plan", "plan", old_data, new_data, PLAN_WORDING)
     return tuple(report.changes)
+
+
+def _by_key(items: list[dict[str, Any]], *names: str) -> dict[Any, dict[str, Any]]:
+    """A list of the report's data keyed by one field (a name) or by several ((parent, child))."""
+    return {item[names[0]] if len(names) == 1 else tuple(item[name] for name in names): item for item in items}
 
 
 # ---------------------------------------------------------------------------------------------------------- edges
 
 
-def _edge_changes(report: _Report, old: Plan, new: Plan) -> None:
+def _edge_changes(report: Changes, old: Plan, new: Plan, old_data: dict[str, Any], new_data: dict[str, Any]) -> None:
     report.field("edges", "frames", "root", old.root_frame, new.root_frame)
+    old_data_edges, new_data_edges = _by_key(old_data["edges"], "parent", "child"), _by_key(new_data["edges"], "parent", "child")
     old_edges = {(e.parent, e.child): e for e in old.edges}
     new_edges = {(e.parent, e.child): e for e in new.edges}
     for key in sorted(old_edges.keys() | new_edges.keys()):
@@ -49,6 +85,7 @@ def _edge_changes(report: _Report, old: Plan, new: Plan) -> None:
             report.add("edges", subject, f"added ({_edge_summary(new_edges[key])})")
         else:
             _static_edge_changes(report, subject, old_edges[key], new_edges[key])
+            report.walk("edges", subject, old_data_edges[key], new_data_edges[key], EDGE_WORDING)
     old_temporal = {(e.parent, e.child): e for e in old.temporal_edges}
     new_temporal = {(e.parent, e.child): e for e in new.temporal_edges}
     for key in sorted(old_temporal.keys() | new_temporal.keys()):
@@ -58,11 +95,7 @@ def _edge_changes(report: _Report, old: Plan, new: Plan) -> None:
         elif key not in old_temporal:
             report.add("edges", subject, f"added ({_temporal_summary(new_temporal[key])})")
         else:
-            o, n = old_temporal[key], new_temporal[key]
-            report.field("edges", subject, "source", o.source, n.source)
-            report.field("edges", subject, "tf topic", o.tf_topic or "none", n.tf_topic or "none")  # a bag's /tf edge
-            report.field("edges", subject, "translation", o.translation_names, n.translation_names)
-            report.field("edges", subject, "quaternion_xyzw", o.quaternion_names, n.quaternion_names)
+            report.walk("edges", subject, old_data_edges[key], new_data_edges[key], EDGE_WORDING)
 
 
 def _edge_summary(edge: EdgePlan) -> str:
@@ -70,55 +103,47 @@ def _edge_summary(edge: EdgePlan) -> str:
         return f"fixed_chain {edge.fixed_chain.start} -> {edge.fixed_chain.end} of robot {edge.fixed_chain.robot}"
     if edge.kind == "assume_identity":
         return "assume_identity"
-    return f"static, translation {_text(_rounded(edge.translation))}, quaternion_xyzw {_text(_rounded(edge.quaternion_xyzw))}"
+    return f"static, translation {rounded_text(edge.translation)}, quaternion_xyzw {rounded_text(edge.quaternion_xyzw)}"
 
 
 def _temporal_summary(edge: TemporalEdgePlan) -> str:
     if edge.tf_topic is not None:
         return f"source {edge.source}, {edge.tf_topic} of its bag"
-    return f"source {edge.source}, translation {_text(edge.translation_names)}, quaternion_xyzw {_text(edge.quaternion_names)}"
+    return f"source {edge.source}, translation {value_text(edge.translation_names)}, quaternion_xyzw {value_text(edge.quaternion_names)}"
 
 
-def _static_edge_changes(report: _Report, subject: str, old: EdgePlan, new: EdgePlan) -> None:
+def _static_edge_changes(report: Changes, subject: str, old: EdgePlan, new: EdgePlan) -> None:
     report.field("edges", subject, "kind", old.kind, new.kind)
     if old.fixed_chain is not None and new.fixed_chain is not None:
         report.field("edges", subject, "fixed_chain robot", old.fixed_chain.robot, new.fixed_chain.robot)
         report.field("edges", subject, "fixed_chain from", old.fixed_chain.start, new.fixed_chain.start)
         report.field("edges", subject, "fixed_chain to", old.fixed_chain.end, new.fixed_chain.end)
         report.field("edges", subject, "fixed_chain joints", old.fixed_chain.joints, new.fixed_chain.joints)
-    moved = _moved(old.translation, old.quaternion_xyzw, new.translation, new.quaternion_xyzw)
+    moved = pose_change(old.translation, old.quaternion_xyzw, new.translation, new.quaternion_xyzw)
     if moved is not None:
         report.add("edges", subject, moved, [*old.translation, *old.quaternion_xyzw], [*new.translation, *new.quaternion_xyzw])
 
 
 # ---------------------------------------------------------------------------------------------------------- sources
 
-_KIND_PATHS = {"parquet": "path", "lerobot": "root", "mcap": "path", "hdf5": "path", "rrd": "path", "csv": "path"}
-# rows: the data's, not the config's; remote: the object a path names (its URL is compared as the path)
-_NOT_COMPARED = {"name", "where", "names", "path", "root", "rows", "per_segment", "episode", "remote"}
 
-
-def _kind(source: SourcePlan) -> str:
-    return type(source).__name__.removesuffix("SourcePlan").lower()
-
-
-def _source_changes(report: _Report, old: Plan, new: Plan) -> None:
-    old_sources, new_sources = {s.name: s for s in old.segments[0].sources}, {s.name: s for s in new.segments[0].sources}
+def _source_changes(report: Changes, old: Plan, new: Plan, old_data: dict[str, Any], new_data: dict[str, Any]) -> None:
+    old_settings, new_settings = _by_key(old_data["sources"], "name"), _by_key(new_data["sources"], "name")
+    old_sources, new_sources = {s.name: s for s in old.review_segment.sources}, {s.name: s for s in new.review_segment.sources}
     for name in sorted(old_sources.keys() | new_sources.keys()):
         subject = f"source {name}"
         if name not in new_sources:
             report.add("sources", subject, "removed")
             continue
         if name not in old_sources:
-            source = new_sources[name]
-            report.add("sources", subject, f"added ({_kind(source)} {_source_files(report.new_path, new, name)[0]})")
+            report.add("sources", subject, f"added ({new_settings[name]['kind']} {_source_files(report.new_path, new, name)[0]})")
             continue
         o, n = old_sources[name], new_sources[name]
-        report.field("sources", subject, "kind", _kind(o), _kind(n))
+        report.field("sources", subject, "kind", old_settings[name]["kind"], new_settings[name]["kind"])
         old_files, new_files = _source_files(report.old_path, old, name), _source_files(report.new_path, new, name)
         if len(old_files) == 1 and len(new_files) == 1:
-            report.field("sources", subject, _KIND_PATHS[_kind(n)], old_files[0], new_files[0])
-        elif not _same(old_files, new_files):
+            report.field("sources", subject, "root" if "root" in new_settings[name] else "path", old_files[0], new_files[0])
+        elif not same(old_files, new_files):
             added = [str(f) for f in new_files if f not in old_files]
             removed = [str(f) for f in old_files if f not in new_files]
             what = "; ".join(
@@ -131,10 +156,9 @@ def _source_changes(report: _Report, old: Plan, new: Plan) -> None:
                 [str(f) for f in old_files],
                 [str(f) for f in new_files],
             )
-        new_fields = {f.name for f in fields(n)}
-        for f in fields(o):
-            if f.name in new_fields and f.name not in _NOT_COMPARED:
-                report.field("sources", subject, f.name, _source_value(getattr(o, f.name)), _source_value(getattr(n, f.name)))
+        both = old_settings[name].keys() & new_settings[name].keys()  # another kind's settings are its kind's change
+        settings = [{key: value for key, value in side[name].items() if key in both} for side in (old_settings, new_settings)]
+        report.walk("sources", subject, settings[0], settings[1], SOURCE_WORDING)
         if isinstance(o, LeRobotSourcePlan) and isinstance(n, LeRobotSourcePlan):
             report.field("sources", subject, "episode", _episode(o), _episode(n))
         _names_changes(report, subject, o.names, n.names)
@@ -144,7 +168,7 @@ def _source_files(path_value: Callable[[Path], PathValue], plan: Plan, name: str
     """The files a source reads over all segments (one, or every file of a glob), in segment order."""
     files: list[PathValue] = []
     segments = plan.dataset.segments
-    plans = [s for segment in segments for s in segment.sources if s.name == name] or [plan.for_segment(plan.segments[0]).source(name)]
+    plans = [s for segment in segments for s in segment.sources if s.name == name] or [plan.review_segment.source(name)]
     for source in plans:
         remote = getattr(source, "remote", None)
         if remote is not None:  # a remote file is its URL (a new version of it is no change to the config)
@@ -160,19 +184,13 @@ def _episode(source: LeRobotSourcePlan) -> str:
     return "one per segment" if source.per_segment else str(source.episode)
 
 
-def _source_value(value: Any) -> Any:
-    if isinstance(value, IndexPlan):
-        return f"{value.column} ({value.kind}" + (f", {value.unit})" if value.unit else ")")
-    return value
-
-
-def _names_changes(report: _Report, subject: str, old: tuple[str, ...], new: tuple[str, ...]) -> None:
+def _names_changes(report: Changes, subject: str, old: tuple[str, ...], new: tuple[str, ...]) -> None:
     if old == new:
         return
     added = [n for n in new if n not in old]
     removed = [n for n in old if n not in new]
     if not added and not removed:
-        report.add("sources", subject, f"names reordered: {_text(old)} -> {_text(new)}", list(old), list(new))
+        report.add("sources", subject, f"names reordered: {value_text(old)} -> {value_text(new)}", list(old), list(new))
         return
     parts = ([f"added {listing(added)}"] if added else []) + ([f"removed {listing(removed)}"] if removed else [])
     report.add("sources", subject, f"names: {'; '.join(parts)}", list(old), list(new))
@@ -181,12 +199,9 @@ def _names_changes(report: _Report, subject: str, old: tuple[str, ...], new: tup
 # ---------------------------------------------------------------------------------------------------------- output
 
 
-def _output_changes(report: _Report, old: Plan, new: Plan) -> None:
+def _output_changes(report: Changes, old: Plan, new: Plan, old_data: dict[str, Any], new_data: dict[str, Any]) -> None:
     subject = "output"
-    report.field("output", subject, "application_id", old.application_id, new.application_id)
-    report.field("output", subject, "layout", old.dataset.layout, new.dataset.layout)
-    report.field("output", subject, "joint_series", old.dataset.joint_series, new.dataset.joint_series)
-    report.field("output", subject, "trails", _trails(old), _trails(new))
+    report.walk("output", subject, old_data, new_data, OUTPUT_WORDING)
     old_model = report.old_path(old.dataset.model) if old.dataset.model else None
     new_model = report.new_path(new.dataset.model) if new.dataset.model else None
     report.field("output", subject, "model", old_model, new_model)
@@ -223,14 +238,6 @@ def _output_changes(report: _Report, old: Plan, new: Plan) -> None:
             [str(o) for o, _ in moved],
             [str(n) for _, n in moved],
         )
-
-
-def _trails(plan: Plan) -> str:
-    """The trails as one comparable text: which link, in which frame, how drawn, over which window."""
-    return (
-        "; ".join(f"{t.label} ({t.style}, window {t.window if t.window is not None else 'all'} {t.window_unit})" for t in plan.trails)
-        or "none"
-    )
 
 
 def _manifest_key(path_value: Callable[[Path], PathValue], plan: Plan) -> tuple[PathValue, str | None]:

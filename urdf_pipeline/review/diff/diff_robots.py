@@ -5,16 +5,32 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from ...errors import listing
 from ...plan import JointChannel, Plan, RobotPlan
 from ...urdf import Joint, UrdfModel, UrdfParseError, parse_urdf_text, quaternion_from_rpy
-from .diff_base import PathValue, _moved, _path_value, _Report, _same, _text
+from .diff_base import Changes, PathValue, Wording, path_value, pose_change, same, value_text
+
+_Mapped = tuple[tuple[str, ...], RobotPlan, dict[str, Any]]  # a source's names, the robot, its report entry
+ROBOT_WORDING: Wording = {
+    "source": "joints source",
+    # said by comparisons of their own below (the URDF's content, the mapping), or following from others (root_frame)
+    **dict.fromkeys(("key", "robot_name", "urdf", "root_frame", "nan_policy", "on_violation", "joint_counts", "joints")),
+    "appearance": lambda a: a and "[" + ", ".join(f"{c:g}" for c in (*a["color"], a["opacity"])) + "]",  # r, g, b, opacity
+    "compare": lambda compare: compare and f"{compare['robot']} {compare['threshold']}",
+    "ignored_source_values": None,
+}
+ROW_WORDING: Wording = dict.fromkeys(  # a mapped value's row: said by _channel_changes, or its URDF's, or its data's
+    ("kind", "source_name", "source_index", "joint", "type", "unit", "sign", "offset", "scale", "wrap", "source_range", "target_range")
+    + ("limits_source_units", "slack_source_units", "slack", "limits_urdf", "mimic", "hold", "observed")
+)
 
 
-def robot_changes(report: _Report, old: Plan, new: Plan) -> None:
+def robot_changes(report: Changes, old: Plan, new: Plan, old_data: dict[str, Any], new_data: dict[str, Any]) -> None:
     """Robots by key: removed, added (with a summary), or compared."""
     old_robots, new_robots = {r.key: r for r in old.robots}, {r.key: r for r in new.robots}
+    old_entries, new_entries = ({r["key"]: r for r in data["robots"]} for data in (old_data, new_data))
     for key in sorted(old_robots.keys() | new_robots.keys()):
         subject = f"robot {key}"
         if key not in new_robots:
@@ -25,35 +41,37 @@ def robot_changes(report: _Report, old: Plan, new: Plan) -> None:
                 f"{len(robot.channels)} mapped value(s) from source '{robot.source}'" if robot.source else "a scene without moving joints"
             )
             report.add(
-                "robot", subject, f"added (URDF {report.new_path(robot.urdf_path)}, frame_prefix {_text(robot.frame_prefix)}, {what})"
+                "robot", subject, f"added (URDF {report.new_path(robot.urdf_path)}, frame_prefix {value_text(robot.frame_prefix)}, {what})"
             )
         else:
-            _robot_changes(report, subject, old, old_robots[key], new, new_robots[key])
+            entries = (old_entries[key], new_entries[key])
+            _robot_changes(report, subject, (old, old_robots[key]), (new, new_robots[key]), entries)
 
 
-def _robot_changes(report: _Report, subject: str, old_plan: Plan, old: RobotPlan, new_plan: Plan, new: RobotPlan) -> None:
+def _robot_changes(
+    report: Changes,
+    subject: str,
+    olds: tuple[Plan, RobotPlan],
+    news: tuple[Plan, RobotPlan],
+    entries: tuple[dict[str, Any], dict[str, Any]],
+) -> None:
     """A robot in both plans: its URDF, prefixes and joints source; its mapping and holds only when both have a
     source (a scene has none, and a robot that became one or stopped being one says so in `joints source`)."""
-    group = "robot"
+    group, (old_plan, old), (new_plan, new) = "robot", olds, news
     _urdf_and_mesh_changes(report, subject, old, new)
-    report.field(group, subject, "entity_path_prefix", old.entity_path_prefix, new.entity_path_prefix)
-    report.field(group, subject, "frame_prefix", old.frame_prefix, new.frame_prefix)
-    report.field(group, subject, "collision_geometries", _collisions(old), _collisions(new))
-    report.field(group, subject, "joints source", old.source, new.source)
-    report.field(group, subject, "appearance", _appearance(old), _appearance(new))
-    report.field(group, subject, "compare", _compare(old), _compare(new))
+    report.walk(group, subject, entries[0], entries[1], ROBOT_WORDING)
     if old.source is None or new.source is None:
         return
     report.field(group, subject, "NaN policy", old.nan_policy, new.nan_policy)
     report.field(group, subject, "limits slack", _slack(old), _slack(new))
     report.field(group, subject, "limits on_violation", old.on_violation, new.on_violation)
-    old_names = old_plan.for_segment(old_plan.segments[0]).source(old.source).names  # the first segment's, as plan shows them
-    new_names = new_plan.for_segment(new_plan.segments[0]).source(new.source).names
-    _mapping_changes(report, subject, old_names, old, new_names, new)
+    old_names = old_plan.review_segment.source(old.source).names  # the first segment's, as plan shows them
+    new_names = new_plan.review_segment.source(new.source).names
+    _mapping_changes(report, subject, (old_names, old, entries[0]), (new_names, new, entries[1]))
     _hold_changes(report, subject, old, new)
 
 
-def _urdf_and_mesh_changes(report: _Report, subject: str, old: RobotPlan, new: RobotPlan) -> None:
+def _urdf_and_mesh_changes(report: Changes, subject: str, old: RobotPlan, new: RobotPlan) -> None:
     """The URDF's file, origin and content; what changed inside it (joints, links) only when its hash did, and its
     meshes always (a mesh file can change under an unchanged URDF)."""
     group = "robot"
@@ -69,12 +87,11 @@ def _urdf_and_mesh_changes(report: _Report, subject: str, old: RobotPlan, new: R
         _mesh_changes(report, subject, old_model, new_model)
 
 
-def _mapping_changes(
-    report: _Report, subject: str, old_names: tuple[str, ...], old: RobotPlan, new_names: tuple[str, ...], new: RobotPlan
-) -> None:
+def _mapping_changes(report: Changes, subject: str, olds: _Mapped, news: _Mapped) -> None:
     """Per source value, in the new source's order (then the old one's): mapped, unmapped, or how its mapping changed;
     then the values that became or stopped being ignored (a source name its plan does not map is ignored)."""
-    group = "robot"
+    group, (old_names, old, old_entry), (new_names, new, new_entry) = "robot", olds, news
+    rows = [{(row["source_name"], row["joint"]): row for row in entry["joints"]} for entry in (old_entry, new_entry)]
     old_map, new_map = _channels_by_name(old), _channels_by_name(new)
     old_ignored = [n for n in old_names if n not in old_map]
     new_ignored = [n for n in new_names if n not in new_map]
@@ -93,7 +110,7 @@ def _mapping_changes(
                 _joints(new_map[name]),
             )
         else:
-            _channel_changes(report, subject, name, old_map[name], new_map[name])
+            _channel_changes(report, subject, name, old_map[name], new_map[name], rows)
     added = [n for n in new_ignored if n not in old_ignored and n not in old_map]
     removed = [n for n in old_ignored if n not in new_ignored and n not in new_map]
     if added:
@@ -102,29 +119,17 @@ def _mapping_changes(
         report.add(group, subject, f"ignore removed: {', '.join(removed)}", removed, None)
 
 
-def _hold_changes(report: _Report, subject: str, old: RobotPlan, new: RobotPlan) -> None:
+def _hold_changes(report: Changes, subject: str, old: RobotPlan, new: RobotPlan) -> None:
     """Held joints by name: removed, added, or their value changed."""
     group = "robot"
     old_holds, new_holds = {h.joint: h.value for h in old.holds}, {h.joint: h.value for h in new.holds}
     for joint in sorted(old_holds.keys() | new_holds.keys()):
         if joint not in new_holds:
-            report.add(group, subject, f"hold {joint} = {_text(old_holds[joint])}: removed", old_holds[joint], None)
+            report.add(group, subject, f"hold {joint} = {value_text(old_holds[joint])}: removed", old_holds[joint], None)
         elif joint not in old_holds:
-            report.add(group, subject, f"hold {joint} = {_text(new_holds[joint])}: added", None, new_holds[joint])
+            report.add(group, subject, f"hold {joint} = {value_text(new_holds[joint])}: added", None, new_holds[joint])
         else:
             report.field(group, subject, f"hold {joint}", old_holds[joint], new_holds[joint])
-
-
-def _appearance(robot: RobotPlan) -> str | None:
-    return None if robot.appearance is None else "[" + ", ".join(f"{c:g}" for c in robot.appearance) + "]"  # r, g, b, opacity
-
-
-def _compare(robot: RobotPlan) -> str | None:
-    return None if robot.compare is None else f"{robot.compare.robot} {robot.compare.written}"
-
-
-def _collisions(robot: RobotPlan) -> str:
-    return "keep" if robot.keep_collisions else "drop"
 
 
 def _slack(robot: RobotPlan) -> str | None:
@@ -146,15 +151,17 @@ def _joints(channels: Sequence[JointChannel]) -> str:
 
 def _channel_summary(c: JointChannel) -> str:
     if c.source_range is not None:
-        return f"source_range {_text(c.source_range)} onto {_text(c.target_range)}"
-    parts = [f"unit {c.source_unit}", f"sign {_text(c.sign)}"]
-    parts += [f"scale {_text(c.scale)}"] if c.scale != 1 else []
-    parts += [f"offset {_text(c.offset)}"] if c.offset else []
-    parts += [f"wrap {_text(c.wrap)}"] if c.wrap else []
+        return f"source_range {value_text(c.source_range)} onto {value_text(c.target_range)}"
+    parts = [f"unit {c.source_unit}", f"sign {value_text(c.sign)}"]
+    parts += [f"scale {value_text(c.scale)}"] if c.scale != 1 else []
+    parts += [f"offset {value_text(c.offset)}"] if c.offset else []
+    parts += [f"wrap {value_text(c.wrap)}"] if c.wrap else []
     return ", ".join(parts)
 
 
-def _channel_changes(report: _Report, subject: str, name: str, old: list[JointChannel], new: list[JointChannel]) -> None:
+def _channel_changes(
+    report: Changes, subject: str, name: str, old: list[JointChannel], new: list[JointChannel], rows: list[dict[tuple[str, str], Any]]
+) -> None:
     old_joints, new_joints = [c.joint for c in old], [c.joint for c in new]
     if sorted(old_joints) != sorted(new_joints):
         report.add("robot", subject, f"{name}: remapped {_joints(old)} -> {_joints(new)}", _joints(old), _joints(new))
@@ -177,6 +184,8 @@ def _channel_changes(report: _Report, subject: str, name: str, old: list[JointCh
             report.field("robot", subject, f"{label}: joint_range", o.target_range, n.target_range)
         if o.joint == n.joint:  # what the changes above (or the URDF's) mean for the data, as plan and check print it
             report.field("robot", subject, f"{label}: limits (source units)", _limits(o), _limits(n))
+        old_row, new_row = rows[0][(name, o.joint)], rows[1][(name, n.joint)]
+        report.walk("robot", subject, old_row, new_row, ROW_WORDING, f"{label}: ")
 
 
 def _limits(c: JointChannel) -> tuple[float, ...] | None:
@@ -186,7 +195,7 @@ def _limits(c: JointChannel) -> tuple[float, ...] | None:
 
 
 def _follows_limits(c: JointChannel) -> bool:
-    return c.target_range is None or _same(c.target_range, (c.lower, c.upper))
+    return c.target_range is None or same(c.target_range, (c.lower, c.upper))
 
 
 def _model(robot: RobotPlan) -> UrdfModel | None:
@@ -196,7 +205,7 @@ def _model(robot: RobotPlan) -> UrdfModel | None:
         return None
 
 
-def _urdf_changes(report: _Report, subject: str, old: UrdfModel, new: UrdfModel) -> None:
+def _urdf_changes(report: Changes, subject: str, old: UrdfModel, new: UrdfModel) -> None:
     group = "robot"
     report.field(group, subject, "URDF robot name", old.name, new.name)
     report.field(group, subject, "URDF root link", old.root_link, new.root_link)
@@ -208,7 +217,7 @@ def _urdf_changes(report: _Report, subject: str, old: UrdfModel, new: UrdfModel)
             _urdf_joint_changes(report, subject, joint, new_joints[joint.name])
 
 
-def _added_removed(report: _Report, subject: str, what: str, old: list[str], new: list[str]) -> None:
+def _added_removed(report: Changes, subject: str, what: str, old: list[str], new: list[str]) -> None:
     added = [n for n in new if n not in old]
     removed = [n for n in old if n not in new]
     if added:
@@ -217,12 +226,12 @@ def _added_removed(report: _Report, subject: str, what: str, old: list[str], new
         report.add("robot", subject, f"{what} removed: {listing(removed)}", removed, None)
 
 
-def _urdf_joint_changes(report: _Report, subject: str, old: Joint, new: Joint) -> None:
+def _urdf_joint_changes(report: Changes, subject: str, old: Joint, new: Joint) -> None:
     label = f"URDF joint {old.name}"
     report.field("robot", subject, f"{label}: type", old.type, new.type)
     report.field("robot", subject, f"{label}: parent", old.parent, new.parent)
     report.field("robot", subject, f"{label}: child", old.child, new.child)
-    moved = _moved(old.xyz, quaternion_from_rpy(*old.rpy), new.xyz, quaternion_from_rpy(*new.rpy))
+    moved = pose_change(old.xyz, quaternion_from_rpy(*old.rpy), new.xyz, quaternion_from_rpy(*new.rpy))
     if moved is not None:
         report.add("robot", subject, f"{label}: origin {moved}", [*old.xyz, *old.rpy], [*new.xyz, *new.rpy])
     report.field("robot", subject, f"{label}: axis", old.axis, new.axis)
@@ -233,13 +242,13 @@ def _urdf_joint_changes(report: _Report, subject: str, old: Joint, new: Joint) -
     report.field("robot", subject, f"{label}: mimic (joint, multiplier, offset)", old_mimic, new_mimic)
 
 
-def _mesh_changes(report: _Report, subject: str, old: UrdfModel, new: UrdfModel) -> None:
+def _mesh_changes(report: Changes, subject: str, old: UrdfModel, new: UrdfModel) -> None:
     """Meshes of the same link resolved to another file (package_paths changed, say)."""
 
     def by_link(model: UrdfModel, base: Path) -> dict[tuple[str, str], list[PathValue]]:
         meshes: dict[tuple[str, str], list[PathValue]] = {}
         for mesh in model.meshes:
-            meshes.setdefault((mesh.link, mesh.kind), []).append(_path_value(Path(mesh.uri), base))
+            meshes.setdefault((mesh.link, mesh.kind), []).append(path_value(Path(mesh.uri), base))
         return meshes
 
     old_meshes, new_meshes = by_link(old, report.old_base), by_link(new, report.new_base)

@@ -1,4 +1,5 @@
-"""`urdf-pipeline plan`: the plan's report model (report_model.PlanReport), built here, rendered as text, markdown or json.
+"""`urdf-pipeline plan`: the plan's report model (report_model.PlanReport), built here, rendered as text, markdown or
+json (its plain data, report_model.as_data).
 
 The model keeps what every format shows: paths both as planned and relative to the config's folder, order fixed
 (config order where it means something, tree order for edges, names otherwise), so markdown and json are the same
@@ -8,6 +9,7 @@ bytes for the same inputs and golden files pin them. None of it reads joint valu
 
 from __future__ import annotations
 
+import json
 import math
 import os
 from collections.abc import Sequence
@@ -19,12 +21,14 @@ from ...errors import ConfigWarning, collect_warnings, show_warning, shown
 from ...plan import IndexPlan, Plan, RobotPlan, SourcePlan, TrailPlan
 from ...urdf import Joint, UrdfModel, parse_urdf_text
 from ..picture_entries import plan_pictures
-from .report_json import render_json
 from .report_markdown import render_markdown
 from .report_model import (
     JOINT_TYPES,
+    Appearance,
+    Compare,
     EdgeEntry,
     EdgeOrigin,
+    FrameTree,
     JointRow,
     Mimic,
     Observed,
@@ -36,11 +40,14 @@ from .report_model import (
     SegmentEntry,
     SettingValue,
     ShownPath,
+    Slack,
     SourceEntry,
     TemporalValues,
     TrailEntry,
+    UrdfEntry,
     WarningEntry,
     Wrap,
+    as_data,
     number,
     rounded,
 )
@@ -61,7 +68,11 @@ ARROWS = {  # mermaid link per edge origin
     "assumed_identity": "-.->|assumed identity|",
     "temporal": "==>|temporal|",
 }
-RENDERERS = {"text": render_text, "markdown": render_markdown, "json": render_json}
+RENDERERS = {
+    "text": render_text,
+    "markdown": render_markdown,
+    "json": lambda report: json.dumps(as_data(report), indent=2, sort_keys=True) + "\n",  # no absolute path, no time
+}
 
 
 def plan_command(
@@ -99,9 +110,8 @@ def read_plan_sample(plan: Plan, rows: int) -> SampleEntry:
     """check.read_sample on every robot source of the plan (the first segment's), then check's per-joint verdict."""
     from ..check.check_joints import check_plan, read_sample
 
-    matrices = {source.name: read_sample(source, rows) for source in plan.segments[0].sources if plan.robots_for(source.name)}
-    read = tuple(sorted((name, len(matrix)) for name, matrix in matrices.items()))
-    return SampleEntry(rows, read, tuple(check_plan(plan, matrices)))
+    matrices = {source.name: read_sample(source, rows) for source in plan.review_segment.sources if plan.robots_for(source.name)}
+    return SampleEntry(rows, {name: len(matrices[name]) for name in sorted(matrices)}, tuple(check_plan(plan, matrices)))
 
 
 class _Paths:
@@ -146,11 +156,11 @@ def build_report(plan: Plan, warnings: Sequence[ConfigWarning] = (), sample: Sam
     return PlanReport(
         config=paths(plan.config_path),
         root_frame=plan.root_frame,
-        sources=tuple(_source(source, paths) for source in plan.segments[0].sources),
+        sources=tuple(_source(source, paths) for source in plan.review_segment.sources),
         robots=tuple(_robot(plan, robot, models[robot.key], observed) for robot in plan.robots),
         edges=tuple(edges),
         configured_edges=tuple(configured),
-        mermaid=_mermaid(plan.root_frame, edges, frames),
+        frame_tree=FrameTree(plan.root_frame, _mermaid(plan.root_frame, edges, frames)),
         output=_output(plan, paths),
         warnings=_warnings(warnings, paths),
         sample=sample,
@@ -159,13 +169,13 @@ def build_report(plan: Plan, warnings: Sequence[ConfigWarning] = (), sample: Sam
 
 def _source(source: SourcePlan, paths: _Paths) -> SourceEntry:
     file_key = "root" if hasattr(source, "root") else "path"
-    settings: list[tuple[str, SettingValue]] = []
-    for item in fields(source):
+    settings: dict[str, SettingValue] = {}
+    for item in sorted(fields(source), key=lambda item: item.name):
         value = getattr(source, item.name)
         if item.name in ("name", "where", "names", file_key, "remote"):
             continue
         assert value is None or isinstance(value, str | int | bool | IndexPlan), f"{item.name}: {value!r}"
-        settings.append((item.name, value))
+        settings[item.name] = value
     return SourceEntry(
         source.name,
         type(source).__name__.removesuffix("SourcePlan").lower(),
@@ -174,21 +184,20 @@ def _source(source: SourcePlan, paths: _Paths) -> SourceEntry:
         if (remote := getattr(source, "remote", None)) is not None
         else paths(getattr(source, file_key)),
         tuple(source.names),
-        tuple(sorted(settings, key=lambda s: s[0])),
+        settings,
     )
 
 
 def _robot(plan: Plan, robot: RobotPlan, model: UrdfModel, observed: dict[tuple[str, str, str], JointReport]) -> RobotEntry:
     counts = {kind: sum(1 for j in model.joints if j.type == kind) for kind in JOINT_TYPES}
     counts["mimic"] = sum(1 for j in model.joints if j.mimic is not None)
-    source = next((s for s in plan.segments[0].sources if s.name == robot.source), None)
+    source = next((s for s in plan.review_segment.sources if s.name == robot.source), None)
     mapped = {c.source_name for c in robot.channels}
     return RobotEntry(
         key=robot.key,
         robot_name=robot.robot_name,
         urdf_path=robot.urdf_path,
-        urdf_origin=robot.urdf_origin,
-        urdf_sha256=robot.urdf_sha256,
+        urdf=UrdfEntry(robot.urdf_origin, robot.urdf_sha256),
         entity_path_prefix=robot.entity_path_prefix,
         frame_prefix=robot.frame_prefix,
         root_frame=robot.frame_prefix + robot.root_link,
@@ -199,8 +208,8 @@ def _robot(plan: Plan, robot: RobotPlan, model: UrdfModel, observed: dict[tuple[
         joint_counts=counts,
         joints=_joint_rows(robot, model, observed),
         ignored_source_values=tuple(name for name in source.names if name not in mapped) if source is not None else (),
-        appearance=robot.appearance,
-        compare=(robot.compare.robot, robot.compare.written) if robot.compare is not None else None,
+        appearance=Appearance(robot.appearance[:3], robot.appearance[3]) if robot.appearance is not None else None,
+        compare=Compare(robot.compare.robot, robot.compare.written) if robot.compare is not None else None,
     )
 
 
@@ -233,7 +242,7 @@ def _joint_rows(robot: RobotPlan, model: UrdfModel, observed: dict[tuple[str, st
                 target_range=c.target_range,
                 limits_source_units=limits,
                 slack_source_units=c.slack_in_source_unit if limits is not None else None,
-                slack=c.slack_written if limits is not None else None,
+                slack=Slack(*c.slack_written) if limits is not None else None,
                 observed=_observed(report) if report is not None else None,
             )
         )
@@ -355,8 +364,9 @@ def _output(plan: Plan, paths: _Paths) -> OutputEntry:
     return OutputEntry(
         layout=dataset.layout,
         application_id=plan.application_id,
-        recording_id=dataset.segments[0].id,
-        path=paths(dataset.segments[0].output),
+        recording_id=plan.review_segment.output.recording_id,
+        path=paths(plan.review_segment.output.path),
+        segment_count=len(segments),
         segments=segments,
         model=paths(dataset.model) if dataset.model is not None else None,
         manifest=paths(dataset.manifest),

@@ -1,14 +1,39 @@
-"""The joint and edge tables' cells and the output section that Markdown and HTML share: what a cell says is decided once, here; each renderer gives
-its own markup (`Markup`) for names, free text, verdicts and counts."""
+"""The sections Markdown and HTML share (summary, sources, robots, joint and edge tables, output, warnings): what a line or
+a cell says is decided once, here; each renderer gives its own markup (`Markup`) for names, free text, verdicts and
+counts."""
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from .report_model import SERIES_TEXT, EdgeEntry, JointRow, Observed, OutputEntry, SegmentEntry, number, rounded
+from ...plan import IndexPlan
+from .report_model import (
+    JOINT_TYPES,
+    SERIES_TEXT,
+    EdgeEntry,
+    JointRow,
+    Observed,
+    OutputEntry,
+    PlanReport,
+    RobotEntry,
+    SampleEntry,
+    SegmentEntry,
+    SettingValue,
+    SourceEntry,
+    number,
+    rounded,
+)
 
 DASH = "—"
+EDGES_NOTE = (
+    "Every edge of the frame graph, top down from the root. URDF moving joints are shown at their origin (joint value 0); "
+    "the run logs their pose per row."
+)
+SOURCE_HEADER = ["source", "kind", "file", "reads", "values"]
+JOINT_HEADER = ["source name", "URDF joint", "type", "unit", "sign", "offset (URDF units)", "scale / range map"]
+JOINT_HEADER += ["limits (source units)", "mimic driver / hold"]
+EDGE_HEADER = ["parent", "child", "translation (m)", "rotation (rpy deg)", "origin"]
 
 
 @dataclass(frozen=True)
@@ -22,6 +47,94 @@ class Markup:
     bad: Callable[[str], str]  # a verdict to see first
     good: Callable[[str], str]
     count: Callable[[int], str]
+    setting: Callable[[object], str]  # a source setting's value from input (a dataset, a column, a topic)
+    names: Callable[[Sequence[str]], str]  # a list of names from input, as many as this format shows
+
+
+def plural(count: int, word: str, markup: Markup) -> str:
+    return f"{markup.count(count)} {word}{'' if count == 1 else 's'}"
+
+
+def summary(report: PlanReport, markup: Markup) -> str:
+    """Root frame, robots, sources, edges and segments, counted."""
+    edges = report.edges
+    configured = sum(1 for e in edges if not e.origin.kind.startswith("urdf_"))
+    return (
+        f"Root frame {markup.code(report.root_frame)}; {plural(len(report.robots), 'robot', markup)}, "
+        f"{plural(len(report.sources), 'source', markup)}, {plural(len(edges), 'edge', markup)} ({markup.count(configured)} from "
+        f"the config, {markup.count(len(edges) - configured)} URDF joints), {plural(report.output.segment_count, 'segment', markup)}"
+    )
+
+
+def _setting(key: str, value: SettingValue, markup: Markup) -> str:
+    if isinstance(value, IndexPlan):
+        return f"{markup.setting(value.column)} ({markup.text(value.kind)}{', ' + markup.text(value.unit) if value.unit else ''})"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if value is None:
+        return "row_index (generated)" if key == "index" else DASH
+    return markup.setting(value)
+
+
+def source_cells(source: SourceEntry, markup: Markup) -> list[str]:
+    """A source's row: name, kind, file, what it reads (its settings), how many values."""
+    reads = "; ".join(f"{key}: {_setting(key, value, markup)}" for key, value in source.settings.items())
+    return [markup.code(source.name), markup.text(source.kind), markup.path(source.file.relative), reads, markup.count(len(source.names))]
+
+
+def robot_items(robot: RobotEntry, sample: SampleEntry | None, markup: Markup) -> list[str]:
+    """What a robot's section lists before its joint table: its URDF, frames, joints source, ignored values, sample."""
+    counts, prefix = robot.joint_counts, markup.code(robot.frame_prefix) if robot.frame_prefix else "none"
+    items = [
+        f"URDF: {markup.path(robot.urdf.origin)}, sha256 {markup.code(robot.urdf.sha256)}",
+        f"entity path {markup.code(robot.entity_path_prefix)}, frame prefix {prefix}, root frame {markup.code(robot.root_frame)}, "
+        f"collision geometries {'kept' if robot.collision_geometries == 'keep' else 'dropped'}",
+        "URDF joints: "
+        + ", ".join(f"{markup.count(counts[kind])} {kind}" for kind in JOINT_TYPES)
+        + f"; {markup.count(counts['mimic'])} mimic",
+        *([markup.code(robot.copy_text)] if robot.copy_text else []),
+    ]
+    if robot.source is None:
+        return [*items, "a scene: no moving joints, no joint source (static transforms only)"]
+    items.append(
+        f"joints from source {markup.code(robot.source)}; NaN policy {markup.code(str(robot.nan_policy))}; "
+        f"values beyond the slack: {markup.code(str(robot.on_violation))}"
+    )
+    items.append("ignored source values: " + (markup.names(robot.ignored_source_values) if robot.ignored_source_values else "none"))
+    if sample is not None:
+        read = sample.read.get(robot.source, 0)
+        items.append(
+            f"sampled: the first {plural(read, 'row', markup)} of source {markup.code(robot.source)} (at most {markup.count(sample.rows)})"
+        )
+    return items
+
+
+def joint_cells(row: JointRow, markup: Markup, sampled: bool) -> list[str]:
+    """A joint's row: its source value, joint, type, unit, sign, offset, map, limits, driver (and what --sample saw)."""
+    cells = [
+        markup.code(row.source_name) if row.source_name is not None else DASH,
+        markup.code(row.joint),
+        markup.text(row.type),
+        markup.text(row.unit) if row.unit else DASH,
+        number(row.sign) if row.sign is not None else DASH,
+        number(row.offset) if row.offset is not None else DASH,
+        map_cell(row),
+        limits_cell(row, markup),
+        driver_cell(row, markup),
+    ]
+    return [*cells, observed_cell(row.observed, markup)] if sampled else cells
+
+
+def warning_items(report: PlanReport, markup: Markup, message: Callable[[str], str]) -> list[str]:
+    """Each warning where it is (file, line, column, key path) and what it says, `message` as the format bounds it."""
+    items = []
+    for warning in report.warnings:
+        place = warning.file or report.config.relative
+        if warning.line:
+            place += f":{warning.line}" + (f":{warning.column}" if warning.column else "")
+        path = f" {markup.path(warning.path)}" if warning.path else ""
+        items.append(f"{markup.path(place)}{path}: {message(warning.message)}")
+    return items
 
 
 def _numbers(values: Sequence[float]) -> str:

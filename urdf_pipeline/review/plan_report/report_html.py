@@ -6,28 +6,30 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from ...plan import IndexPlan
 from ...web import html_text, relative_href
 from ..markdown_text import PATH_LIMIT
-from .report_cells import Markup, driver_cell, edge_cells, limits_cell, map_cell, observed_cell, output_items, segment_cells
-from .report_model import (
-    JOINT_TYPES,
-    EdgeEntry,
-    JointRow,
-    OutputEntry,
-    PictureEntry,
-    PlanReport,
-    RobotEntry,
-    SampleEntry,
-    SourceEntry,
-    number,
+from .report_cells import (
+    EDGE_HEADER,
+    EDGES_NOTE,
+    JOINT_HEADER,
+    SOURCE_HEADER,
+    Markup,
+    edge_cells,
+    joint_cells,
+    output_items,
+    robot_items,
+    segment_cells,
+    source_cells,
+    summary,
+    warning_items,
 )
+from .report_cells import plural as counted
+from .report_model import EdgeEntry, OutputEntry, PictureEntry, PlanReport, RobotEntry, SampleEntry
 
 HTML_SEGMENTS = 500  # segment rows on the page; json lists them all
 HTML_NAMES = 100  # names in one list (ignored source values)
 PICTURES_PER_ROW = 2  # side by side on the page, each a link to its full size
 TREE_DEPTH = 40  # indentation levels of the frame tree; deeper frames say their depth
-DASH = "—"
 NO_PICTURES = (
     "No pictures in this site: run the command with <code>--render DIR</code> as well, and the Rerun viewer draws them "
     "(headless; it needs a Vulkan driver, e.g. <code>apt-get install mesa-vulkan-drivers</code>)."
@@ -58,6 +60,11 @@ def code(value: object, limit: int = PATH_LIMIT) -> str:
     return f"<code>{html_text(value, limit)}</code>"
 
 
+def _names(names: Sequence[str]) -> str:
+    more = f" and {len(names) - HTML_NAMES:,} more" if len(names) > HTML_NAMES else ""
+    return ", ".join(code(name) for name in names[:HTML_NAMES]) + more
+
+
 MARKUP = Markup(
     code=code,
     path=code,
@@ -66,6 +73,8 @@ MARKUP = Markup(
     bad=lambda word: f'<strong class="bad">{word}</strong>',
     good=lambda word: f'<span class="good">{word}</span>',
     count=lambda rows: f"{rows:,}",
+    setting=code,
+    names=_names,
 )
 
 
@@ -80,7 +89,7 @@ def table(header: Sequence[str], rows: Sequence[Sequence[str]], numbers: Sequenc
 
 
 def plural(count: int, word: str) -> str:
-    return f"{count:,} {word}{'' if count == 1 else 's'}"
+    return counted(count, word, MARKUP)
 
 
 def pictures_html(pictures: Sequence[PictureEntry], at: str, note: str) -> str:
@@ -98,77 +107,16 @@ def pictures_html(pictures: Sequence[PictureEntry], at: str, note: str) -> str:
     return f'<p class="muted">{note} Click one for its full size.</p>\n<table class="pictures">\n' + "\n".join(rows) + "\n</table>"
 
 
-def _setting(key: str, value: object) -> str:
-    if isinstance(value, IndexPlan):
-        return f"{code(value.column)} ({text(value.kind)}{', ' + text(value.unit) if value.unit else ''})"
-    if isinstance(value, bool):
-        return "yes" if value else "no"
-    if value is None:
-        return "row_index (generated)" if key == "index" else DASH
-    return code(value)
-
-
-def _sources(sources: Sequence[SourceEntry], many_segments: bool) -> list[str]:
-    rows = [
-        [
-            code(s.name),
-            text(s.kind),
-            code(s.file.relative),
-            "; ".join(f"{text(key)}: {_setting(key, value)}" for key, value in s.settings),
-            f"{len(s.names):,}",
-        ]
-        for s in sources
-    ]
-    heading = "Sources" + (" (the first segment's)" if many_segments else "")
-    return [f'<h2 id="sources">{heading}</h2>', table(["source", "kind", "file", "reads", "values"], rows, numbers=(4,))]
-
-
-def _names(names: Sequence[str]) -> str:
-    more = f" and {len(names) - HTML_NAMES:,} more" if len(names) > HTML_NAMES else ""
-    return ", ".join(code(name) for name in names[:HTML_NAMES]) + more
-
-
-def _joint_cells(row: JointRow, sample: SampleEntry | None) -> list[str]:
-    cells = [
-        code(row.source_name) if row.source_name is not None else DASH,
-        code(row.joint),
-        text(row.type),
-        text(row.unit) if row.unit else DASH,
-        number(row.sign) if row.sign is not None else DASH,
-        number(row.offset) if row.offset is not None else DASH,
-        map_cell(row),
-        limits_cell(row, MARKUP),
-        driver_cell(row, MARKUP),
-    ]
-    return [*cells, observed_cell(row.observed, MARKUP)] if sample is not None else cells
-
-
 def _robot(robot: RobotEntry, sample: SampleEntry | None) -> list[str]:
-    counts = robot.joint_counts
-    prefix = code(robot.frame_prefix) if robot.frame_prefix else "none"
     items = [
-        f"URDF {code(robot.urdf_origin)}, sha256 {code(robot.urdf_sha256)}",
-        f"entity path {code(robot.entity_path_prefix)}, frame prefix {prefix}, root frame {code(robot.root_frame)}, "
-        f"collision geometries {'kept' if robot.collision_geometries == 'keep' else 'dropped'}",
-        "URDF joints: " + ", ".join(f"{counts[kind]:,} {kind}" for kind in JOINT_TYPES) + f"; {counts['mimic']:,} mimic",
-        *([code(robot.copy_text)] if robot.copy_text else []),
+        f"<h3>Robot {code(robot.key)}: URDF {code(robot.robot_name)}</h3>",
+        "<ul>",
+        *(f"<li>{i}</li>" for i in robot_items(robot, sample, MARKUP)),
     ]
-    lines = [f"<h3>Robot {code(robot.key)}: URDF {code(robot.robot_name)}</h3>"]
     if robot.source is None:
-        items.append("a scene: no moving joints, no joint source (static transforms only)")
-        return [*lines, "<ul>", *(f"<li>{item}</li>" for item in items), "</ul>"]
-    items.append(
-        f"joints from source {code(robot.source)}; NaN policy {code(str(robot.nan_policy))}; "
-        f"values beyond the slack: {code(str(robot.on_violation))}"
-    )
-    items.append("ignored source values: " + (_names(robot.ignored_source_values) if robot.ignored_source_values else "none"))
-    if sample is not None:
-        read = sample.rows_read(robot.source)
-        items.append(f"sampled: the first {plural(read, 'row')} of source {code(robot.source)} (at most {sample.rows:,})")
-    header = ["source name", "URDF joint", "type", "unit", "sign", "offset (URDF units)", "scale / range map"]
-    header += ["limits (source units)", "mimic driver / hold", *(["observed (source units)"] if sample is not None else [])]
-    rows = [_joint_cells(row, sample) for row in robot.joints]
-    return [*lines, "<ul>", *(f"<li>{item}</li>" for item in items), "</ul>", table(header, rows)]
+        return [*items, "</ul>"]
+    header = [*JOINT_HEADER, *(["observed (source units)"] if sample is not None else [])]
+    return [*items, "</ul>", table(header, [joint_cells(row, MARKUP, sample is not None) for row in robot.joints])]
 
 
 def frame_tree(root: str, edges: Sequence[EdgeEntry]) -> str:
@@ -195,46 +143,33 @@ def _output(output: OutputEntry) -> list[str]:
 
 
 def _warnings(report: PlanReport) -> list[str]:
-    if not report.warnings:
-        return ['<h2 id="warnings">Warnings</h2>', "<p>None.</p>"]
-    items = []
-    for warning in report.warnings:
-        place = warning.file or report.config.relative
-        if warning.line:
-            place += f":{warning.line}" + (f":{warning.column}" if warning.column else "")
-        path = f" {code(warning.path)}" if warning.path else ""
-        items.append(f"<li>{code(place)}{path}: {text(warning.message)}</li>")
-    return ['<h2 id="warnings">Warnings</h2>', "<ul>", *items, "</ul>"]
+    items = [f"<li>{item}</li>" for item in warning_items(report, MARKUP, text)]
+    return ['<h2 id="warnings">Warnings</h2>', *(["<ul>", *items, "</ul>"] if items else ["<p>None.</p>"])]
 
 
 def render_html(report: PlanReport, at: str = "index.html", viewer_html: str = "") -> str:
     """The report as the body of the page at site path `at`; `viewer_html` (the caller's: the rest pose in the site's
     viewer) goes after the summary."""
-    edges, robots = report.edges, report.robots
-    configured = sum(1 for e in edges if not e.origin.kind.startswith("urdf_"))
-    segments = report.output.segment_count
     lines = [
         f"<h1>Plan of {code(report.config.relative)}</h1>",
-        f"<p>Root frame {code(report.root_frame)}; {plural(len(robots), 'robot')}, {plural(len(report.sources), 'source')}, "
-        f"{plural(len(edges), 'edge')} ({configured:,} from the config, {len(edges) - configured:,} URDF joints), "
-        f"{plural(segments, 'segment')}; {plural(len(report.warnings), 'warning')}.</p>",
+        f"<p>{summary(report, MARKUP)}; {plural(len(report.warnings), 'warning')}.</p>",
         viewer_html,
         '<h2 id="pictures">Pictures</h2>',
         pictures_html(report.pictures, at, "The rest pose, drawn by the Rerun viewer."),
-        *_sources(report.sources_by_name, segments > 1),
+        '<h2 id="sources">Sources' + (" (the first segment's)" if report.output.segment_count > 1 else "") + "</h2>",
+        table(SOURCE_HEADER, [source_cells(s, MARKUP) for s in report.sources_by_name], numbers=(4,)),
         '<h2 id="robots">Robots</h2>',
     ]
-    if any(robot.joints for robot in robots):
+    if any(robot.joints for robot in report.robots):
         lines.append(f'<p class="muted">{ORDER_NOTE}</p>')
-    for robot in robots:
+    for robot in report.robots:
         lines += _robot(robot, report.sample)
     lines += [
         '<h2 id="edges">Edges</h2>',
-        "<p>Every edge of the frame graph, top down from the root. URDF moving joints are shown at their origin (joint "
-        "value 0); the run logs their pose per row.</p>",
-        table(["parent", "child", "translation (m)", "rotation (rpy deg)", "origin"], [edge_cells(e, MARKUP, text) for e in edges]),
+        f"<p>{EDGES_NOTE}</p>",
+        table(EDGE_HEADER, [edge_cells(e, MARKUP, text) for e in report.edges]),
         '<h2 id="tree">Frame tree</h2>',
-        frame_tree(report.root_frame, edges),
+        frame_tree(report.root_frame, report.edges),
         *_output(report.output),
         *_warnings(report),
     ]

@@ -109,13 +109,13 @@ def _output_lines(output: OutputEntry) -> list[str]:
 def _sample_text(sample: SampleEntry) -> str:
     from ..check.check_joints import as_text  # check's own rendering of its verdicts (imports numpy: only with --sample)
 
-    read = ", ".join(f"{name}: {rows}" for name, rows in sample.read)
+    read = ", ".join(f"{name}: {rows}" for name, rows in sample.read.items())
     return f"sample (at most {sample.rows} rows of each source; read {read}):\n" + as_text(sample.reports)
 
 
 # fields the text form does not print (all edges, the mermaid tree, warnings, a source's names: it counts them) or
 # that check renders (the sample): left as they are
-_KEPT = frozenset({"edges", "mermaid", "warnings", "names", "sample"})
+_KEPT = frozenset({"edges", "frame_tree", "warnings", "names", "sample"})
 
 
 def _one_line(value: Any) -> Any:
