@@ -32,8 +32,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..child_process import die_with_parent, stop_session
 from ..errors import UserError
+from ..process import die_with_parent, stop_session
 from .camera import Camera
 from .frames import Timeline
 

@@ -15,8 +15,8 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-from ..child_process import die_with_parent, stop_session
 from ..errors import UserError
+from ..process import die_with_parent, stop_session
 
 STARTUP_SECONDS = 30.0
 HOSTING = re.compile(r"Hosting a web-viewer at http://127\.0\.0\.1:(\d+)")

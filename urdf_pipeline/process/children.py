@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any, Literal
 
-from .errors import UserError, Where, shown
+from ..errors import UserError, Where, shown
 
 
 def die_with_parent(sent: int = signal.SIGTERM) -> Callable[[], None] | None:
@@ -132,7 +132,7 @@ def sandboxed_python(module: str, *needs: str) -> list[str]:
     """The command of an isolated Python child (`-I -S`: no user site, no .pth files, no PYTHON* variables) running
     `module`'s main(), importing urdf_pipeline and the packages `needs` from where this process finds them (it has no
     site-packages). ImportError naming the first of `needs` that is not installed."""
-    folders = [str(Path(__file__).resolve().parents[1])]  # the folder holding the urdf_pipeline package
+    folders = [str(Path(__file__).resolve().parents[2])]  # the folder holding the urdf_pipeline package
     for name in needs:
         spec = importlib.util.find_spec(name)
         if spec is None or not spec.submodule_search_locations:

@@ -1,0 +1,25 @@
+"""What concerns the whole process, for every stage: the child processes the tool starts (`children.py`).
+
+The names below are the package's public surface; other packages import them from here, never from its modules.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from ..package import lazy_surface
+
+if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
+    from .children import (
+        ChildOutcome,
+        bound_from_environment,
+        die_with_parent,
+        limit_this_process,
+        passed_environment,
+        run_bounded_child,
+        sandboxed_python,
+        stop_session,
+    )
+
+if not TYPE_CHECKING:  # the names above, imported when first used
+    __all__, __getattr__ = lazy_surface(__name__, __file__)
