@@ -1,4 +1,5 @@
-"""What concerns the whole process, for every stage: the child processes the tool starts (`children.py`).
+"""What concerns the whole process, for every stage: Ctrl-C and SIGTERM (`signals.py`), the child processes the tool
+starts (`children.py`).
 
 The names below are the package's public surface; other packages import them from here, never from its modules.
 """
@@ -20,6 +21,7 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
         sandboxed_python,
         stop_session,
     )
+    from .signals import Stopped, deferred_signals, held_off, ignore_stop_signals, signal_name, sigterm_kept, stop_signal
 
 if not TYPE_CHECKING:  # the names above, imported when first used
     __all__, __getattr__ = lazy_surface(__name__, __file__)

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import IO, Any, Literal
 
 from ..errors import UserError, Where, shown
+from .signals import held_off
 
 
 def die_with_parent(sent: int = signal.SIGTERM) -> Callable[[], None] | None:
@@ -44,8 +45,7 @@ def die_with_parent(sent: int = signal.SIGTERM) -> Callable[[], None] | None:
 def stop_session(process: subprocess.Popen[bytes]) -> None:
     """SIGTERM to the child's session, SIGKILL after 5 s, with Ctrl-C and SIGTERM held off meanwhile (a second Ctrl-C
     must not leave the child running)."""
-    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
-    try:
+    with held_off():
         for sent in (signal.SIGTERM, signal.SIGKILL):
             if process.poll() is not None:
                 return
@@ -55,8 +55,6 @@ def stop_session(process: subprocess.Popen[bytes]) -> None:
                 return
             with contextlib.suppress(subprocess.TimeoutExpired):
                 process.wait(5.0)
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
 
 
 def limit_this_process(limits: Mapping[str, int], threads: bool = False) -> None:
@@ -186,8 +184,7 @@ def run_bounded_child(
             if timed_out:
                 break
     finally:
-        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})  # a second Ctrl-C waits
-        try:
+        with held_off():  # a second Ctrl-C waits
             with contextlib.suppress(ProcessLookupError, PermissionError):
                 os.killpg(child.pid, signal.SIGKILL)  # the whole group, even once the child itself has ended
             child.wait()
@@ -195,8 +192,6 @@ def run_bounded_child(
                 reader.join(timeout=5)
             child.stdout.close()
             child.stderr.close()
-        finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
     return output.outcome(child.returncode, timed_out)
 
 

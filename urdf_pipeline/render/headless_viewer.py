@@ -19,7 +19,6 @@ import atexit
 import io
 import os
 import shutil
-import signal
 import socket
 import subprocess
 import sys
@@ -33,7 +32,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import UserError
-from ..process import die_with_parent, stop_session
+from ..process import die_with_parent, held_off, stop_session
 from .camera import Camera
 from .frames import Timeline
 
@@ -51,7 +50,6 @@ NOTIFICATIONS_WIDTH = 360  # the notifications ("toasts") are at most 330 points
 STARTUP_SECONDS = 30.0
 ARRIVAL_SECONDS = 60.0
 SETTLE_ATTEMPTS = 6
-_CAN_MASK = hasattr(signal, "pthread_sigmask")
 
 
 @dataclass(frozen=True)
@@ -259,8 +257,7 @@ class HeadlessViewer:
     def close(self) -> None:
         """End the viewer (SIGTERM to its session, SIGKILL after 5 s) with Ctrl-C and SIGTERM held off meanwhile."""
         process, self._process = self._process, None
-        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM}) if _CAN_MASK else None
-        try:
+        with held_off():
             shown, self._shown = list(self._shown.values()), {}
             try:
                 for recording in shown:
@@ -269,9 +266,6 @@ class HeadlessViewer:
                 if process is not None:
                     stop_session(process)
                 shutil.rmtree(self._folder, ignore_errors=True)
-        finally:
-            if blocked is not None:
-                signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
         atexit.unregister(self.close)
 
 
