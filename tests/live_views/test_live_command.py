@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import yaml
 
-from urdf_pipeline.execute import viewer_binary
+from urdf_pipeline.process import viewer_binary
 
 from ..execute.test_fk_against_pinocchio import check_robot
 from ..local_processes import free_port, stop

@@ -14,8 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..errors import ExitCode, UserError, neutral_line, neutral_text, shown
-from ..process import Stopped
-from .viewer_target import require_viewer, spawn_viewer
+from ..process import Stopped, require_viewer, spawn_viewer
 
 if TYPE_CHECKING:
     from ..dataset import DatasetRun

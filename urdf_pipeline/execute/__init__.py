@@ -22,7 +22,7 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
     from .segment import Parts, RunResult, execute, log_segment
     from .segment_run import CONTENT_METADATA, SegmentJob, SegmentResult, install_run_plan, run_segment
     from .temporal_stream import TemporalEdgeStats, TemporalEdgeValues, check_temporal_edges
-    from .viewer_delivery import send_to_viewer, viewer_binary
+    from .viewer_delivery import send_to_viewer
     from .writer import (
         folders_removed_if_left_empty,
         foreign_reason,

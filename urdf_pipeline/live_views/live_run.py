@@ -275,4 +275,4 @@ def _times(samples: list[JointStateSample], stamp: str, view: LiveView) -> np.nd
 
 
 def _recording(plan: LivePlan, viewer_url: str | None, partial: Path | None) -> RecordingStream:
-    return live_recording(plan.application_id, False, viewer_url, partial)
+    return live_recording(plan.application_id, partial, viewer_url)

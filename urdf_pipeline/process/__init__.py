@@ -1,5 +1,5 @@
 """What concerns the whole process, for every stage: Ctrl-C and SIGTERM (`signals.py`), the child processes the tool
-starts (`children.py`).
+starts (`children.py`), the Rerun viewer's (`rerun_viewer.py`).
 
 The names below are the package's public surface; other packages import them from here, never from its modules.
 """
@@ -12,6 +12,7 @@ from ..package import lazy_surface
 
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
     from .children import (
+        ANSI_ESCAPE,
         ChildOutcome,
         bound_from_environment,
         die_with_parent,
@@ -21,6 +22,7 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
         sandboxed_python,
         stop_session,
     )
+    from .rerun_viewer import require_viewer, spawn_viewer, viewer_binary, viewer_url
     from .signals import Stopped, deferred_signals, held_off, ignore_stop_signals, signal_name, sigterm_kept, stop_signal
 
 if not TYPE_CHECKING:  # the names above, imported when first used

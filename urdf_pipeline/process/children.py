@@ -92,7 +92,7 @@ def bound_from_environment(name: str, default: float, where: Where | None = None
     return value
 
 
-ANSI = re.compile(r"\x1b\[[0-9;]*m")
+ANSI_ESCAPE = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")  # colours and cursor moves in a native program's lines
 OUT_OF_MEMORY = re.compile(
     r"MemoryError|memory allocation of|unable to allocate|out of memory|bad_alloc|cannot allocate|failed to map segment", re.IGNORECASE
 )
@@ -219,7 +219,7 @@ class _Output:
         for raw in iter(lambda: stream.readline(1 << 13), b""):
             if len(self.head) <= self.stderr_bytes:
                 self.head.extend(raw[: self.stderr_bytes + 1 - len(self.head)])
-            line = ANSI.sub("", raw.decode("utf-8", "replace")).strip()[:500]
+            line = ANSI_ESCAPE.sub("", raw.decode("utf-8", "replace")).strip()[:500]
             if self.stop_on is not None and self.matched is None and self.stop_on.search(line):
                 self.matched = line
                 self.stop.set()

@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import UserError
-from ..process import die_with_parent, held_off, stop_session
+from ..process import die_with_parent, held_off, stop_session, viewer_binary, viewer_url
 from .camera import Camera
 from .frames import Timeline
 
@@ -117,7 +117,7 @@ class HeadlessViewer:
         deadline = time.monotonic() + STARTUP_SECONDS
         while True:
             try:
-                client = ViewerClient.connect(f"rerun+http://127.0.0.1:{port}/proxy")  # connects at once: retried
+                client = ViewerClient.connect(viewer_url(port))  # connects at once: retried
                 client.get_state()
                 return client
             except (ConnectionError, RuntimeError, TimeoutError, OSError):
@@ -286,9 +286,7 @@ def _escaped(application_id: str) -> str:
 
 
 def _binary() -> str:
-    """The viewer that ships in rerun-sdk (execute.viewer_binary: the one `run --spawn` starts too)."""
-    from ..execute import viewer_binary
-
+    """The viewer that ships in rerun-sdk (the one `run --spawn` starts too)."""
     found = viewer_binary()
     if found is None:
         raise UserError("cannot draw pictures: the Rerun viewer is not installed (pip install 'rerun-sdk==0.41.*')")

@@ -16,16 +16,14 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from ..errors import UserError
-from ..process import die_with_parent, stop_session
+from ..process import die_with_parent, stop_session, viewer_binary
 
 STARTUP_SECONDS = 30.0
 HOSTING = re.compile(r"Hosting a web-viewer at http://127\.0\.0\.1:(\d+)")
 
 
 def rerun_binary(wanted: str) -> str:
-    """The viewer binary of rerun-sdk (`execute.viewer_binary`), checked to be release `wanted` (`rerun --version`)."""
-    from ..execute import viewer_binary
-
+    """The viewer binary of rerun-sdk (`process.viewer_binary`), checked to be release `wanted` (`rerun --version`)."""
     binary = viewer_binary()
     if binary is None:
         raise UserError(f"the web viewer comes from rerun-sdk's rerun binary, which is missing; reinstall rerun-sdk=={wanted}")

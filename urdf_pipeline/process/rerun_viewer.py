@@ -1,5 +1,6 @@
-"""Where `run --connect URL` / `run --spawn` send the recordings, settled before any work: the URL's form, a viewer
-listening there (a TCP connect of a few seconds at most), or a viewer process started and seen to stay up.
+"""The Rerun viewer as a process, for `run`, `live` and `urdf_pipeline.live`: its binary, its address on this machine,
+a `--connect URL` checked (its form, a viewer listening there: a TCP connect of a few seconds at most), or a viewer
+started (`--spawn`, one way for all) and seen to stay up, settled before any work.
 
 Without these checks Rerun's client would be handed an unreachable address after the run: it retries for 7 s, logs
 two ERROR lines of its own, and waits 5 s more at shutdown. A viewer that cannot start (no screen here) exits within
@@ -8,7 +9,9 @@ milliseconds of opening its port, so a started viewer counts as up only once it 
 
 from __future__ import annotations
 
+import importlib.util
 import os
+import shutil
 import socket
 import subprocess
 import sys
@@ -19,7 +22,7 @@ from typing import IO
 from urllib.parse import urlsplit
 
 from ..errors import UserError, Where, shown
-from .stderr_relay import ANSI_ESCAPE
+from .children import ANSI_ESCAPE
 
 EXPECTED_FORM = "rerun+http://HOST:PORT/proxy"
 DEFAULT_PORT = 9876  # where a viewer started with plain `rerun` listens, and where --spawn starts one
@@ -33,9 +36,27 @@ CONNECT_OPTION = Where(Path("--connect"), 0)
 SPAWN_OPTION = Where(Path("--spawn"), 0)
 
 
+def viewer_url(port: int | None = None) -> str:
+    """The address of a viewer on this machine at `port` (default `DEFAULT_PORT`)."""
+    return f"rerun+http://127.0.0.1:{DEFAULT_PORT if port is None else port}/proxy"
+
+
+def viewer_binary() -> str | None:
+    """The viewer that ships in rerun-sdk (rerun_cli's binary: the release of the SDK that sends, not the Python shim
+    that would start it), else a `rerun` beside this Python, else one on PATH; None when there is none."""
+    executable = "rerun.exe" if sys.platform.startswith("win") else "rerun"
+    spec = importlib.util.find_spec("rerun_cli")
+    candidates = [Path(spec.origin).parent / executable] if spec is not None and spec.origin else []
+    candidates.append(Path(sys.executable).parent / executable)
+    for candidate in candidates:
+        if candidate.is_file() and os.access(candidate, os.X_OK):
+            return str(candidate)
+    return shutil.which(executable)
+
+
 def viewer_address(url: str) -> tuple[str, int]:
     """(host, port) of a viewer URL of the form Rerun's client takes; a located error naming the form otherwise."""
-    wrong = f"{shown(url)} is not a viewer address; expected {EXPECTED_FORM} (a viewer started with `rerun` listens at rerun+http://127.0.0.1:{DEFAULT_PORT}/proxy)"
+    wrong = f"{shown(url)} is not a viewer address; expected {EXPECTED_FORM} (a viewer started with `rerun` listens at {viewer_url()})"
     try:
         parts = urlsplit(url)
         port = parts.port
@@ -74,11 +95,11 @@ def _no_screen() -> bool:
 
 
 def spawn_viewer(port: int | None = None) -> str:
-    """`--spawn`: the URL of a viewer on this machine, one started now (detached: it stays when the run ends) unless one
-    already listens on `port` (default `DEFAULT_PORT`). A viewer that cannot start is a user error with its own reason,
-    in a few seconds."""
+    """`--spawn` (and `urdf_pipeline.live`'s spawn): the URL of a viewer on this machine, one started now (detached: it
+    stays when the command ends) unless one already listens on `port` (default `DEFAULT_PORT`). A viewer that cannot
+    start is a user error with its own reason, in a few seconds; no screen here, at once."""
     port = DEFAULT_PORT if port is None else port
-    url = f"rerun+http://127.0.0.1:{port}/proxy"
+    url = viewer_url(port)
     if _listening("127.0.0.1", port, CONNECT_SECONDS) is None:
         return url  # a viewer already listening there is reused, as Rerun's own spawn does
     if _no_screen():
@@ -87,8 +108,6 @@ def spawn_viewer(port: int | None = None) -> str:
             "there is one and send to it with --connect URL, or run without --spawn and open the written .rrd files there",
             SPAWN_OPTION,
         )
-    from ..execute import viewer_binary  # here: execute's modules are not what validate or plan import
-
     executable = viewer_binary()
     if executable is None:
         raise UserError("cannot start the Rerun viewer: no `rerun` executable (pip install rerun-sdk)", SPAWN_OPTION)
