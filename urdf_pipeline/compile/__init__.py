@@ -26,7 +26,6 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
         reaches,
         unit_fits,
         unit_hint,
-        units_that_fit,
     )
 
 if not TYPE_CHECKING:  # the names above, imported when first used

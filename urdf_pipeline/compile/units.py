@@ -192,8 +192,7 @@ def path_key(angular: bool) -> str:
 UNIT_NAMES = {"rad": "radians", "deg": "degrees", "m": "metres", "cm": "centimetres", "mm": "millimetres"}
 
 
-# The one unit advisor: "in which unit would these values fit?", for run's refusal (`unit_hint`), check's candidates
-# and advice, and init's choice of unit, so that none of them can answer it otherwise.
+# The one unit advisor ("in which unit would these values fit?") of run's refusal, check's advice and init's choice.
 
 
 def corrected(channel: JointChannel, raw: np.ndarray, unit: str, sign: float, wrap: bool, offset: float) -> np.ndarray:

@@ -1,14 +1,12 @@
-"""Ctrl-C and SIGTERM, for the whole process: the one place every stage takes them from.
+"""Ctrl-C and SIGTERM for the whole process, the one place every stage takes them from.
 
-SIGTERM (CI cancellation, `timeout`, `kill`) stops a command as Ctrl-C does, as a KeyboardInterrupt (`Stopped`) in
-the main thread: Python's default ends the process at once, leaving workers, partial files and temporary folders
-behind. The exit point turns either into `errors.ExitCode.for_signal` (130, 143), whichever command.
-
-Python raises a handler's exception wherever the main thread is, also inside a lock wait, and some waits are then left
-broken: concurrent.futures' `wait`, `submit` and `Future.result` may leave a lock held (the interpreter then hangs at
-exit joining the pool's manager thread); `Thread.start` raises while the thread it started runs on; and on Python 3.11
-an interrupted `Thread.join` marks the thread stopped while it still runs (CPython gh-90882). So such waits run inside
-`deferred_signals`, and cleanup that a second Ctrl-C must not cut short inside `held_off`.
+SIGTERM (CI cancellation, `timeout`, `kill`) stops a command as Ctrl-C does, as a KeyboardInterrupt (`Stopped`):
+Python's default ends the process at once, leaving workers, partial files and temporary folders behind. The exit
+point turns either into `errors.ExitCode.for_signal` (130, 143). Python raises a handler's exception wherever the main
+thread is, also inside a lock wait, and some waits are then left broken: concurrent.futures' `wait`, `submit` and
+`Future.result` may leave a lock held (the interpreter hangs at exit), `Thread.start` raises while its thread runs on,
+and on Python 3.11 an interrupted `Thread.join` marks a running thread stopped (CPython gh-90882). So such waits run
+inside `deferred_signals`, and cleanup that a second Ctrl-C must not cut short inside `held_off`.
 """
 
 from __future__ import annotations
@@ -24,7 +22,7 @@ STOPPING = (signal.SIGINT, signal.SIGTERM)
 
 
 class Stopped(KeyboardInterrupt):
-    """A command stopped by a signal: SIGINT (Ctrl-C) or SIGTERM (raised in the main thread by `sigterm_stops`, or by
+    """A command stopped by a signal: SIGINT (Ctrl-C) or SIGTERM (raised in the main thread by `sigterm_kept`, or by
     a command that ended its own work on the signal, such as `live`). `said`: the command has said its own last line,
     so the exit point adds none."""
 
@@ -67,11 +65,9 @@ def sigterm_kept(stops: bool = False) -> Iterator[None]:
 @contextmanager
 def deferred_signals() -> Iterator[list[int]]:
     """SIGINT and SIGTERM that arrive inside the block are recorded (in the list it yields) and delivered to their own
-    handlers when it ends, so the KeyboardInterrupt is raised in our code, never inside a library holding a lock.
-
-    A signal this process ignores stays ignored (a pool worker ignores both: the main process stops it), and one whose
-    handler was set outside Python is left alone (it cannot be given back). Outside the main thread (where no handler
-    runs) this does nothing."""
+    handlers when it ends, so the KeyboardInterrupt is raised in our code, never inside a library holding a lock. A
+    signal ignored stays ignored, one whose handler was set outside Python is left alone (it cannot be given back);
+    outside the main thread (where no handler runs) this does nothing."""
     if threading.current_thread() is not threading.main_thread():
         yield []
         return
