@@ -17,12 +17,13 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import IO
 from urllib.parse import urlsplit
 
 from ..errors import UserError, Where, shown
-from .children import ANSI_ESCAPE
+from .children import ANSI_ESCAPE, die_with_parent
 
 EXPECTED_FORM = "rerun+http://HOST:PORT/proxy"
 DEFAULT_PORT = 9876  # where a viewer started with plain `rerun` listens, and where --spawn starts one
@@ -112,19 +113,24 @@ def spawn_viewer(port: int | None = None) -> str:
     if executable is None:
         raise UserError("cannot start the Rerun viewer: no `rerun` executable (pip install rerun-sdk)", SPAWN_OPTION)
     with tempfile.TemporaryFile() as log:  # unlinked already: the detached viewer's log leaves no file behind
-        try:
-            process = subprocess.Popen(
-                [executable, "--port", str(port), "--memory-limit", "75%", "--expect-data-soon"],
-                stdin=subprocess.DEVNULL,
-                stdout=subprocess.DEVNULL,
-                stderr=log,
-                env={**os.environ, "RERUN_APP_ONLY": "true"},
-                start_new_session=True,  # not stopped by a Ctrl-C of the run: the viewer is the user's now
-            )
+        try:  # detached: the viewer is the user's now
+            process = start_viewer(executable, ["--port", str(port), "--memory-limit", "75%", "--expect-data-soon"], log, detached=True)
         except OSError as error:
             raise UserError(f"cannot start the Rerun viewer {shown(executable)}: {error.strerror or error}", SPAWN_OPTION) from None
         _wait_until_up(process, port, log)
     return url
+
+
+def start_viewer(
+    executable: str, args: Sequence[str], log: IO[bytes], cwd: Path | None = None, env: Mapping[str, str] = {}, detached: bool = False
+) -> subprocess.Popen[bytes]:
+    """The viewer binary with `args`, in a session of its own (Ctrl-C in the terminal reaches us, not it), its output in
+    `log`, without Rerun's first-run prompt; dying with this process unless `detached`."""
+    environment = {**os.environ, "RERUN_APP_ONLY": "true", **env}
+    return subprocess.Popen(
+        [executable, *args], stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT, cwd=cwd, env=environment,
+        start_new_session=True, preexec_fn=None if detached else die_with_parent(),
+    )  # fmt: skip
 
 
 def _wait_until_up(process: subprocess.Popen[bytes], port: int, log: IO[bytes]) -> None:

@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import UserError
-from ..process import die_with_parent, held_off, stop_session, viewer_binary, viewer_url
+from ..process import held_off, start_viewer, stop_session, viewer_binary, viewer_url
 from .camera import Camera
 from .frames import Timeline
 
@@ -302,23 +302,12 @@ def _free_port() -> int:
 
 def _start(folder: Path, log_path: Path, size: Size, port: int) -> subprocess.Popen[bytes]:
     window = f"{size.width + NOTIFICATIONS_WIDTH + CHROME[0]}x{size.height + CHROME[1]}"
-    args = [_binary(), "--headless", "--hide-welcome-screen", "--port", str(port), "--bind", "127.0.0.1", "--window-size", window]
+    args = ["--headless", "--hide-welcome-screen", "--port", str(port), "--bind", "127.0.0.1", "--window-size", window]
     if sys.platform != "darwin":
         args += ["--renderer", "vulkan"]  # the default falls back to GL on a software rasterizer, which panics
-    environment = {**os.environ, "RERUN_APP_ONLY": "true"}  # as rerun's own spawn: no analytics prompt
-    if not environment.get("XDG_RUNTIME_DIR"):
-        environment["XDG_RUNTIME_DIR"] = str(folder)
+    runtime = {} if os.environ.get("XDG_RUNTIME_DIR") else {"XDG_RUNTIME_DIR": str(folder)}
     with open(log_path, "wb") as log:
-        return subprocess.Popen(
-            args,
-            stdin=subprocess.DEVNULL,
-            stdout=log,
-            stderr=subprocess.STDOUT,
-            cwd=folder,
-            env=environment,
-            start_new_session=True,
-            preexec_fn=die_with_parent(),
-        )
+        return start_viewer(_binary(), args, log, folder, runtime)
 
 
 def _cropped(png: bytes, size: Size) -> bytes:

@@ -16,7 +16,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from ..errors import UserError
-from ..process import die_with_parent, stop_session, viewer_binary
+from ..process import start_viewer, stop_session, viewer_binary
 
 STARTUP_SECONDS = 30.0
 HOSTING = re.compile(r"Hosting a web-viewer at http://127\.0\.0\.1:(\d+)")
@@ -48,18 +48,9 @@ def _environment() -> dict[str, str]:
 def serving_web_viewer(binary: str, folder: Path) -> Iterator[int]:
     """`rerun --serve-web` on 127.0.0.1 for the duration of the block; yields the web viewer's HTTP port."""
     log_path = folder / "rerun.log"
-    args = [binary, "--serve-web", "--bind", "127.0.0.1", "--web-viewer-port", "0", "--port", "0"]
+    args = ["--serve-web", "--bind", "127.0.0.1", "--web-viewer-port", "0", "--port", "0"]
     with open(log_path, "wb") as log:
-        process = subprocess.Popen(
-            args,
-            stdin=subprocess.DEVNULL,
-            stdout=log,
-            stderr=subprocess.STDOUT,
-            cwd=folder,
-            env=_environment(),
-            start_new_session=True,
-            preexec_fn=die_with_parent(),
-        )
+        process = start_viewer(binary, args, log, folder, _environment())
     try:
         yield _announced_port(process, log_path)
     finally:
