@@ -99,10 +99,10 @@ def live(
 
     `recording`: yours; else a new one that `spawn`s a viewer (default: when neither `connect` nor `save` is given;
     no screen here: ConfigError at once, as `live --spawn` says), `connect`s to one ("rerun+http://HOST:PORT/proxy")
-    and/or `save`s to a file, closed with the view. `timeline` (default: the
-    source's, "time" for a file source) holds `time_kind` values: seconds since the epoch (timestamp, default: now),
-    seconds (duration, default: since the view began) or integers (sequence, default: a counter). Pushed samples are
-    sent together every `max_delay` seconds by a thread of the view's (0: each push is sent at once)."""
+    and/or `save`s to a file, closed with the view. `timeline` (default: the source's, "time" for a file source) holds
+    `time_kind` values: seconds since the epoch (timestamp, default: now), seconds (duration, default: since the view
+    began) or integers (sequence, default: a counter). Pushed samples are sent together every `max_delay` seconds by a
+    thread of the view's (0: each push is sent at once)."""
     from ..compile import compile_live
     from ..live_views import LiveView, live_recording
     from ..process import spawn_viewer
