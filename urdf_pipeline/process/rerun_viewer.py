@@ -42,9 +42,9 @@ def viewer_url(port: int | None = None) -> str:
     return f"rerun+http://127.0.0.1:{DEFAULT_PORT if port is None else port}/proxy"
 
 
-def viewer_binary() -> str | None:
+def viewer_binary(doing: str, where: Where | None = None) -> str:
     """The viewer that ships in rerun-sdk (rerun_cli's binary: the release of the SDK that sends, not the Python shim
-    that would start it), else a `rerun` beside this Python, else one on PATH; None when there is none."""
+    that would start it), else a `rerun` beside this Python, else one on PATH; a user error (cannot `doing`) if none."""
     executable = "rerun.exe" if sys.platform.startswith("win") else "rerun"
     spec = importlib.util.find_spec("rerun_cli")
     candidates = [Path(spec.origin).parent / executable] if spec is not None and spec.origin else []
@@ -52,7 +52,10 @@ def viewer_binary() -> str | None:
     for candidate in candidates:
         if candidate.is_file() and os.access(candidate, os.X_OK):
             return str(candidate)
-    return shutil.which(executable)
+    found = shutil.which(executable)
+    if found is None:
+        raise UserError(f"cannot {doing}: rerun-sdk's `rerun` binary is missing (reinstall rerun-sdk)", where)
+    return found
 
 
 def viewer_address(url: str) -> tuple[str, int]:
@@ -109,9 +112,7 @@ def spawn_viewer(port: int | None = None) -> str:
             "there is one and send to it with --connect URL, or run without --spawn and open the written .rrd files there",
             SPAWN_OPTION,
         )
-    executable = viewer_binary()
-    if executable is None:
-        raise UserError("cannot start the Rerun viewer: no `rerun` executable (pip install rerun-sdk)", SPAWN_OPTION)
+    executable = viewer_binary("start the Rerun viewer", SPAWN_OPTION)
     with tempfile.TemporaryFile() as log:  # unlinked already: the detached viewer's log leaves no file behind
         try:  # detached: the viewer is the user's now
             process = start_viewer(executable, ["--port", str(port), "--memory-limit", "75%", "--expect-data-soon"], log, detached=True)

@@ -285,14 +285,6 @@ def _escaped(application_id: str) -> str:
     return application_id.replace("\\", "\\\\").replace(":", "\\:")
 
 
-def _binary() -> str:
-    """The viewer that ships in rerun-sdk (the one `run --spawn` starts too)."""
-    found = viewer_binary()
-    if found is None:
-        raise UserError("cannot draw pictures: the Rerun viewer is not installed (pip install 'rerun-sdk==0.41.*')")
-    return found
-
-
 def _free_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
         probe.bind(("127.0.0.1", 0))
@@ -307,7 +299,7 @@ def _start(folder: Path, log_path: Path, size: Size, port: int) -> subprocess.Po
         args += ["--renderer", "vulkan"]  # the default falls back to GL on a software rasterizer, which panics
     runtime = {} if os.environ.get("XDG_RUNTIME_DIR") else {"XDG_RUNTIME_DIR": str(folder)}
     with open(log_path, "wb") as log:
-        return start_viewer(_binary(), args, log, folder, runtime)
+        return start_viewer(viewer_binary("draw pictures"), args, log, folder, runtime)
 
 
 def _cropped(png: bytes, size: Size) -> bytes:

@@ -24,9 +24,7 @@ HOSTING = re.compile(r"Hosting a web-viewer at http://127\.0\.0\.1:(\d+)")
 
 def rerun_binary(wanted: str) -> str:
     """The viewer binary of rerun-sdk (`process.viewer_binary`), checked to be release `wanted` (`rerun --version`)."""
-    binary = viewer_binary()
-    if binary is None:
-        raise UserError(f"the web viewer comes from rerun-sdk's rerun binary, which is missing; reinstall rerun-sdk=={wanted}")
+    binary = viewer_binary("serve Rerun's web viewer")
     try:
         said = subprocess.run([binary, "--version"], capture_output=True, text=True, timeout=60, env=_environment()).stdout
     except (OSError, subprocess.TimeoutExpired) as exc:
