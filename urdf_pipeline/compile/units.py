@@ -203,16 +203,16 @@ def corrected(channel: JointChannel, raw: np.ndarray, unit: str, sign: float, wr
         from ..sources import wrapped
 
         assert channel.lower is not None and channel.upper is not None
-        raw = wrapped(raw, ((channel.lower + channel.upper) / 2 - offset) / gain, full_turn(channel, unit))
+        raw = wrapped(raw, ((channel.lower + channel.upper) / 2 - offset) / gain, turn(channel, unit))
     return raw * gain + offset
 
 
-def full_turn(channel: JointChannel, unit: str) -> float:
+def turn(channel: JointChannel, unit: str) -> float:
     """A full turn in raw values of `unit`, with the config's scale."""
     return 2 * math.pi / (FACTORS[unit] * channel.scale)
 
 
-def in_limits(channel: JointChannel, values: np.ndarray) -> bool:
+def within(channel: JointChannel, values: np.ndarray) -> bool:
     """Every value (URDF units) within the joint's limits and slack."""
     assert channel.lower is not None and channel.upper is not None
     return bool(((values >= channel.lower - channel.slack) & (values <= channel.upper + channel.slack)).all())
@@ -220,7 +220,7 @@ def in_limits(channel: JointChannel, values: np.ndarray) -> bool:
 
 def unit_fits(channel: JointChannel, unit: str, raw: np.ndarray) -> bool:
     """Whether the raw values fit the limits read in `unit`, every other correction of the entry kept."""
-    return in_limits(channel, corrected(channel, raw, unit, channel.sign, bool(channel.wrap), channel.offset))
+    return within(channel, corrected(channel, raw, unit, channel.sign, bool(channel.wrap), channel.offset))
 
 
 def units_that_fit(channel: JointChannel, raw: np.ndarray) -> list[str]:

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...compile import ANGULAR_UNITS, FACTORS, LINEAR_UNITS, UNIT_NAMES, corrected, full_turn, in_limits
+from ...compile import ANGULAR_UNITS, FACTORS, LINEAR_UNITS, UNIT_NAMES, corrected, turn, within
 from ...plan import JointChannel
 
 OFFSETS_DEG = (0.0, 90.0, -90.0, 180.0, -180.0)
@@ -84,8 +84,8 @@ class Candidate:
         if channel.scale != 1:
             entry.append(f"scale: {channel.scale:g}")
         if self.wrap:
-            turn = full_turn(channel, self.unit)
-            entry.append(f"wrap: {round(turn, 9):g}" if self.unit == "deg" else f"wrap: {round(turn, 9)}")
+            period = turn(channel, self.unit)
+            entry.append(f"wrap: {round(period, 9):g}" if self.unit == "deg" else f"wrap: {round(period, 9)}")
         if self.sign < 0:
             entry.append("sign: -1")
         if self.offset:
@@ -126,7 +126,7 @@ def _plausible(candidate: Candidate, channel: JointChannel, raw: np.ndarray) -> 
     """The two guards of the module docstring; the config's own corrections are always tried."""
     if candidate.is_current(channel) or not raw.size:
         return True
-    if candidate.wrap and not channel.wrap and float(np.max(np.abs(raw))) >= full_turn(channel, candidate.unit):
+    if candidate.wrap and not channel.wrap and float(np.max(np.abs(raw))) >= turn(channel, candidate.unit):
         return False
     shrinks = FACTORS[candidate.unit] < FACTORS[channel.source_unit]
     moved = candidate.wrap or not math.isclose(candidate.offset, channel.offset, abs_tol=1e-9)
@@ -142,6 +142,6 @@ def fitting(channel: JointChannel, raw: np.ndarray) -> list[Candidate]:
     kept: list[tuple[Candidate, np.ndarray]] = []
     for candidate in candidates(channel, raw):
         values = candidate.values(channel, raw)
-        if in_limits(channel, values) and not any(np.allclose(values, other, atol=1e-9) for _, other in kept):
+        if within(channel, values) and not any(np.allclose(values, other, atol=1e-9) for _, other in kept):
             kept.append((candidate, values))
     return [c for c, _ in kept]

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...compile import ANGULAR_UNITS, UNIT_NAMES, bigger_unit, compile_config, in_limits, unit_fits
+from ...compile import ANGULAR_UNITS, UNIT_NAMES, bigger_unit, compile_config, unit_fits, within
 from ...errors import ExitCode, shown
 from ...plan import JointChannel, LeRobotSourcePlan, Plan, RobotPlan, SourcePlan
 from ...sources import wrapped
@@ -79,7 +79,7 @@ def check_channel(robot: RobotPlan, channel: JointChannel, raw: np.ndarray) -> J
         return replace(report, verdict="no limits", current_fits=True, message="the joint has no limits: nothing to check against")
     lower, upper = channel.lower, channel.upper
     current = _current_values(channel, finite)
-    current_fits = in_limits(channel, current)
+    current_fits = within(channel, current)
     report = replace(report, limits_in_source_unit=channel.limits_in_source_unit, current_fits=current_fits)
     outside = (current < lower) | (current > upper)
     if current_fits and outside.any():
