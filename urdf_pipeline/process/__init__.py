@@ -15,7 +15,6 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
         ANSI_ESCAPE,
         ChildOutcome,
         bound_from_environment,
-        die_with_parent,
         limit_this_process,
         passed_environment,
         run_bounded_child,

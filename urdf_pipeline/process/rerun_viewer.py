@@ -35,6 +35,7 @@ POLL_SECONDS = 0.05
 LOG_TAIL_BYTES = 65_536  # of the viewer's log, read for the reason it stopped
 CONNECT_OPTION = Where(Path("--connect"), 0)
 SPAWN_OPTION = Where(Path("--spawn"), 0)
+SCREENS = ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET")  # a display server on Linux, for a viewer's window
 
 
 def viewer_url(port: int | None = None) -> str:
@@ -93,11 +94,6 @@ def require_viewer(url: str) -> str:
     return url
 
 
-def _no_screen() -> bool:
-    """Linux without a display server: the viewer's window cannot open (it exits at once, saying so)."""
-    return sys.platform.startswith("linux") and not any(os.environ.get(name) for name in ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET"))
-
-
 def spawn_viewer(port: int | None = None) -> str:
     """`--spawn` (and `urdf_pipeline.live`'s spawn): the URL of a viewer on this machine, one started now (detached: it
     stays when the command ends) unless one already listens on `port` (default `DEFAULT_PORT`). A viewer that cannot
@@ -106,7 +102,7 @@ def spawn_viewer(port: int | None = None) -> str:
     url = viewer_url(port)
     if _listening("127.0.0.1", port, CONNECT_SECONDS) is None:
         return url  # a viewer already listening there is reused, as Rerun's own spawn does
-    if _no_screen():
+    if sys.platform.startswith("linux") and not any(os.environ.get(name) for name in SCREENS):  # its window cannot open
         raise UserError(
             "cannot start the Rerun viewer: no screen here (neither DISPLAY nor WAYLAND_DISPLAY is set); run `rerun` where "
             "there is one and send to it with --connect URL, or run without --spawn and open the written .rrd files there",
