@@ -59,19 +59,6 @@ def viewer_binary(doing: str, where: Where | None = None) -> str:
     return found
 
 
-def viewer_address(url: str) -> tuple[str, int]:
-    """(host, port) of a viewer URL of the form Rerun's client takes; a located error naming the form otherwise."""
-    wrong = f"{shown(url)} is not a viewer address; expected {EXPECTED_FORM} (a viewer started with `rerun` listens at {viewer_url()})"
-    try:
-        parts = urlsplit(url)
-        port = parts.port
-    except ValueError:  # a port that is no number, or out of range
-        raise UserError(wrong, CONNECT_OPTION) from None
-    if parts.scheme not in SCHEMES or not parts.hostname or port is None or parts.path != "/proxy" or parts.query or parts.fragment:
-        raise UserError(wrong, CONNECT_OPTION)
-    return parts.hostname, port
-
-
 def _listening(host: str, port: int, timeout: float) -> OSError | None:
     """None when something accepts a TCP connection at host:port within `timeout` seconds, else why not."""
     try:
@@ -82,8 +69,16 @@ def _listening(host: str, port: int, timeout: float) -> OSError | None:
 
 
 def require_viewer(url: str) -> str:
-    """`--connect URL`: its form, then a viewer listening there (within `CONNECT_SECONDS`); returns the URL."""
-    host, port = viewer_address(url)
+    """`--connect URL`: its form (the one Rerun's client takes), then a viewer listening there (within `CONNECT_SECONDS`);
+    returns the URL."""
+    wrong = f"{shown(url)} is not a viewer address; expected {EXPECTED_FORM} (a viewer started with `rerun` listens at {viewer_url()})"
+    try:
+        parts = urlsplit(url)
+        host, port = parts.hostname, parts.port
+    except ValueError:  # a port that is no number, or out of range
+        raise UserError(wrong, CONNECT_OPTION) from None
+    if parts.scheme not in SCHEMES or not host or port is None or parts.path != "/proxy" or parts.query or parts.fragment:
+        raise UserError(wrong, CONNECT_OPTION)
     error = _listening(host, port, CONNECT_SECONDS)
     if error is not None:
         reason = "timed out" if isinstance(error, TimeoutError) else (error.strerror or str(error))
