@@ -21,7 +21,7 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
         sandboxed_python,
         stop_session,
     )
-    from .rerun_viewer import require_viewer, spawn_viewer, start_viewer, viewer_binary, viewer_url
+    from .rerun_viewer import log_reason, require_viewer, spawn_viewer, start_viewer, viewer_binary, viewer_url
     from .signals import Stopped, deferred_signals, held_off, ignore_stop_signals, signal_name, sigterm_kept, stop_signal
 
 if not TYPE_CHECKING:  # the names above, imported when first used

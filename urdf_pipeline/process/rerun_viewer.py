@@ -140,14 +140,14 @@ def _wait_until_up(process: subprocess.Popen[bytes], port: int, log: IO[bytes]) 
             process.kill()
             process.wait()
             raise UserError(
-                f"the Rerun viewer did not start listening on port {port} within {STARTUP_SECONDS:.0f} s{_last_error(log)}", SPAWN_OPTION
+                f"the Rerun viewer did not start listening on port {port} within {STARTUP_SECONDS:.0f} s{log_reason(log)}", SPAWN_OPTION
             )
         time.sleep(POLL_SECONDS)
-    raise UserError(f"the Rerun viewer stopped at its start (exit status {process.returncode}){_last_error(log)}", SPAWN_OPTION)
+    raise UserError(f"the Rerun viewer stopped at its start (exit status {process.returncode}){log_reason(log)}", SPAWN_OPTION)
 
 
-def _last_error(log: IO[bytes]) -> str:
-    """`: REASON` from the viewer's log: its `Error:` line, else its last ERROR log line, else its last line."""
+def log_reason(log: IO[bytes]) -> str:
+    """`: REASON` from a viewer's log (its end): its `Error:` line, else its last ERROR log line, else its last line."""
     log.seek(0, os.SEEK_END)
     log.seek(max(log.tell() - LOG_TAIL_BYTES, 0))
     lines = [ANSI_ESCAPE.sub("", line).strip() for line in log.read(LOG_TAIL_BYTES).decode("utf-8", "replace").splitlines()]

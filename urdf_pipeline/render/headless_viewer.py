@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import UserError
-from ..process import held_off, start_viewer, stop_session, viewer_binary, viewer_url
+from ..process import held_off, log_reason, start_viewer, stop_session, viewer_binary, viewer_url
 from .camera import Camera
 from .frames import Timeline
 
@@ -134,10 +134,8 @@ class HeadlessViewer:
             raise UserError(f"the Rerun viewer stopped (exit status {self._process.returncode}){self._log_tail()}")
 
     def _log_tail(self) -> str:
-        lines = (
-            [line for line in self._log_path.read_text(errors="replace").splitlines() if line.strip()] if self._log_path.exists() else []
-        )
-        return f": {lines[-1].strip()[:300]}" if lines else ""
+        with open(self._log_path, "rb") as log:  # written since the viewer's start
+            return log_reason(log)
 
     def _call(self, call: Callable[[], Any]) -> Any:
         """A viewer request; if the viewer died meanwhile, say so as a user error rather than a connection traceback."""
