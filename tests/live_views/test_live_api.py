@@ -152,8 +152,7 @@ def test_a_pushed_base_pose_is_a_temporal_edge(examples_dir: Path, tmp_path: Pat
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="a screen is DISPLAY or WAYLAND_DISPLAY on Linux only")
 def test_live_without_a_screen_raises_what_the_command_line_says(examples_dir: Path, tmp_path: Path) -> None:
-    """No DISPLAY: `urdf_pipeline.live(config)` raises at once (no viewer started, no wait) the error line that
-    `urdf-pipeline live` prints. Each in a child of its own, with no viewer listening at the port it would reuse."""
+    """No DISPLAY: `live(config)` raises at once the line `urdf-pipeline live` prints (each in a child, no viewer to reuse)."""
     screenless = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET")}
     prelude = f"import sys; from urdf_pipeline.process import rerun_viewer; rerun_viewer.DEFAULT_PORT = {free_port()}\n"
     config = str(examples_dir / "demo.yaml")

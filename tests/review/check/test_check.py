@@ -49,8 +49,7 @@ def report(channel: JointChannel, values) -> object:
     ],
 )
 def test_runs_unit_hint_and_checks_top_candidate_agree(channel: JointChannel, values: np.ndarray, unit: str | None) -> None:
-    """One advisor (compile/units.py): the unit run's refusal names is the one check's simplest fitting correction
-    changes alone, and neither names one when no unit alone fits."""
+    """One advisor (compile/units.py): run's refusal names the unit check's simplest fitting correction changes alone."""
     hinted = re.search(r"`unit: (\w+)`", unit_hint(channel, float(values.min()), float(values.max())))
     top = fitting(channel, values)[0]
     assert (hinted[1] if hinted else None) == unit
