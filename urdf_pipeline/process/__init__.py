@@ -1,5 +1,4 @@
-"""What concerns the whole process, for every stage: Ctrl-C and SIGTERM (`signals.py`), the child processes the tool
-starts (`children.py`), the Rerun viewer's (`rerun_viewer.py`).
+"""For every stage, what concerns the whole process: signals, child processes, the Rerun viewer (one module each).
 
 The names below are the package's public surface; other packages import them from here, never from its modules.
 """

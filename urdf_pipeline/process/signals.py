@@ -101,9 +101,6 @@ def held_off(ignored: bool = False) -> Iterator[None]:
     """SIGINT and SIGTERM blocked while the block runs, delivered as it ends: cleanup that a second Ctrl-C must not cut
     short. `ignored`: also ignored meanwhile (in the main thread), so that a process started in the block begins with
     both ignored."""
-    if not hasattr(signal, "pthread_sigmask"):  # Windows: nothing to block with
-        yield
-        return
     blocked = signal.pthread_sigmask(signal.SIG_BLOCK, STOPPING)
     handlers = ignore_stop_signals() if ignored and threading.current_thread() is threading.main_thread() else {}
     try:
