@@ -17,7 +17,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from urdf_pipeline.child_process import die_with_parent, stop_session
+from urdf_pipeline.process.children import die_with_parent, stop_session
 
 from .local_processes import free_port
 

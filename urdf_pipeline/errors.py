@@ -5,7 +5,6 @@ from __future__ import annotations
 import difflib
 import logging
 import re
-import signal
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -34,22 +33,6 @@ class ExitCode(IntEnum):
         """The status of a command a signal stopped, whichever command: the shell's 128 + its number, so that a script
         tells "it ended" (0) from "I stopped it" (130 Ctrl-C, 143 SIGTERM)."""
         return 128 + int(signum)
-
-
-class Stopped(KeyboardInterrupt):
-    """A command stopped by a signal: SIGINT (Ctrl-C) or SIGTERM (raised in the main thread by the CLI's handler, or by
-    a command that ended its own work on the signal, such as `live`). `said`: the command has said its own last line,
-    so the exit point adds none. The exit point turns it (and any KeyboardInterrupt) into `ExitCode.for_signal`."""
-
-    def __init__(self, signum: int, said: bool = False) -> None:
-        super().__init__(signal.Signals(signum).name)
-        self.signum = int(signum)
-        self.said = said
-
-
-def stop_signal(interrupt: BaseException) -> int:
-    """The signal a KeyboardInterrupt stands for: a `Stopped`'s own, else SIGINT (Python's Ctrl-C)."""
-    return interrupt.signum if isinstance(interrupt, Stopped) else int(signal.SIGINT)
 
 
 @dataclass(frozen=True)

@@ -13,8 +13,9 @@ import pytest
 import rerun as rr
 from rerun.chunk import RrdReader
 
-from urdf_pipeline.cli import commands, viewer_target
+from urdf_pipeline.cli import commands
 from urdf_pipeline.errors import UserError
+from urdf_pipeline.process import rerun_viewer
 
 from ..dataset_helpers import isolated_examples
 from ..local_processes import free_port
@@ -140,8 +141,8 @@ def test_spawn_without_a_screen_is_one_line_and_nothing_is_written(
 ) -> None:
     for name in ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET"):
         monkeypatch.delenv(name, raising=False)
-    monkeypatch.setattr(viewer_target, "DEFAULT_PORT", free_port())  # no viewer of anyone's there to reuse
-    monkeypatch.setattr(viewer_target.sys, "platform", "linux")
+    monkeypatch.setattr(rerun_viewer, "DEFAULT_PORT", free_port())  # no viewer of anyone's there to reuse
+    monkeypatch.setattr(rerun_viewer.sys, "platform", "linux")
     config = isolated_examples(examples_dir, tmp_path / "screenless")
     result = run_cli("run", "-q", str(config), "--spawn")
     assert result.code == 1
@@ -158,7 +159,7 @@ def test_a_viewer_that_cannot_start_is_one_error_with_its_reason(monkeypatch: py
     monkeypatch.setenv("DISPLAY", ":75")  # no X server answers there
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     with pytest.raises(UserError) as refused:
-        viewer_target.spawn_viewer(free_port())
+        rerun_viewer.spawn_viewer(free_port())
     assert refused.value.message.startswith("the Rerun viewer stopped at its start (exit status ")
     assert "X server" in refused.value.message or "display" in refused.value.message.lower(), refused.value.message
     assert "\n" not in refused.value.message and "\x1b" not in refused.value.message
@@ -166,5 +167,5 @@ def test_a_viewer_that_cannot_start_is_one_error_with_its_reason(monkeypatch: py
 
 def test_a_viewer_already_listening_is_used_not_started_again(listener: str, monkeypatch: pytest.MonkeyPatch) -> None:
     port = int(listener.split(":")[2].split("/")[0])
-    monkeypatch.setattr(viewer_target.subprocess, "Popen", None)  # would fail if called
-    assert viewer_target.spawn_viewer(port) == f"rerun+http://127.0.0.1:{port}/proxy"
+    monkeypatch.setattr(rerun_viewer.subprocess, "Popen", None)  # would fail if called
+    assert rerun_viewer.spawn_viewer(port) == f"rerun+http://127.0.0.1:{port}/proxy"

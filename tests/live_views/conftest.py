@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from urdf_pipeline.child_process import die_with_parent
+from urdf_pipeline.process.children import die_with_parent
 
 from ..local_processes import free_port, stop
 

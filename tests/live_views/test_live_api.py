@@ -4,6 +4,9 @@ poses equal pinocchio's for sampled pushes, and what a stream cannot be refused 
 from __future__ import annotations
 
 import logging
+import os
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -23,6 +26,7 @@ from ..execute.test_fk_against_pinocchio import (
     panda_joint_values,
     random_within_limits,
 )
+from ..local_processes import free_port
 from ..reference_fk import PinocchioRobot
 from ..rrd_frames import read_frames
 
@@ -144,3 +148,20 @@ def test_a_pushed_base_pose_is_a_temporal_edge(examples_dir: Path, tmp_path: Pat
         world_from_base = expected_pose(poses[frame])
         for link, link_pose in reference.link_poses(panda_joint_values(q[frame])).items():
             assert_poses_match(frames.world_pose(link, frame, "world"), world_from_base @ link_pose, f"{link} at {frame}")
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="a screen is DISPLAY or WAYLAND_DISPLAY on Linux only")
+def test_live_without_a_screen_raises_what_the_command_line_says(examples_dir: Path, tmp_path: Path) -> None:
+    """No DISPLAY: `live(config)` raises at once the line `urdf-pipeline live` prints (each in a child, no viewer to reuse)."""
+    screenless = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET")}
+    prelude = f"import sys; from urdf_pipeline.process import rerun_viewer; rerun_viewer.DEFAULT_PORT = {free_port()}\n"
+    config = str(examples_dir / "demo.yaml")
+    api = f"import urdf_pipeline\ntry:\n    urdf_pipeline.live({config!r})\nexcept urdf_pipeline.ConfigError as e:\n    sys.exit(e.lines()[0])"
+    cli = f"from urdf_pipeline.cli import main\nsys.exit(main(['live', '-q', {config!r}, '--from', {str(tmp_path / 'x.mcap')!r}]))"
+    said = [
+        subprocess.run([sys.executable, "-c", prelude + code], env=screenless, capture_output=True, text=True, timeout=120)
+        for code in (api, cli)
+    ]
+    assert [s.returncode for s in said] == [1, 1], [s.stderr for s in said]
+    api_line, cli_line = (s.stderr.splitlines()[-1] for s in said)
+    assert api_line == cli_line and api_line.startswith("error: --spawn: cannot start the Rerun viewer: no screen here"), api_line

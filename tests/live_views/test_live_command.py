@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import yaml
 
-from urdf_pipeline.execute import viewer_binary
+from urdf_pipeline.process import viewer_binary
 
 from ..execute.test_fk_against_pinocchio import check_robot
 from ..local_processes import free_port, stop
@@ -231,7 +231,7 @@ def test_live_connects_to_a_running_rerun_server(examples_dir: Path, tmp_path: P
     """`--connect`: Rerun's own gRPC server (`rerun --save`, which writes what reaches it) receives what `--save` holds."""
     port = free_port()
     received = tmp_path / "received.rrd"
-    binary = viewer_binary()  # the binary itself: `python -m rerun` would leave it running when the shim is stopped
+    binary = viewer_binary("start a Rerun server")  # the binary itself: `python -m rerun` would leave it running when the shim is stopped
     assert binary is not None
     command = [binary, "--bind", "127.0.0.1", "--port", str(port), "--save", str(received)]
     viewer = subprocess.Popen(command, stderr=subprocess.DEVNULL)

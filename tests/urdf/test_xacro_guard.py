@@ -337,7 +337,7 @@ def test_a_child_that_cannot_even_start_is_a_user_error(tmp_path: Path, run_cli,
     monkeypatch.setenv("URDF_PIPELINE_XACRO_MEMORY_MB", "lots")
     assert_user_error(run_cli("validate", str(config)), config, "URDF_PIPELINE_XACRO_MEMORY_MB='lots' must be a positive number")
     monkeypatch.delenv("URDF_PIPELINE_XACRO_MEMORY_MB")
-    for text in ("nan", "inf", "-3"):  # one reading of every child's bound (child_process.bound_from_environment)
+    for text in ("nan", "inf", "-3"):  # one reading of every child's bound (process.bound_from_environment)
         monkeypatch.setenv("URDF_PIPELINE_XACRO_TIMEOUT", text)
         assert_user_error(run_cli("validate", str(config)), config, f"URDF_PIPELINE_XACRO_TIMEOUT='{text}' must be a positive number")
 

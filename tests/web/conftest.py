@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from urdf_pipeline import cli
-from urdf_pipeline.child_process import die_with_parent
+from urdf_pipeline.process.children import die_with_parent
 from urdf_pipeline.web import CACHE_VARIABLE, ViewerAssets, viewer_assets
 
 from ..conftest import REPO

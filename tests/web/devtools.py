@@ -27,7 +27,7 @@ from urllib.parse import urlsplit
 
 import websocket
 
-from urdf_pipeline.child_process import die_with_parent
+from urdf_pipeline.process.children import die_with_parent
 
 # RERUN-0.41-FACTS.md: the flags under which Debian's chromium renders Rerun's web viewer headless with software WebGL2.
 FLAGS = (

@@ -84,7 +84,7 @@ def live(
     recording: RecordingStream | None = None,
     *,
     robot: str | None = None,
-    spawn: bool = False,
+    spawn: bool | None = None,
     connect: str | None = None,
     save: str | os.PathLike[str] | None = None,
     timeline: str | None = None,
@@ -97,20 +97,24 @@ def live(
     edges, with the config's mapping, units, mimic joints, holds and limits (values beyond them are reported every few
     seconds and clamped or shown as `on_violation` says). Source names come from `names:`, else from the source's data.
 
-    `recording`: yours; else a new one that `spawn`s a viewer (the default), `connect`s to one
-    ("rerun+http://HOST:PORT/proxy") and/or `save`s to a file, closed with the view. `timeline` (default: the
-    source's, "time" for a file source) holds `time_kind` values: seconds since the epoch (timestamp, default: now),
-    seconds (duration, default: since the view began) or integers (sequence, default: a counter). Pushed samples are
-    sent together every `max_delay` seconds by a thread of the view's (0: each push is sent at once)."""
+    `recording`: yours; else a new one that `spawn`s a viewer (default: when neither `connect` nor `save` is given;
+    no screen here: ConfigError at once, as `live --spawn` says), `connect`s to one ("rerun+http://HOST:PORT/proxy")
+    and/or `save`s to a file, closed with the view. `timeline` (default: the source's, "time" for a file source) holds
+    `time_kind` values: seconds since the epoch (timestamp, default: now), seconds (duration, default: since the view
+    began) or integers (sequence, default: a counter). Pushed samples are sent together every `max_delay` seconds by a
+    thread of the view's (0: each push is sent at once)."""
     from ..compile import compile_live
     from ..live_views import LiveView, live_recording
+    from ..process import spawn_viewer
 
     plan = compile_live(Path(path), names_from_data=True)
     chosen = plan.robot_named(robot)
     if recording is not None and (spawn or connect or save):
         raise UserError("urdf_pipeline.live: give either a recording or spawn/connect/save for one it makes, not both")
-    spawned = spawn or (connect is None and save is None)
-    target = recording if recording is not None else live_recording(plan.application_id, spawned, connect, save)
+    if recording is None and spawn is False and connect is None and save is None:
+        raise UserError("urdf_pipeline.live: spawn=False leaves the view nowhere to send to: give connect, save or a recording")
+    spawned = spawn_viewer() if recording is None and (spawn or (spawn is None and connect is None and save is None)) else None
+    target = recording if recording is not None else live_recording(plan.application_id, save, spawned, connect)
     return LiveView(plan, chosen, target, timeline=timeline, time_kind=time_kind, max_delay=max_delay, owns_recording=recording is None)
 
 

@@ -5,7 +5,7 @@ Exit status: 0 success, 1 a user error (one `error: FILE:LINE:COL: message` line
 3 (`check` only) some joint's sampled values do not fit its limits with the config's corrections; `diff --exit-code`
 as diff(1): 0 equal, 1 the plans differ, 2 any error;
 70 an internal bug (with a traceback: please report it), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM, handled as
-Ctrl-C: see interrupts.py), 141 stdout closed early (`| head`).
+Ctrl-C: see process/signals.py), 141 stdout closed early (`| head`).
 """
 
 # the surface, imported at once: every command starts at main

@@ -13,8 +13,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..errors import ExitCode, Stopped, UserError, neutral_line, neutral_text, shown
-from .viewer_target import require_viewer, spawn_viewer
+from ..errors import ExitCode, UserError, neutral_line, neutral_text, shown
+from ..process import Stopped, require_viewer, spawn_viewer
 
 if TYPE_CHECKING:
     from ..dataset import DatasetRun

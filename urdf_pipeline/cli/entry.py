@@ -10,23 +10,18 @@ import sys
 import traceback
 from collections.abc import Callable, Sequence
 
-from ..errors import ExitCode, Stopped, UserError, neutral_text, stop_signal
+from ..errors import ExitCode, UserError, neutral_text
 from ..logs import command_logging, warnings_logged
 from ..package import PandasLeftOut
+from ..process import Stopped, sigterm_kept, stop_signal
 from .parser import build_parser
 from .stderr_relay import stderr_through_logger
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """SIGTERM is handled as Ctrl-C while a command runs (the caller's handler is given back: tests call this in-process)."""
-    from ..dataset import handle_sigterm, keep_sigterm_handler, restore_sigterm_handler
-
-    previous = keep_sigterm_handler()
-    handle_sigterm()
-    try:
+    with sigterm_kept(stops=True):
         return _main(argv)
-    finally:
-        restore_sigterm_handler(previous)
 
 
 def _main(argv: Sequence[str] | None) -> int:
@@ -55,7 +50,7 @@ def _handle(handler: Callable[[argparse.Namespace], int], args: argparse.Namespa
         for line in exc.lines():
             print(line, file=sys.stderr)
         return trouble or ExitCode.USER_ERROR
-    except KeyboardInterrupt as stop:  # Ctrl-C, or SIGTERM (errors.Stopped), whichever command: 128 + the signal's number
+    except KeyboardInterrupt as stop:  # Ctrl-C, or SIGTERM (process.Stopped), whichever command: 128 + the signal's number
         if not (isinstance(stop, Stopped) and stop.said):  # a command that said its own last line (live, run) keeps it last
             print("interrupted", file=sys.stderr)
         return ExitCode.for_signal(stop_signal(stop))

@@ -31,9 +31,9 @@ from contextlib import contextmanager
 from typing import TextIO
 
 from ..errors import neutral_line
+from ..process import ANSI_ESCAPE
 
 LOGGER = logging.getLogger("urdf_pipeline")
-ANSI_ESCAPE = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")  # colours and cursor moves in a native program's lines
 # tracing's format (`TIME LEVEL target: message`) and env_logger's (`[TIME LEVEL target] message`)
 _RERUN_LINE = re.compile(
     r"^\[?\d{4}-\d\d-\d\dT[0-9:.]+Z?\s+(?P<level>TRACE|DEBUG|INFO|WARN|WARNING|ERROR)\s+(?P<target>[\w.-]+(?:::[\w.-]+)*)\]?:?\s?(?P<message>.*)$"

@@ -14,7 +14,7 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
     from .compiler import DatalessCheck, DataNote, check_config_without_data, compile_config, compile_document
     from .live_plan import LiveCheck, LivePlan, LiveSource, LiveSourceSpec, check_live_config, compile_live
     from .temporal_edges import describe_temporal_edge
-    from .units import ANGULAR_UNITS, FACTORS, LINEAR_UNITS, UNIT_NAMES, unit_hint, units_that_fit
+    from .units import ANGULAR_UNITS, FACTORS, LINEAR_UNITS, UNIT_NAMES, bigger_unit, corrected, reaches, turn, unit_fits, unit_hint, within
 
 if not TYPE_CHECKING:  # the names above, imported when first used
     __all__, __getattr__ = lazy_surface(__name__, __file__)

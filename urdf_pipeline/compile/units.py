@@ -10,10 +10,13 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..errors import quoted, shown
 from ..plan import JointChannel
+
+if TYPE_CHECKING:
+    import numpy as np
 
 FACTORS: dict[str, float] = {"rad": 1.0, "deg": math.pi / 180.0, "m": 1.0, "cm": 1e-2, "mm": 1e-3}
 ANGULAR_UNITS = ("rad", "deg")
@@ -189,26 +192,72 @@ def path_key(angular: bool) -> str:
 UNIT_NAMES = {"rad": "radians", "deg": "degrees", "m": "metres", "cm": "centimetres", "mm": "millimetres"}
 
 
-def units_that_fit(channel: JointChannel, raw_low: float, raw_high: float) -> list[str]:
-    """The other units of the channel's joint kind in which raw values from raw_low to raw_high would lie within the
-    limits (and slack), with the channel's scale, sign and offset kept: the likely unit mistake. Biggest unit first."""
+# The one unit advisor ("in which unit would these values fit?") of run's refusal, check's advice and init's choice.
+
+
+def corrected(channel: JointChannel, raw: np.ndarray, unit: str, sign: float, wrap: bool, offset: float) -> np.ndarray:
+    """Raw values in URDF units had the entry said `unit`, `sign`, `offset` (URDF units) and, with `wrap`, a wrap by a
+    full turn of that unit about the limits' middle; the config's scale kept."""
+    gain = FACTORS[unit] * channel.scale * sign
+    if wrap:
+        from ..sources import wrapped
+
+        assert channel.lower is not None and channel.upper is not None
+        raw = wrapped(raw, ((channel.lower + channel.upper) / 2 - offset) / gain, turn(channel, unit))
+    return raw * gain + offset
+
+
+def turn(channel: JointChannel, unit: str) -> float:
+    """A full turn in raw values of `unit`, with the config's scale."""
+    return 2 * math.pi / (FACTORS[unit] * channel.scale)
+
+
+def within(channel: JointChannel, values: np.ndarray) -> bool:
+    """Every value (URDF units) within the joint's limits and slack."""
+    assert channel.lower is not None and channel.upper is not None
+    return bool(((values >= channel.lower - channel.slack) & (values <= channel.upper + channel.slack)).all())
+
+
+def unit_fits(channel: JointChannel, unit: str, raw: np.ndarray) -> bool:
+    """Whether the raw values fit the limits read in `unit`, every other correction of the entry kept."""
+    return within(channel, corrected(channel, raw, unit, channel.sign, bool(channel.wrap), channel.offset))
+
+
+def units_that_fit(channel: JointChannel, raw: np.ndarray) -> list[str]:
+    """The other units of the channel's joint kind in which the raw values fit the limits, every other correction
+    kept: the likely unit mistake. Biggest unit first."""
     if channel.source_range is not None or channel.lower is None or channel.upper is None or channel.source_unit not in FACTORS:
         return []
     kind = ANGULAR_UNITS if channel.source_unit in ANGULAR_UNITS else LINEAR_UNITS
-    found = []
-    for unit in kind:
-        if unit == channel.source_unit:
-            continue
-        gain = FACTORS[unit] * channel.scale * channel.sign
-        low, high = sorted((raw_low * gain + channel.offset, raw_high * gain + channel.offset))
-        if channel.lower - channel.slack <= low and high <= channel.upper + channel.slack:
-            found.append(unit)
-    return found
+    return [unit for unit in kind if unit != channel.source_unit and unit_fits(channel, unit, raw)]
+
+
+REACH_SHARE = 0.1  # values that reach this share of the joint's range in a unit look like that unit; below, near zero
+
+
+def reaches(channel: JointChannel, raw: np.ndarray, unit: str) -> bool:
+    """Whether the raw values, read in `unit`, reach at least REACH_SHARE of the joint's range from zero (where in a
+    smaller unit they would barely leave it): check's "clearly ambiguous" and init's choice of unit."""
+    assert channel.lower is not None and channel.upper is not None
+    width = channel.upper - channel.lower
+    return width > 0 and float(abs(raw).max()) * FACTORS[unit] * abs(channel.scale) >= REACH_SHARE * width
+
+
+def bigger_unit(channel: JointChannel, raw: np.ndarray) -> str | None:
+    """For values that fit as configured: the bigger unit (deg -> rad, mm -> m) in which they fit as well and reach
+    REACH_SHARE of the joint's range, where as configured they stay near zero. Clearly ambiguous: check says so."""
+    if channel.wrap or not raw.size:
+        return None
+    bigger = [u for u in units_that_fit(channel, raw) if FACTORS[u] > FACTORS[channel.source_unit]]
+    return next((u for u in bigger if reaches(channel, raw, u)), None)
 
 
 def unit_hint(channel: JointChannel, raw_low: float, raw_high: float) -> str:
-    """ "the values fit the limits if they are degrees: `unit: deg`" when another unit fits (run's refusal), else ""."""
-    units = units_that_fit(channel, raw_low, raw_high)
+    """ "the values fit the limits if they are degrees: `unit: deg`" when another unit fits (run's refusal), else "".
+    A wrapped entry gets none: the range's two ends say nothing of where its wrapped values land."""
+    import numpy as np
+
+    units = [] if channel.wrap else units_that_fit(channel, np.array([raw_low, raw_high]))
     if not units:
         return ""
     names = " or ".join(UNIT_NAMES[u] for u in units)

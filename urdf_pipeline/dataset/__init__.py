@@ -1,5 +1,4 @@
-"""Whole datasets: segments run on executors (local processes, Ray), manifest, fingerprints, catalog, summary,
-signals.
+"""Whole datasets: segments run on executors (local processes, Ray), manifest, fingerprints, catalog, summary.
 
 The names below are the package's public surface; other packages import them from here, never from its modules.
 """
@@ -13,7 +12,6 @@ from ..package import lazy_surface
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
     from .base_check import BaseRecording, base_files, check_base
     from .cpus import usable_cpus
-    from .interrupts import handle_sigterm, keep_sigterm_handler, restore_sigterm_handler, signal_name
     from .manifest import SegmentEntry, run_output, segment_summaries
     from .remote_outputs import bucket_state, fetch_manifest, local_outputs
     from .run import DatasetRun, RunOptions, register_outputs, run_dataset

@@ -15,7 +15,6 @@ import multiprocessing
 import os
 import select
 import shutil
-import signal
 import sys
 import tempfile
 import threading
@@ -26,8 +25,9 @@ from concurrent.futures.process import BrokenProcessPool
 from multiprocessing.process import BaseProcess
 from typing import TypeVar
 
-from ..execute import deferred_signals, process_alive
+from ..execute import process_alive
 from ..package import PandasLeftOut
+from ..process import deferred_signals, held_off, ignore_stop_signals
 
 PRELOAD = ["urdf_pipeline.execute.segment_run", "urdf_pipeline.execute.segment", "rerun.chunk", "rerun.urdf", "rerun.experimental"]
 POLL_SECONDS = 0.2  # how soon a Ctrl-C or SIGTERM is acted on while waiting for the workers
@@ -43,17 +43,8 @@ def _start_fork_server() -> None:
     Ctrl-C in that window is lost (ignored when it comes), not half-handled."""
     from multiprocessing import forkserver
 
-    held = (signal.SIGINT, signal.SIGTERM)
-    previous_mask = signal.pthread_sigmask(signal.SIG_BLOCK, held)
-    handlers = {}
-    try:
-        if threading.current_thread() is threading.main_thread():
-            handlers = {number: signal.signal(number, signal.SIG_IGN) for number in held}
+    with held_off(ignored=True):
         forkserver.ensure_running()
-    finally:
-        for number, handler in handlers.items():
-            signal.signal(number, handler)
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous_mask)
 
 
 def _start_worker(
@@ -70,8 +61,7 @@ def _start_worker(
     os.environ.update(environment)
     if no_pandas and not PandasLeftOut.installed():  # as in the run's own process: pyarrow's first array would import it
         sys.meta_path.insert(0, PandasLeftOut())
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    ignore_stop_signals()
     threading.Thread(target=_exit_with, args=(main,), name="urdf-pipeline-watch-main", daemon=True).start()
     tempfile.tempdir = scratch  # removed by the main process, even when this worker is killed
     if initializer is not None:
@@ -123,7 +113,7 @@ def _run_in_pool(
     queue = list(reversed(jobs))
     try:
         while queue or pending:
-            with deferred_signals() as stop:  # no signal raised inside the pool's locks: see execute/held_signals.py
+            with deferred_signals() as stop:  # no signal raised inside the pool's locks: see process/signals.py
                 while ready.is_set() and queue and len(pending) < 2 * helpers:
                     job = queue.pop()
                     pending[pool.submit(work, job)] = job

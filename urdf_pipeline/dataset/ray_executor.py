@@ -23,8 +23,8 @@ from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from ..errors import UserError
+from ..process import sigterm_kept
 from .cpus import usable_cpus
-from .interrupts import keep_sigterm_handler, restore_sigterm_handler
 
 if TYPE_CHECKING:
     from ray import ObjectRef
@@ -130,13 +130,10 @@ def _connect(ray: Any, address: str | None, num_cpus: int | None) -> None:
             _check_reachable(address)
         options["address"] = address
         what = f"could not connect to the Ray cluster at {address}"
-    handler = keep_sigterm_handler()
     try:
-        with _quiet_token_notice():
+        with _quiet_token_notice(), sigterm_kept():  # Ray replaces the SIGTERM handler
             ray.init(**options)
-        restore_sigterm_handler(handler)
     except BaseException as error:
-        restore_sigterm_handler(handler)
         ray.shutdown()  # what a Ctrl-C or a failure left half started
         if isinstance(error, Exception):  # ConnectionError, ValueError (address format, ray[client] missing), RuntimeError, ...
             raise UserError(f"{what}: {error}{_auth_hint(address, error)}", None) from error

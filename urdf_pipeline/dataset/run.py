@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..errors import ExitCode, Problems, UserError, stop_signal
+from ..errors import ExitCode, Problems, UserError
 from ..execute import (
     Parts,
     SegmentJob,
@@ -28,9 +28,9 @@ from ..execute import (
 )
 from ..logs import LOGGER, SegmentProgress, process_identity
 from ..plan import Plan, RemoteOutputs
+from ..process import signal_name, stop_signal
 from .executors import ExecutorName, executor_for
 from .fingerprint import file_hashes_used, model_hash, remember_file_hashes, segment_hashes
-from .interrupts import signal_name
 from .manifest import Manifest
 from .remote_outputs import bucket_state, fetch_manifest, fresh_in_bucket, input_versions, upload_run_files
 
@@ -157,7 +157,7 @@ def _run(plan: Plan, options: RunOptions, progress: SegmentProgress | None, read
         if here:  # the split layout's model on a cluster without the config's disk: its meshes are read here
             executor_for("local", 1, None, plan).run(run_segment, here, keeper.done, keeper.crashed)
         executor_for(options.executor, options.jobs, options.ray_address, plan).run(run_segment, elsewhere, keeper.done, keeper.crashed)
-    except KeyboardInterrupt as stop:  # Ctrl-C, or SIGTERM (errors.Stopped)
+    except KeyboardInterrupt as stop:  # Ctrl-C, or SIGTERM (process.Stopped)
         interrupted = stop_signal(stop)
         _remove_partial_files([job.output for job in to_run])
         keeper.stopped(to_run, interrupted)

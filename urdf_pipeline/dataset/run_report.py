@@ -77,7 +77,7 @@ def totals_line(results: tuple[SegmentResult, ...], seconds: float) -> str:
 def stopped_line(run: DatasetRun, names: int = 5) -> str:
     """After Ctrl-C or SIGTERM: what this run wrote, what was up to date, what failed, and what is not done (the first
     `names` of them named), and how to finish."""
-    from .interrupts import signal_name
+    from ..process import signal_name
 
     counts: Counter[str] = Counter(r.status for r in run.results)
     kept = f" ({run.not_rewritten} of them not rewritten as --force asked)" if run.not_rewritten else ""

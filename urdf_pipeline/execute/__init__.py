@@ -13,7 +13,6 @@ from ..package import lazy_surface
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
     from .blueprint import blueprint_key, blueprint_path, write_blueprint
     from .edges_stream import CALIBRATION_ENTITY, calibration_stream
-    from .held_signals import deferred_signals
     from .joint_fk import ClosedFormJointTransforms, Pose, compose, rotation_matrices
     from .kinematics import RobotKinematics, segment_kinematics
     from .limits_report import check_joint_statistics
@@ -24,7 +23,7 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
     from .segment_run import CONTENT_METADATA, SegmentJob, SegmentResult, install_run_plan, run_segment
     from .temporal_stream import TemporalEdgeStats, TemporalEdgeValues, check_temporal_edges
     from .transform_lenses import transform_fields
-    from .viewer_delivery import send_to_viewer, viewer_binary
+    from .viewer_delivery import send_to_viewer
     from .writer import (
         folders_removed_if_left_empty,
         foreign_reason,

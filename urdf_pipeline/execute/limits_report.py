@@ -49,7 +49,7 @@ def check_joint_statistics(mapper: JointValueMapper, problems: Problems) -> list
                 f"{label}: {stats.beyond_rows} of {mapper.stats.rows} rows beyond the URDF limits {_limits_text(channel)} "
                 f"by more than slack {channel.slack_text}; worst value {stats.beyond_worst_raw:.6g} {channel.source_unit}"
             )
-            hint = unit_hint(channel, stats.raw_min, stats.raw_max) if not channel.wrap and stats.raw_min <= stats.raw_max else ""
+            hint = unit_hint(channel, stats.raw_min, stats.raw_max) if stats.raw_min <= stats.raw_max else ""
             if robot.on_violation == "error" and hint:
                 problems.add(f"{text}; {hint} on this entry (or joints.unit for the whole robot)", channel.where)
             elif robot.on_violation == "error":

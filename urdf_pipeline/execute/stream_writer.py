@@ -12,7 +12,7 @@ import threading
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from .held_signals import deferred_signals
+from ..process import deferred_signals
 
 if TYPE_CHECKING:
     from rerun.chunk import LazyChunkStream
@@ -56,7 +56,7 @@ def drain_streams(streams: list[LazyChunkStream], sink: Callable[[LazyChunkStrea
 def _start_and_wait(writer: threading.Thread) -> None:
     """Start `writer` and wait until it has returned, or until a Ctrl-C or SIGTERM handler raises (within
     `POLL_SECONDS`). The signal is taken between the waits (`deferred_signals`), never inside `start` or `join`: an
-    interrupted `join` lets every later one return while the thread runs on (Python 3.11, see held_signals.py)."""
+    interrupted `join` lets every later one return while the thread runs on (Python 3.11, see process/signals.py)."""
     while True:
         with deferred_signals() as received:
             if writer.ident is None:

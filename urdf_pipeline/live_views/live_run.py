@@ -9,7 +9,6 @@ nothing saved when no sample came), then end the command as they end any other (
 
 from __future__ import annotations
 
-import signal
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -19,9 +18,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..compile import LivePlan, LiveSourceSpec, check_live_config, compile_live
-from ..errors import Stopped, UserError, UserErrors, Where, shown, stop_signal
-from ..execute import deferred_signals, provenance_stream, write_file_atomically
+from ..errors import UserError, UserErrors, Where, shown
+from ..execute import provenance_stream, write_file_atomically
 from ..logs import say
+from ..process import Stopped, deferred_signals, signal_name, stop_signal
 from ..sources import checked_first_names
 from .joint_state import Feed, JointStateSample, same_topic
 from .latency import Latencies
@@ -95,7 +95,7 @@ def live_command(options: LiveOptions) -> LiveSummary:
 
     Ctrl-C and SIGTERM end the view as the stream's end does (within a poll of the feed: views closed, the recording
     finished, `--save` renamed into place, the last line said), then go on as every command's interruption does: the
-    signal is delivered to the handler it had (`execute.deferred_signals`), so the command line exits 130 or 143."""
+    signal is delivered to the handler it had (`process.deferred_signals`), so the command line exits 130 or 143."""
     check = check_live_config(options.config, stream_only=True)
     if check.errors:
         raise UserErrors(list(check.errors))
@@ -115,7 +115,7 @@ def live_command(options: LiveOptions) -> LiveSummary:
             except _NothingSaved:
                 pass
             if stop:
-                summary.ended = "stopped by Ctrl-C" if stop[0] == signal.SIGINT else f"stopped by {signal.Signals(stop[0]).name}"
+                summary.ended = f"stopped by {signal_name(stop[0])}"
                 say(summary.line())  # said here: the signal goes on to the command line as the block ends
     except KeyboardInterrupt as interrupt:  # the signal, given back as the block ended: this command said its line
         raise Stopped(stop_signal(interrupt), said=True) from None
@@ -275,4 +275,4 @@ def _times(samples: list[JointStateSample], stamp: str, view: LiveView) -> np.nd
 
 
 def _recording(plan: LivePlan, viewer_url: str | None, partial: Path | None) -> RecordingStream:
-    return live_recording(plan.application_id, False, viewer_url, partial)
+    return live_recording(plan.application_id, partial, viewer_url)

@@ -1,5 +1,5 @@
-"""The recording a live view sends to when the caller gives none: to a viewer (spawned here, or at a URL) and/or a
-file, with the config's application id."""
+"""The recording a live view sends to when the caller gives none: to viewers (their URLs settled by the caller:
+`process.spawn_viewer`, `process.require_viewer`) and/or a file, with the config's application id."""
 
 from __future__ import annotations
 
@@ -10,20 +10,12 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from rerun import RecordingStream
 
-SPAWNED_VIEWER = "rerun+http://127.0.0.1:9876/proxy"  # where `rerun.spawn()` starts Rerun's viewer
 
-
-def live_recording(application_id: str, spawn: bool, connect: str | None, save: str | os.PathLike[str] | Path | None) -> RecordingStream:
-    """A new recording whose sinks are a viewer started now (`spawn`; one already there is used), the viewer at
-    `connect`, and the file `save`, as asked."""
+def live_recording(application_id: str, save: str | os.PathLike[str] | Path | None, *viewers: str | None) -> RecordingStream:
+    """A new recording whose sinks are the viewers at `viewers` (None: not one) and the file `save`, as asked."""
     import rerun as rr
 
-    sinks: list[Any] = []
-    if spawn:
-        rr.spawn(connect=False)
-        sinks.append(rr.GrpcSink(SPAWNED_VIEWER))
-    if connect is not None:
-        sinks.append(rr.GrpcSink(connect))
+    sinks: list[Any] = [rr.GrpcSink(url) for url in viewers if url is not None]
     if save is not None:
         sinks.append(rr.FileSink(str(save)))
     recording = rr.RecordingStream(application_id)

@@ -19,7 +19,6 @@ import atexit
 import io
 import os
 import shutil
-import signal
 import socket
 import subprocess
 import sys
@@ -32,8 +31,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..child_process import die_with_parent, stop_session
 from ..errors import UserError
+from ..process import held_off, log_reason, start_viewer, stop_session, viewer_binary, viewer_url
 from .camera import Camera
 from .frames import Timeline
 
@@ -51,7 +50,6 @@ NOTIFICATIONS_WIDTH = 360  # the notifications ("toasts") are at most 330 points
 STARTUP_SECONDS = 30.0
 ARRIVAL_SECONDS = 60.0
 SETTLE_ATTEMPTS = 6
-_CAN_MASK = hasattr(signal, "pthread_sigmask")
 
 
 @dataclass(frozen=True)
@@ -119,7 +117,7 @@ class HeadlessViewer:
         deadline = time.monotonic() + STARTUP_SECONDS
         while True:
             try:
-                client = ViewerClient.connect(f"rerun+http://127.0.0.1:{port}/proxy")  # connects at once: retried
+                client = ViewerClient.connect(viewer_url(port))  # connects at once: retried
                 client.get_state()
                 return client
             except (ConnectionError, RuntimeError, TimeoutError, OSError):
@@ -136,10 +134,8 @@ class HeadlessViewer:
             raise UserError(f"the Rerun viewer stopped (exit status {self._process.returncode}){self._log_tail()}")
 
     def _log_tail(self) -> str:
-        lines = (
-            [line for line in self._log_path.read_text(errors="replace").splitlines() if line.strip()] if self._log_path.exists() else []
-        )
-        return f": {lines[-1].strip()[:300]}" if lines else ""
+        with open(self._log_path, "rb") as log:  # written since the viewer's start
+            return log_reason(log)
 
     def _call(self, call: Callable[[], Any]) -> Any:
         """A viewer request; if the viewer died meanwhile, say so as a user error rather than a connection traceback."""
@@ -259,8 +255,7 @@ class HeadlessViewer:
     def close(self) -> None:
         """End the viewer (SIGTERM to its session, SIGKILL after 5 s) with Ctrl-C and SIGTERM held off meanwhile."""
         process, self._process = self._process, None
-        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM}) if _CAN_MASK else None
-        try:
+        with held_off():
             shown, self._shown = list(self._shown.values()), {}
             try:
                 for recording in shown:
@@ -269,9 +264,6 @@ class HeadlessViewer:
                 if process is not None:
                     stop_session(process)
                 shutil.rmtree(self._folder, ignore_errors=True)
-        finally:
-            if blocked is not None:
-                signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
         atexit.unregister(self.close)
 
 
@@ -291,16 +283,6 @@ def _escaped(application_id: str) -> str:
     return application_id.replace("\\", "\\\\").replace(":", "\\:")
 
 
-def _binary() -> str:
-    """The viewer that ships in rerun-sdk (execute.viewer_binary: the one `run --spawn` starts too)."""
-    from ..execute import viewer_binary
-
-    found = viewer_binary()
-    if found is None:
-        raise UserError("cannot draw pictures: the Rerun viewer is not installed (pip install 'rerun-sdk==0.41.*')")
-    return found
-
-
 def _free_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
         probe.bind(("127.0.0.1", 0))
@@ -310,23 +292,12 @@ def _free_port() -> int:
 
 def _start(folder: Path, log_path: Path, size: Size, port: int) -> subprocess.Popen[bytes]:
     window = f"{size.width + NOTIFICATIONS_WIDTH + CHROME[0]}x{size.height + CHROME[1]}"
-    args = [_binary(), "--headless", "--hide-welcome-screen", "--port", str(port), "--bind", "127.0.0.1", "--window-size", window]
+    args = ["--headless", "--hide-welcome-screen", "--port", str(port), "--bind", "127.0.0.1", "--window-size", window]
     if sys.platform != "darwin":
         args += ["--renderer", "vulkan"]  # the default falls back to GL on a software rasterizer, which panics
-    environment = {**os.environ, "RERUN_APP_ONLY": "true"}  # as rerun's own spawn: no analytics prompt
-    if not environment.get("XDG_RUNTIME_DIR"):
-        environment["XDG_RUNTIME_DIR"] = str(folder)
+    runtime = {} if os.environ.get("XDG_RUNTIME_DIR") else {"XDG_RUNTIME_DIR": str(folder)}
     with open(log_path, "wb") as log:
-        return subprocess.Popen(
-            args,
-            stdin=subprocess.DEVNULL,
-            stdout=log,
-            stderr=subprocess.STDOUT,
-            cwd=folder,
-            env=environment,
-            start_new_session=True,
-            preexec_fn=die_with_parent(),
-        )
+        return start_viewer(viewer_binary("draw pictures"), args, log, folder, runtime)
 
 
 def _cropped(png: bytes, size: Size) -> bytes:

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 from ..package import lazy_surface
 
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
-    from .check.check_candidates import ANGLES, LENGTHS, fits, fitting, reaches, unit_only
+    from .check.check_candidates import fitting
     from .check.check_joints import check_config, check_exit_code, check_plan, read_sample, render_check
     from .diff.diff_inputs import diff_files, diff_git
     from .diff.diff_render import render_diff

@@ -1,8 +1,8 @@
 """init with a source: each joint's unit chosen from a bounded sample of the data against the URDF limits, and what
 `check` would still refuse in the written config (then init does not say "the config validates").
 
-The sample is check's (`check.read_sample`, the first rows of each robot source); the candidates are check's too
-(`check_candidates`): a unit in which the values fit the limits as they are (sign 1, no offset). One such unit: it is
+The sample is check's (`check.read_sample`, the first rows of each robot source); the units are judged as check and run
+judge them (`compile.unit_fits`, the one unit advisor): a unit in which the values fit the limits as they are (sign 1, no offset). One such unit: it is
 the choice. Several (values near zero fit deg and rad alike): the biggest in which the values reach a tenth of the
 joint's range, as check judges "looks like a bigger unit" (only one: a sure choice); else the URDF's own. None: the unit of check's simplest
 advice when every equally simple advice shares it (degrees with a sign, say), else the URDF's own, and the config
@@ -16,10 +16,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..compile import FACTORS, UNIT_NAMES
+from ..compile import ANGULAR_UNITS, FACTORS, LINEAR_UNITS, UNIT_NAMES, reaches, unit_fits
 from ..errors import UserError
 from ..plan import JointChannel, Plan
-from ..review import ANGLES, LENGTHS, check_plan, fits, fitting, reaches, read_sample, unit_only
+from ..review import check_plan, fitting, read_sample
 
 
 @dataclass(frozen=True)
@@ -38,7 +38,7 @@ class SampledUnits:
 
     def robot_unit(self, angular: bool) -> tuple[str, str] | None:
         """The unit most joints of a kind take (ties: the URDF's), with the comment that says why; None: none sampled."""
-        units = ANGLES if angular else LENGTHS
+        units = ANGULAR_UNITS if angular else LINEAR_UNITS
         chosen = [c for c in self.joints.values() if c.unit in units]
         if not chosen:
             return None
@@ -64,8 +64,8 @@ def choose_unit(channel: JointChannel, raw: np.ndarray) -> UnitChoice | None:
     finite = raw[np.isfinite(raw)]
     if channel.source_range is not None or channel.lower is None or channel.upper is None or not finite.size:
         return None
-    units = ANGLES if channel.source_unit in ANGLES else LENGTHS
-    in_units = [u for u in units if fits(unit_only(channel, u).values(channel, finite), channel)]
+    units = ANGULAR_UNITS if channel.source_unit in ANGULAR_UNITS else LINEAR_UNITS
+    in_units = [u for u in units if unit_fits(channel, u, finite)]
     span = _span(finite)
     if len(in_units) == 1:
         return UnitChoice(in_units[0], f"sampled values {span} fit the limits only in {UNIT_NAMES[in_units[0]]}", True)

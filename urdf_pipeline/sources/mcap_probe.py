@@ -6,7 +6,7 @@ and then spins at 100% CPU forever, deaf to Ctrl-C; for a chunk whose CRC fails 
 garbage. The file's summary does not show either. So, before any of it reaches Rerun's reader, every chunk of the file
 is inflated once within its bounds (`mcap_chunks.check_chunks`: Rerun's reader inflates every chunk, trusting the size
 it states); then the child decodes the topic exactly as a run does, under the limits every child reading a stranger's
-file sets on itself (`child_process.limit_this_process`: address space, CPU seconds, output size, no core), the parent
+file sets on itself (`process.limit_this_process`: address space, CPU seconds, output size, no core), the parent
 watches the child's log and stops it at the first such line (or after BASE_SECONDS plus SECONDS_PER_BYTE per byte),
 and only a file the child read cleanly reaches Rerun in this process. The child dies with this process (SIGTERM when it
 ends, however it ends). Run as a module, this file is the child.
@@ -22,8 +22,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..child_process import bound_from_environment, limit_this_process, run_bounded_child
 from ..errors import UserError, Where, shown
+from ..process import bound_from_environment, limit_this_process, run_bounded_child
 from .mcap_chunks import McapRefused, check_chunks, read_summary, refusal, require_library
 
 if TYPE_CHECKING:

@@ -13,9 +13,9 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from ..child_process import ChildOutcome, bound_from_environment, passed_environment, run_bounded_child, sandboxed_python
 from ..confine import Confinement, refuse_url
 from ..errors import UserError, Where, listing, shown, warn
+from ..process import ChildOutcome, bound_from_environment, passed_environment, run_bounded_child, sandboxed_python
 from .mjcf_files import scan_mjcf
 
 MEMORY_ENV = "URDF_PIPELINE_MJCF_MEMORY_MB"  # the runner may raise the bounds for a huge model; a config cannot

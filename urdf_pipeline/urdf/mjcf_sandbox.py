@@ -16,7 +16,7 @@ import sys
 from collections.abc import Mapping
 from typing import Any
 
-from ..child_process import limit_this_process
+from ..process import limit_this_process
 
 
 def compile_answer(request: Mapping[str, Any]) -> dict[str, Any]:

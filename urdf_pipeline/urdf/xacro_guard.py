@@ -25,9 +25,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..child_process import ChildOutcome, bound_from_environment, passed_environment, run_bounded_child, sandboxed_python
 from ..confine import Confinement
 from ..errors import UserError, Where, listing, neutral_text, shown
+from ..process import ChildOutcome, bound_from_environment, passed_environment, run_bounded_child, sandboxed_python
 from .xml_text import MAX_URDF_BYTES
 
 MEMORY_ENV = "URDF_PIPELINE_XACRO_MEMORY_MB"  # the runner may raise the bounds for a huge robot; a config cannot

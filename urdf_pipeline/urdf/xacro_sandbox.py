@@ -27,9 +27,9 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
-from ..child_process import limit_this_process
 from ..confine import Confinement
 from ..errors import UserError
+from ..process import limit_this_process
 
 # Names and attributes that lead to Python's internals: dunders and privates, frame/generator/coroutine/traceback/code
 # objects (`gen.gi_frame.f_back.f_globals` reaches a module's globals), and str.format, whose fields read attributes.

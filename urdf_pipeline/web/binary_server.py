@@ -15,20 +15,16 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-from ..child_process import die_with_parent, stop_session
 from ..errors import UserError
+from ..process import start_viewer, stop_session, viewer_binary
 
 STARTUP_SECONDS = 30.0
 HOSTING = re.compile(r"Hosting a web-viewer at http://127\.0\.0\.1:(\d+)")
 
 
 def rerun_binary(wanted: str) -> str:
-    """The viewer binary of rerun-sdk (`execute.viewer_binary`), checked to be release `wanted` (`rerun --version`)."""
-    from ..execute import viewer_binary
-
-    binary = viewer_binary()
-    if binary is None:
-        raise UserError(f"the web viewer comes from rerun-sdk's rerun binary, which is missing; reinstall rerun-sdk=={wanted}")
+    """The viewer binary of rerun-sdk (`process.viewer_binary`), checked to be release `wanted` (`rerun --version`)."""
+    binary = viewer_binary("serve Rerun's web viewer")
     try:
         said = subprocess.run([binary, "--version"], capture_output=True, text=True, timeout=60, env=_environment()).stdout
     except (OSError, subprocess.TimeoutExpired) as exc:
@@ -50,18 +46,9 @@ def _environment() -> dict[str, str]:
 def serving_web_viewer(binary: str, folder: Path) -> Iterator[int]:
     """`rerun --serve-web` on 127.0.0.1 for the duration of the block; yields the web viewer's HTTP port."""
     log_path = folder / "rerun.log"
-    args = [binary, "--serve-web", "--bind", "127.0.0.1", "--web-viewer-port", "0", "--port", "0"]
+    args = ["--serve-web", "--bind", "127.0.0.1", "--web-viewer-port", "0", "--port", "0"]
     with open(log_path, "wb") as log:
-        process = subprocess.Popen(
-            args,
-            stdin=subprocess.DEVNULL,
-            stdout=log,
-            stderr=subprocess.STDOUT,
-            cwd=folder,
-            env=_environment(),
-            start_new_session=True,
-            preexec_fn=die_with_parent(),
-        )
+        process = start_viewer(binary, args, log, folder, _environment())
     try:
         yield _announced_port(process, log_path)
     finally:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from dataclasses import replace
 from pathlib import Path
 
@@ -11,10 +12,12 @@ import numpy as np
 import pytest
 import yaml
 
+from urdf_pipeline.compile import unit_hint
 from urdf_pipeline.confine import ALLOW_ENV
 from urdf_pipeline.errors import Where
 from urdf_pipeline.examples import write_joint_parquet
 from urdf_pipeline.plan import JointChannel
+from urdf_pipeline.review.check.check_candidates import fitting
 from urdf_pipeline.review.check.check_joints import check_channel
 
 from ...conftest import SHARED
@@ -33,6 +36,24 @@ def prismatic(unit: str, lower: float = 0.0, upper: float = 0.04) -> JointChanne
 
 def report(channel: JointChannel, values) -> object:
     return check_channel(type("R", (), {"key": "arm"})(), channel, np.asarray(values, dtype=float))
+
+
+@pytest.mark.parametrize(
+    ("channel", "values", "unit"),
+    [
+        (revolute(-166, 166, unit="rad"), np.linspace(-150, 160, 40), "deg"),
+        (prismatic("m"), np.linspace(0, 40, 40), "mm"),
+        (prismatic("m"), np.linspace(0, 4, 40), "cm"),  # fits in cm and in mm: the bigger unit first, both ways
+        (revolute(-1, 215, unit="rad"), np.linspace(-200, -10, 40), None),  # negated degrees: no unit alone fits
+        (revolute(-1, 215), np.linspace(-200, -10, 40), None),
+    ],
+)
+def test_runs_unit_hint_and_checks_top_candidate_agree(channel: JointChannel, values: np.ndarray, unit: str | None) -> None:
+    """One advisor (compile/units.py): run's refusal names the unit check's simplest fitting correction changes alone."""
+    hinted = re.search(r"`unit: (\w+)`", unit_hint(channel, float(values.min()), float(values.max())))
+    top = fitting(channel, values)[0]
+    assert (hinted[1] if hinted else None) == unit
+    assert (top.unit if top.changes(channel) == ("unit",) else None) == unit
 
 
 def test_a_single_fitting_correction_gives_the_yaml_to_paste() -> None:

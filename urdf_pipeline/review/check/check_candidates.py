@@ -19,17 +19,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...compile import ANGULAR_UNITS, FACTORS, LINEAR_UNITS, UNIT_NAMES
+from ...compile import ANGULAR_UNITS, FACTORS, LINEAR_UNITS, UNIT_NAMES, corrected, turn, within
 from ...plan import JointChannel
-from ...sources import wrapped
 
-ANGLES: tuple[str, ...] = ANGULAR_UNITS
-LENGTHS: tuple[str, ...] = LINEAR_UNITS
 OFFSETS_DEG = (0.0, 90.0, -90.0, 180.0, -180.0)
 
 
 def angular(channel: JointChannel) -> bool:
-    return channel.source_unit in ANGLES
+    return channel.source_unit in ANGULAR_UNITS
 
 
 @dataclass(frozen=True)
@@ -39,19 +36,8 @@ class Candidate:
     wrap: bool
     offset: float  # URDF units (rad or m), added after conversion
 
-    def gain(self, channel: JointChannel) -> float:
-        return FACTORS[self.unit] * channel.scale * self.sign
-
-    def turn(self, channel: JointChannel) -> float:
-        """A full turn in raw values of this unit (with the config's scale)."""
-        return 2 * math.pi / (FACTORS[self.unit] * channel.scale)
-
     def values(self, channel: JointChannel, raw: np.ndarray) -> np.ndarray:
-        if self.wrap:
-            assert channel.lower is not None and channel.upper is not None
-            center = ((channel.lower + channel.upper) / 2 - self.offset) / self.gain(channel)
-            raw = wrapped(raw, center, self.turn(channel))
-        return raw * self.gain(channel) + self.offset
+        return corrected(channel, raw, self.unit, self.sign, self.wrap, self.offset)
 
     def changes(self, channel: JointChannel) -> tuple[str, ...]:
         """What this candidate changes in the config's entry, in the order the advice names them."""
@@ -98,8 +84,8 @@ class Candidate:
         if channel.scale != 1:
             entry.append(f"scale: {channel.scale:g}")
         if self.wrap:
-            turn = self.turn(channel)
-            entry.append(f"wrap: {round(turn, 9):g}" if self.unit == "deg" else f"wrap: {round(turn, 9)}")
+            period = turn(channel, self.unit)
+            entry.append(f"wrap: {round(period, 9):g}" if self.unit == "deg" else f"wrap: {round(period, 9)}")
         if self.sign < 0:
             entry.append("sign: -1")
         if self.offset:
@@ -113,9 +99,9 @@ def candidates(channel: JointChannel, raw: np.ndarray) -> list[Candidate]:
     signs = (int(channel.sign) if channel.sign in (1, -1) else 1, -int(channel.sign) if channel.sign in (1, -1) else -1)
     if angular(channel):
         offsets = list(dict.fromkeys([channel.offset, *(math.radians(d) for d in OFFSETS_DEG)]))
-        combos = itertools.product(ANGLES, signs, (False, True), offsets)
+        combos = itertools.product(ANGULAR_UNITS, signs, (False, True), offsets)
     else:
-        combos = itertools.product(LENGTHS, signs, (False,), list(dict.fromkeys([channel.offset, 0.0])))
+        combos = itertools.product(LINEAR_UNITS, signs, (False,), list(dict.fromkeys([channel.offset, 0.0])))
     found = [Candidate(unit, sign, wrap, offset) for unit, sign, wrap, offset in combos]
     found = [c for c in found if _plausible(c, channel, raw)]
     return sorted(found, key=lambda c: _order(c, channel))
@@ -140,7 +126,7 @@ def _plausible(candidate: Candidate, channel: JointChannel, raw: np.ndarray) -> 
     """The two guards of the module docstring; the config's own corrections are always tried."""
     if candidate.is_current(channel) or not raw.size:
         return True
-    if candidate.wrap and not channel.wrap and float(np.max(np.abs(raw))) >= candidate.turn(channel):
+    if candidate.wrap and not channel.wrap and float(np.max(np.abs(raw))) >= turn(channel, candidate.unit):
         return False
     shrinks = FACTORS[candidate.unit] < FACTORS[channel.source_unit]
     moved = candidate.wrap or not math.isclose(candidate.offset, channel.offset, abs_tol=1e-9)
@@ -151,47 +137,11 @@ def _plausible(candidate: Candidate, channel: JointChannel, raw: np.ndarray) -> 
     return True
 
 
-def fits(values: np.ndarray, channel: JointChannel) -> bool:
-    assert channel.lower is not None and channel.upper is not None
-    return bool(np.all((values >= channel.lower - channel.slack) & (values <= channel.upper + channel.slack)))
-
-
 def fitting(channel: JointChannel, raw: np.ndarray) -> list[Candidate]:
     """The candidates that fit the limits, one per distinct result on the sample (the simplest of equals)."""
     kept: list[tuple[Candidate, np.ndarray]] = []
     for candidate in candidates(channel, raw):
         values = candidate.values(channel, raw)
-        if fits(values, channel) and not any(np.allclose(values, other, atol=1e-9) for _, other in kept):
+        if within(channel, values) and not any(np.allclose(values, other, atol=1e-9) for _, other in kept):
             kept.append((candidate, values))
     return [c for c, _ in kept]
-
-
-def unit_only(channel: JointChannel, unit: str) -> Candidate:
-    """The config's corrections with another unit."""
-    return Candidate(unit, int(channel.sign) if channel.sign in (1, -1) else 1, bool(channel.wrap), channel.offset)
-
-
-def looks_like_a_bigger_unit(channel: JointChannel, raw: np.ndarray) -> str | None:
-    """For values that fit as configured: the bigger unit (deg -> rad, mm -> m) in which they fit as well and reach at
-    least a tenth of the joint's range, where as configured they stay near zero. Clearly ambiguous: say so."""
-    if channel.source_range is not None or channel.wrap or channel.lower is None or channel.upper is None or not raw.size:
-        return None
-    units = ANGLES if angular(channel) else LENGTHS
-    for unit in sorted(units, key=lambda u: -FACTORS[u]):
-        if FACTORS[unit] <= FACTORS[channel.source_unit]:
-            break
-        if reaches(channel, raw, unit) and fits(unit_only(channel, unit).values(channel, raw), channel):
-            return unit
-    return None
-
-
-REACH_SHARE = 0.1  # values that reach this share of the joint's range in a unit look like that unit; below, near zero
-
-
-def reaches(channel: JointChannel, raw: np.ndarray, unit: str) -> bool:
-    """Whether the raw values, read in `unit`, reach at least REACH_SHARE of the joint's range from zero (where in a
-    smaller unit they would barely leave it): check's "clearly ambiguous" and init's choice of unit."""
-    assert channel.lower is not None and channel.upper is not None
-    width = channel.upper - channel.lower
-    reach = float(np.max(np.abs(raw))) * FACTORS[unit] * abs(channel.scale)
-    return width > 0 and reach >= REACH_SHARE * width

@@ -18,11 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ...compile import UNIT_NAMES, compile_config
+from ...compile import ANGULAR_UNITS, UNIT_NAMES, bigger_unit, compile_config, unit_fits, within
 from ...errors import ExitCode, shown
 from ...plan import JointChannel, LeRobotSourcePlan, Plan, RobotPlan, SourcePlan
 from ...sources import wrapped
-from .check_candidates import ANGLES, angular, fits, fitting, looks_like_a_bigger_unit, unit_only
+from .check_candidates import angular, fitting
 
 SAMPLE_ROWS = 100_000
 
@@ -79,7 +79,7 @@ def check_channel(robot: RobotPlan, channel: JointChannel, raw: np.ndarray) -> J
         return replace(report, verdict="no limits", current_fits=True, message="the joint has no limits: nothing to check against")
     lower, upper = channel.lower, channel.upper
     current = _current_values(channel, finite)
-    current_fits = fits(current, channel)
+    current_fits = within(channel, current)
     report = replace(report, limits_in_source_unit=channel.limits_in_source_unit, current_fits=current_fits)
     outside = (current < lower) | (current > upper)
     if current_fits and outside.any():
@@ -93,7 +93,7 @@ def check_channel(robot: RobotPlan, channel: JointChannel, raw: np.ndarray) -> J
     kept = fitting(channel, finite)
     report = replace(report, fitting=tuple(c.describe(channel) + (" (the config's)" if c.is_current(channel) else "") for c in kept))
     if current_fits:
-        bigger = looks_like_a_bigger_unit(channel, finite)
+        bigger = bigger_unit(channel, finite)
         if bigger is None:
             return replace(report, verdict="fits", message="fits as configured")
         reach = float(np.max(np.abs(finite)))
@@ -135,15 +135,15 @@ def _robot_advice(robot: RobotPlan, reports: list[JointReport], raw: np.ndarray)
     advised = {r.unit_fits for r in reports if r.unit_fits is not None}
     suspected = {r.bigger_unit for r in reports if r.bigger_unit is not None} - advised
     for unit in sorted(advised | suspected):
-        kind = [c for c in robot.channels if c.source_range is None and angular(c) == (unit in ANGLES)]
+        kind = [c for c in robot.channels if c.source_range is None and angular(c) == (unit in ANGULAR_UNITS)]
         agree = all(
-            np.isfinite(raw[:, c.source_index]).any() and fits(unit_only(c, unit).values(c, _finite(raw[:, c.source_index])), c)
+            np.isfinite(raw[:, c.source_index]).any() and unit_fits(c, unit, _finite(raw[:, c.source_index]))
             for c in kind
             if c.lower is not None and c.upper is not None
         )
         if not agree:
             continue
-        what = "revolute and continuous" if unit in ANGLES else "prismatic"
+        what = "revolute and continuous" if unit in ANGULAR_UNITS else "prismatic"
         written = f"write `unit: {_robot_unit(robot, unit)}` under robots.{robot.key}.joints"
         if unit in advised:
             advice = f"every {what} joint of robot {robot.key} fits if its values are {UNIT_NAMES[unit]}: {written}"
@@ -163,9 +163,9 @@ def _robot_advice(robot: RobotPlan, reports: list[JointReport], raw: np.ndarray)
 
 def _robot_unit(robot: RobotPlan, unit: str) -> str:
     """The robot's `joints.unit` with `unit` for its kind, the other kind's unit kept (`{angle: deg, length: mm}`)."""
-    others = {c.source_unit for c in robot.channels if c.source_range is None and angular(c) != (unit in ANGLES)}
+    others = {c.source_unit for c in robot.channels if c.source_range is None and angular(c) != (unit in ANGULAR_UNITS)}
     other = next(iter(others)) if len(others) == 1 else None
-    if unit in ANGLES:
+    if unit in ANGULAR_UNITS:
         return f"{{angle: {unit}, length: {other}}}" if other not in (None, "m") else unit
     return f"{{angle: {other}, length: {unit}}}" if other not in (None, "rad") else unit
 

@@ -23,7 +23,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any, Literal
 
-from .errors import UserError, Where, shown
+from ..errors import UserError, Where, shown
+from .signals import held_off
 
 
 def die_with_parent(sent: int = signal.SIGTERM) -> Callable[[], None] | None:
@@ -44,8 +45,7 @@ def die_with_parent(sent: int = signal.SIGTERM) -> Callable[[], None] | None:
 def stop_session(process: subprocess.Popen[bytes]) -> None:
     """SIGTERM to the child's session, SIGKILL after 5 s, with Ctrl-C and SIGTERM held off meanwhile (a second Ctrl-C
     must not leave the child running)."""
-    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
-    try:
+    with held_off():
         for sent in (signal.SIGTERM, signal.SIGKILL):
             if process.poll() is not None:
                 return
@@ -55,8 +55,6 @@ def stop_session(process: subprocess.Popen[bytes]) -> None:
                 return
             with contextlib.suppress(subprocess.TimeoutExpired):
                 process.wait(5.0)
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
 
 
 def limit_this_process(limits: Mapping[str, int], threads: bool = False) -> None:
@@ -94,7 +92,7 @@ def bound_from_environment(name: str, default: float, where: Where | None = None
     return value
 
 
-ANSI = re.compile(r"\x1b\[[0-9;]*m")
+ANSI_ESCAPE = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")  # colours and cursor moves in a native program's lines
 OUT_OF_MEMORY = re.compile(
     r"MemoryError|memory allocation of|unable to allocate|out of memory|bad_alloc|cannot allocate|failed to map segment", re.IGNORECASE
 )
@@ -132,7 +130,7 @@ def sandboxed_python(module: str, *needs: str) -> list[str]:
     """The command of an isolated Python child (`-I -S`: no user site, no .pth files, no PYTHON* variables) running
     `module`'s main(), importing urdf_pipeline and the packages `needs` from where this process finds them (it has no
     site-packages). ImportError naming the first of `needs` that is not installed."""
-    folders = [str(Path(__file__).resolve().parents[1])]  # the folder holding the urdf_pipeline package
+    folders = [str(Path(__file__).resolve().parents[2])]  # the folder holding the urdf_pipeline package
     for name in needs:
         spec = importlib.util.find_spec(name)
         if spec is None or not spec.submodule_search_locations:
@@ -186,8 +184,7 @@ def run_bounded_child(
             if timed_out:
                 break
     finally:
-        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})  # a second Ctrl-C waits
-        try:
+        with held_off():  # a second Ctrl-C waits
             with contextlib.suppress(ProcessLookupError, PermissionError):
                 os.killpg(child.pid, signal.SIGKILL)  # the whole group, even once the child itself has ended
             child.wait()
@@ -195,8 +192,6 @@ def run_bounded_child(
                 reader.join(timeout=5)
             child.stdout.close()
             child.stderr.close()
-        finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
     return output.outcome(child.returncode, timed_out)
 
 
@@ -224,7 +219,7 @@ class _Output:
         for raw in iter(lambda: stream.readline(1 << 13), b""):
             if len(self.head) <= self.stderr_bytes:
                 self.head.extend(raw[: self.stderr_bytes + 1 - len(self.head)])
-            line = ANSI.sub("", raw.decode("utf-8", "replace")).strip()[:500]
+            line = ANSI_ESCAPE.sub("", raw.decode("utf-8", "replace")).strip()[:500]
             if self.stop_on is not None and self.matched is None and self.stop_on.search(line):
                 self.matched = line
                 self.stop.set()

@@ -1,4 +1,4 @@
-"""The one runner of a bounded child (`child_process.run_bounded_child`), with children written here as `python -c`."""
+"""The one runner of a bounded child (`process.run_bounded_child`), with children written here as `python -c`."""
 
 from __future__ import annotations
 
@@ -12,13 +12,13 @@ from pathlib import Path
 
 import pytest
 
-from urdf_pipeline.child_process import ChildOutcome, run_bounded_child
+from urdf_pipeline.process.children import ChildOutcome, run_bounded_child
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="process groups and /proc: Linux")
 
 
 def run(code: str, *, timeout_s: float = 20.0, answer_bytes: int = 1 << 20, stop_on: re.Pattern[str] | None = None) -> ChildOutcome:
-    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
     return run_bounded_child(
         [sys.executable, "-c", code], {"n": 1}, timeout_s=timeout_s, env=env, answer_bytes=answer_bytes, stop_on=stop_on
     )
@@ -46,7 +46,7 @@ def test_the_answer_is_the_last_stdout_line_and_the_request_comes_on_stdin() -> 
 
 def test_a_child_beyond_its_memory_bound() -> None:
     limits = "{'memory_bytes': 200 << 20, 'cpu_seconds': 10, 'output_bytes': 1 << 20}"
-    outcome = run(f"from urdf_pipeline.child_process import limit_this_process as l; l({limits}); b = bytearray(1 << 30)")
+    outcome = run(f"from urdf_pipeline.process.children import limit_this_process as l; l({limits}); b = bytearray(1 << 30)")
     assert outcome.kind == "memory" and outcome.answer is None and "MemoryError" in outcome.last
 
 
@@ -81,7 +81,7 @@ def test_a_stderr_line_matching_stop_on_stops_the_child() -> None:
 
 PARENT = """
 import os, signal, subprocess, sys
-from urdf_pipeline.child_process import run_bounded_child
+from urdf_pipeline.process.children import run_bounded_child
 if sys.argv[2] == "handled":  # as the CLI does: SIGTERM becomes an exception
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
 child = ("import os, signal, subprocess, sys, time; signal.signal(signal.SIGTERM, signal.SIG_IGN); "
@@ -96,7 +96,7 @@ def test_sigterm_to_the_parent_leaves_no_child(tmp_path: Path, parent: str) -> N
     """The child ignores SIGTERM and starts a grandchild: a parent that handles SIGTERM kills the whole group; one that
     dies of it takes its child along (PR_SET_PDEATHSIG; the readers' children may start no process of their own)."""
     pids = tmp_path / "pids"
-    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
     process = subprocess.Popen([sys.executable, "-c", PARENT, str(pids), parent], env=env)
     end = time.monotonic() + 20
     while not (pids.exists() and len(pids.read_text().split()) == 2) and time.monotonic() < end:
