@@ -14,7 +14,7 @@ from ..package import lazy_surface
 
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
     from .check.check_candidates import fitting
-    from .check.check_joints import check_config, check_exit_code, check_plan, read_sample, render_check
+    from .check.check_joints import check_config, check_exit_code, check_plan, plan_sample, render_check
     from .diff.diff_inputs import diff_files, diff_git
     from .diff.diff_render import render_diff
     from .plan_report.report import plan_command

@@ -1,7 +1,7 @@
 """init with a source: each joint's unit chosen from a bounded sample of the data against the URDF limits, and what
 `check` would still refuse in the written config (then init does not say "the config validates").
 
-The sample is check's (`check.read_sample`, the first rows of each robot source); the units are judged as check and run
+The sample is check's (`check.plan_sample`, the first rows of each robot source); the units are judged as check and run
 judge them (`compile.unit_fits`, the one unit advisor): a unit in which the values fit the limits as they are (sign 1, no offset). One such unit: it is
 the choice. Several (values near zero fit deg and rad alike): the biggest in which the values reach a tenth of the
 joint's range, as check judges "looks like a bigger unit" (only one: a sure choice); else the URDF's own. None: the unit of check's simplest
@@ -19,7 +19,7 @@ import numpy as np
 from ..compile import ANGULAR_UNITS, FACTORS, LINEAR_UNITS, UNIT_NAMES, reaches, unit_fits
 from ..errors import UserError
 from ..plan import JointChannel, Plan
-from ..review import check_plan, fitting, read_sample
+from ..review import check_plan, fitting, plan_sample
 
 
 @dataclass(frozen=True)
@@ -88,11 +88,6 @@ def choose_unit(channel: JointChannel, raw: np.ndarray) -> UnitChoice | None:
     return UnitChoice(channel.source_unit, f"sampled values {span} fit the limits in no unit as they are: see check", False)
 
 
-def sample_of(plan: Plan) -> dict[str, np.ndarray]:
-    """check's sample of every source that drives a robot (the first segment's)."""
-    return {source.name: read_sample(source) for source in plan.review_segment.sources if plan.robots_for(source.name)}
-
-
 def sampled_units(plan: Plan, sample: dict[str, np.ndarray]) -> SampledUnits:
     joints: dict[str, UnitChoice] = {}
     rows = 0
@@ -124,7 +119,7 @@ def refused_by_check(plan: Plan, sample: dict[str, np.ndarray]) -> list[str]:
 def read_units(plan: Plan) -> tuple[SampledUnits | None, dict[str, np.ndarray], str]:
     """(the units, the sample, "") or (None, {}, why not) when the sample cannot be read."""
     try:
-        sample = sample_of(plan)
+        sample = plan_sample(plan)
     except UserError as exc:
         return None, {}, exc.message
     return sampled_units(plan, sample), sample, ""

@@ -186,6 +186,12 @@ def check_plan(plan: Plan, sample: dict[str, np.ndarray]) -> list[JointReport]:
     return reports
 
 
+def plan_sample(plan: Plan, rows: int = SAMPLE_ROWS) -> dict[str, np.ndarray]:
+    """`read_sample` of every source that drives a robot, in the segment review shows (`Plan.review_segment`): the one
+    sample `check`, `plan --sample` and `init` judge."""
+    return {source.name: read_sample(source, rows) for source in plan.review_segment.sources if plan.robots_for(source.name)}
+
+
 def read_sample(source: SourcePlan, rows: int = SAMPLE_ROWS) -> np.ndarray:
     """The first `rows` rows of a source, as a (rows x names) matrix, read with the same Rerun reader as a run (a
     remote LeRobot dataset's episode from a local view of its files, as a run reads it)."""
@@ -217,8 +223,7 @@ def check_exit_code(reports: Sequence[JointReport]) -> int:
 def check_config(config: Path, rows: int = SAMPLE_ROWS) -> list[JointReport]:
     """`check CONFIG`: the first `rows` rows of every source that drives a robot, checked joint by joint."""
     plan = compile_config(config)
-    sample = {source.name: read_sample(source, rows) for source in plan.review_segment.sources if plan.robots_for(source.name)}
-    return check_plan(plan, sample)
+    return check_plan(plan, plan_sample(plan, rows))
 
 
 def render_check(reports: Sequence[JointReport], format: str) -> str:

@@ -4,7 +4,7 @@ json (its plain data, report_model.as_data).
 The model keeps what every format shows: paths both as planned and relative to the config's folder, order fixed
 (config order where it means something, tree order for edges, names otherwise), so markdown and json are the same
 bytes for the same inputs and golden files pin them. None of it reads joint values, except `--sample`
-(check.read_sample); none imports Rerun otherwise.
+(check.plan_sample); none imports Rerun otherwise.
 """
 
 from __future__ import annotations
@@ -107,10 +107,10 @@ def plan_command(
 
 
 def read_plan_sample(plan: Plan, rows: int) -> SampleEntry:
-    """check.read_sample on every robot source of the plan (the first segment's), then check's per-joint verdict."""
-    from ..check.check_joints import check_plan, read_sample
+    """check.plan_sample, then check's per-joint verdict."""
+    from ..check.check_joints import check_plan, plan_sample
 
-    matrices = {source.name: read_sample(source, rows) for source in plan.review_segment.sources if plan.robots_for(source.name)}
+    matrices = plan_sample(plan, rows)
     return SampleEntry(rows, {name: len(matrices[name]) for name in sorted(matrices)}, tuple(check_plan(plan, matrices)))
 
 
