@@ -18,7 +18,6 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 import pyarrow as pa
 
-from ..compile import LivePlan
 from ..execute import (
     ClosedFormJointTransforms,
     TemporalEdgeValues,
@@ -27,7 +26,7 @@ from ..execute import (
     provenance_stream,
     robot_model_stream,
 )
-from ..plan import RobotPlan
+from ..plan import LivePlan, RobotPlan
 from ..sources import JointValueMapper
 from .limit_reports import REPORT_SECONDS, LimitReports
 from .value_rows import ValueRows
