@@ -14,8 +14,8 @@ from typing import Generic, Literal, TypeVar, cast
 
 from ..config import Document, expand_edge_specs, load_document, require_schema_valid
 from ..errors import Problems, UserError, UserErrors, Where, warn
-from ..plan import EdgePlan, LivePlan, LiveSourceSpec, Plan, RobotPlan, ScenePlan, TemporalEdgePlan
-from ..sources import KINDS, kind_of
+from ..plan import DEFAULT_TIMELINE, EdgePlan, LivePlan, LiveSourceSpec, Plan, RobotPlan, ScenePlan, TemporalEdgePlan
+from ..sources import KINDS, MCAP_TIMELINES, kind_of
 from ..urdf import UrdfModel
 from .comparisons import with_comparisons
 from .context import CompileContext, SourceNames
@@ -170,8 +170,9 @@ def _live_spec(ctx: CompileContext, name: str) -> LiveSourceSpec:
     spec = ctx.data["sources"][name]
     kind = kind_of(spec)
     names = tuple(spec["names"]) if "names" in spec else None
-    topic = spec.get("topic") if kind == "mcap" else None
-    return LiveSourceSpec(name, kind, names, ctx.where("sources", name), topic, spec.get("timeline", "header"))
+    topic, stamp = spec.get("topic") if kind == "mcap" else None, spec.get("timeline", "header")
+    timeline = MCAP_TIMELINES[stamp] if kind == "mcap" else DEFAULT_TIMELINE  # the timeline a run of the same bag uses
+    return LiveSourceSpec(name, kind, names, ctx.where("sources", name), topic, stamp, timeline)
 
 
 def _read_sources(ctx: CompileContext) -> set[str]:

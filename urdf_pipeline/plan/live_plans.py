@@ -8,7 +8,6 @@ from typing import Any
 from ..errors import UserError, Where
 from .scene_plans import ScenePlan
 
-MCAP_TIMELINES = {"header": "ros2_timestamp", "log_time": "message_log_time", "publish_time": "message_publish_time"}
 DEFAULT_TIMELINE = "time"  # the live timeline of a source that is not a ROS topic: a timestamp, the push's time
 
 
@@ -36,10 +35,10 @@ class LiveSourceSpec:
     where: Where
     topic: str | None
     stamp: str
+    timeline: str  # a run's timeline of the source (an MCAP topic's), else DEFAULT_TIMELINE
 
     def with_names(self, names: tuple[str, ...]) -> LiveSource:
-        timeline = MCAP_TIMELINES[self.stamp] if self.kind == "mcap" else DEFAULT_TIMELINE
-        return LiveSource(self.name, self.kind, names, self.where, self.topic, self.stamp, timeline)
+        return LiveSource(self.name, self.kind, names, self.where, self.topic, self.stamp, self.timeline)
 
 
 @dataclass(frozen=True)
