@@ -12,7 +12,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Generic, Literal, TypeVar, cast
 
-from ..config import Document, expand_edge_specs, load_document, require_schema_valid
+from ..config import Document, EdgeSpec, expand_edge_specs, load_document, require_schema_valid
 from ..errors import Problems, UserError, UserErrors, Where, warn
 from ..plan import DEFAULT_TIMELINE, EdgePlan, LivePlan, LiveSourceSpec, Plan, RobotPlan, ScenePlan, TemporalEdgePlan
 from ..sources import KINDS, MCAP_TIMELINES, kind_of
@@ -96,7 +96,7 @@ def check_document(document: Document, names: NameSource[P]) -> Compiled[P]:
     ctx = replace(CompileContext.for_document(document), opens_sources=names.origin != "config")
     data = ctx.data
     compiled = compile_sources(ctx) if names.origin == "data" else None
-    read = _read_sources(ctx) if names.live else set(data["sources"])
+    read = _read_sources(ctx, expand_edge_specs(data.get("edges", []), document, Problems())) if names.live else set(data["sources"])
     read_in_order = [name for name in data["sources"] if name in read]
     found, notes = _source_names(ctx, names, compiled, read_in_order)
     model = _compile_model(ctx, found)
@@ -175,10 +175,10 @@ def _live_spec(ctx: CompileContext, name: str) -> LiveSourceSpec:
     return LiveSourceSpec(name, kind, names, ctx.where("sources", name), topic, stamp, timeline)
 
 
-def _read_sources(ctx: CompileContext) -> set[str]:
-    """The sources robots and temporal edges read (sidecar edge files included; their problems are the model's)."""
+def _read_sources(ctx: CompileContext, edges: list[EdgeSpec]) -> set[str]:
+    """The sources whose values robots and temporal edges read (not a bag's /tf edges: those read its file). The edges'
+    problems (a sidecar file's) are the model's, said once."""
     used = {spec["joints"]["source"] for spec in ctx.data["robots"].values() if "joints" in spec}
-    edges = expand_edge_specs(ctx.data.get("edges", []), ctx.document, Problems())
     return used | {edge.spec["source"] for edge in edges if "source" in edge.spec}
 
 
@@ -243,9 +243,7 @@ def _compile_model(ctx: CompileContext, sources: SourceNames) -> _Model:
         warn("no robot of this config is driven by a source: joint_series plots nothing", ctx.where("output", "joint_series"))
 
     edge_specs = expand_edge_specs(data.get("edges", []), ctx.document, problems)  # inline edges and sidecar files, in order
-    used = {spec["joints"]["source"] for spec in data["robots"].values() if "joints" in spec}
-    used |= {edge.spec["source"] for edge in edge_specs if "source" in edge.spec}  # temporal edges read sources too
-    used |= {edge.spec["tf"] for edge in edge_specs if "tf" in edge.spec}  # and a bag's /tf edges
+    used = _read_sources(ctx, edge_specs) | {edge.spec["tf"] for edge in edge_specs if "tf" in edge.spec}  # and a bag's /tf edges
     for name in data["sources"]:
         if name not in used:
             problems.add(
