@@ -96,11 +96,13 @@ def check_document(document: Document, names: NameSource[P]) -> Compiled[P]:
     ctx = replace(CompileContext.for_document(document), opens_sources=names.origin != "config")
     data = ctx.data
     compiled = compile_sources(ctx) if names.origin == "data" else None
-    read = _read_sources(ctx, expand_edge_specs(data.get("edges", []), document, Problems())) if names.live else set(data["sources"])
-    read_in_order = [name for name in data["sources"] if name in read]
+    read_in_order = list(data["sources"])  # the sources whose names are needed: live reads only some of them
+    if names.live:
+        read = _read_sources(ctx, expand_edge_specs(data.get("edges", []), document, Problems()))
+        read_in_order = [name for name in read_in_order if name in read]
     found, notes = _source_names(ctx, names, compiled, read_in_order)
     model = _compile_model(ctx, found)
-    specs = {name: _live_spec(ctx, name) for name in sorted(read)} if names.live else {}
+    specs = {name: _live_spec(ctx, name) for name in sorted(read_in_order)} if names.live else {}
     if names.live:
         _refuse_what_live_cannot_read(ctx, names, model.temporal, specs)
     else:
