@@ -96,14 +96,15 @@ def check_document(document: Document, names: NameSource[P]) -> Compiled[P]:
     ctx = replace(CompileContext.for_document(document), opens_sources=names.origin != "config")
     data = ctx.data
     compiled = compile_sources(ctx) if names.origin == "data" else None
-    read_in_order = list(data["sources"])  # the sources whose names are needed: live reads only some of them
+    needed = list(data["sources"])  # the sources whose names are needed, in config order: a live view reads only some
     if names.live:
         read = _read_sources(ctx, expand_edge_specs(data.get("edges", []), document, Problems()))
-        read_in_order = [name for name in read_in_order if name in read]
-    found, notes = _source_names(ctx, names, compiled, read_in_order)
+        needed = [name for name in needed if name in read]
+    found, notes = _source_names(ctx, names, compiled, needed)
     model = _compile_model(ctx, found)
-    specs = {name: _live_spec(ctx, name) for name in sorted(read_in_order)} if names.live else {}
+    specs: dict[str, LiveSourceSpec] = {}
     if names.live:
+        specs = {name: _live_spec(ctx, name) for name in sorted(needed)}
         _refuse_what_live_cannot_read(ctx, names, model.temporal, specs)
     else:
         all_compiled = compiled is None or len(compiled.plans) == len(data["sources"])
@@ -116,7 +117,7 @@ def check_document(document: Document, names: NameSource[P]) -> Compiled[P]:
         scene = (document.file, model.robots, model.edges, model.root, model.temporal)
         application_id = data["output"]["application_id"]
         if names.live:
-            plan = LivePlan(*scene, application_id, tuple(specs[name].with_names(found[name] or ()) for name in read_in_order))
+            plan = LivePlan(*scene, application_id, tuple(specs[name].with_names(found[name] or ()) for name in needed))
         else:
             assert dataset is not None
             plan = Plan(*scene, dataset, application_id, ctx.where("output"), trails)
@@ -125,15 +126,15 @@ def check_document(document: Document, names: NameSource[P]) -> Compiled[P]:
 
 
 def _source_names(
-    ctx: CompileContext, names: NameSource[ScenePlan], compiled: CompiledSources | None, read: list[str]
+    ctx: CompileContext, names: NameSource[ScenePlan], compiled: CompiledSources | None, needed: list[str]
 ) -> tuple[dict[str, tuple[str, ...] | None], list[DataNote]]:
-    """Each source's value names (None: unknown), and a note for each source read whose names only its data (or
+    """Each source's value names (None: unknown), and a note for each source `needed` whose names only its data (or
     stream) holds."""
     if compiled is not None:
         return {name: plan.names for name, plan in compiled.plans.items()}, []
     found = {name: names.stream.get(name) or _live_spec(ctx, name).names for name in ctx.data["sources"]}
     notes: list[DataNote] = []
-    for name in sorted(read) if names.origin == "stream" else read:
+    for name in sorted(needed) if names.origin == "stream" else needed:
         if found[name] is None and names.origin == "live data":
             found[name] = _data_names(ctx, name)
         elif found[name] is None:
