@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 from ..errors import UserError, Where
+from .robot_plans import RobotPlan
 from .scene_plans import ScenePlan
 
 DEFAULT_TIMELINE = "time"  # the live timeline of a source that is not a ROS topic: a timestamp, the push's time
@@ -52,7 +52,7 @@ class LivePlan(ScenePlan):
     def source_named(self, name: str) -> LiveSource:
         return next(source for source in self.sources if source.name == name)
 
-    def robot_named(self, key: str | None) -> Any:
+    def robot_named(self, key: str | None) -> RobotPlan:
         """The robot `key` names; without one, the only robot driven by a source (several: an error listing them)."""
         driven = [robot for robot in self.robots if robot.source is not None]
         if key is None and len(driven) == 1:
