@@ -210,12 +210,12 @@ def test_frame_names_from_the_bag_are_shown_escaped(tmp_path: Path, run_cli) -> 
 
 
 def test_live_refuses_a_tf_edge(bag_dir: tuple[Path, np.ndarray]) -> None:
-    from urdf_pipeline.compile.live_plan import check_live_config
+    from urdf_pipeline.compile import FROM_STREAM, check_config
 
     directory, _ = bag_dir
     config = _config([*MOUNT_EDGES, {"parent": "odom", "child": "base", "tf": "js"}])
     config["frames"]["root"] = "odom"
-    check = check_live_config(write_config(directory, "live", config))
+    check = check_config(write_config(directory, "live", config), FROM_STREAM)
     assert [e.message for e in check.errors] == [
         "edge odom -> base reads /tf of source 'js''s bag, which run reads and a live view does not; drop the edge for live use"
     ]

@@ -223,6 +223,13 @@ def test_validate_reports_every_config_at_once(invalid_dir: Path, run_cli) -> No
         assert f"error: {config}:" in result.err, f"{config.name} not reported"
 
 
+@pytest.mark.parametrize("mode", ["--no-data", "--live"])
+def test_every_case_is_checked_without_its_data(mode: str, invalid_dir: Path, run_cli) -> None:
+    """The compile without the data answers every case with errors and notes, never an internal error."""
+    result = run_cli("validate", mode, *(str(_config(invalid_dir, case)) for case in CASES))
+    assert result.code == 1 and "Traceback" not in result.err, result.err[-3000:]
+
+
 def _control_text(segment: str) -> str:
     """The config the cases are made from, with its data fixed, writing `segment`."""
     text = (CASES_DIR / "limit_violation.yaml").read_text(encoding="utf-8")

@@ -103,11 +103,11 @@ def live(
     `time_kind` values: seconds since the epoch (timestamp, default: now), seconds (duration, default: since the view
     began) or integers (sequence, default: a counter). Pushed samples are sent together every `max_delay` seconds by a
     thread of the view's (0: each push is sent at once)."""
-    from ..compile import compile_live
+    from ..compile import FROM_LIVE_DATA, check_config
     from ..live_views import LiveView, live_recording
     from ..process import spawn_viewer
 
-    plan = compile_live(Path(path), names_from_data=True)
+    plan = check_config(Path(path), FROM_LIVE_DATA).checked()
     chosen = plan.robot_named(robot)
     if recording is not None and (spawn or connect or save):
         raise UserError("urdf_pipeline.live: give either a recording or spawn/connect/save for one it makes, not both")

@@ -11,8 +11,7 @@ from typing import TYPE_CHECKING
 from ..package import lazy_surface
 
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
-    from .compiler import DatalessCheck, DataNote, check_config_without_data, compile_config, compile_document
-    from .live_plan import LiveCheck, LivePlan, LiveSource, LiveSourceSpec, check_live_config, compile_live
+    from .compiler import FROM_CONFIG, FROM_LIVE_DATA, FROM_STREAM, Compiled, NameSource, check_config, compile_config, compile_document
     from .temporal_edges import describe_temporal_edge
     from .units import ANGULAR_UNITS, FACTORS, LINEAR_UNITS, UNIT_NAMES, bigger_unit, corrected, reaches, turn, unit_fits, unit_hint, within
 

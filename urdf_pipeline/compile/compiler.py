@@ -1,97 +1,152 @@
 """Config file -> frozen plan: parse, validate against the schema, then every check that needs the URDF.
 
-`check_config_without_data` (`validate --no-data`) makes the same checks except those that need the source files:
-for a repository that keeps its configs in git and its datasets elsewhere."""
+One compile for every command; what varies is where the sources' value names come from (`NameSource`): their data
+(`run`, `validate`: a `Plan`), the config alone (`validate --no-data`, for a repository that keeps its configs in git
+and its datasets elsewhere: no plan), a live stream (`live --from`, `validate --live`) or, for the Python API's
+`live`, the data of each source without `names:` (a `LivePlan`)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Generic, Literal, TypeVar, cast
 
-from ..config import Document, expand_edge_specs, load_document, require_schema_valid
-from ..errors import UserError, UserErrors, Where, warn
-from ..plan import EdgePlan, Plan, RobotPlan, SourcePlan, TemporalEdgePlan
-from ..sources import kind_of
+from ..config import Document, EdgeSpec, expand_edge_specs, load_document, require_schema_valid
+from ..errors import Problems, UserError, UserErrors, Where, warn
+from ..plan import DEFAULT_TIMELINE, EdgePlan, LivePlan, LiveSourceSpec, Plan, RobotPlan, ScenePlan, TemporalEdgePlan
+from ..sources import KINDS, MCAP_TIMELINES, kind_of
 from ..urdf import UrdfModel
 from .comparisons import with_comparisons
 from .context import CompileContext, SourceNames
 from .edges import assumed_identity_edges, compile_edges, frame_edges, urdf_frames
 from .frame_graph import check_frame_graph
 from .robots import compile_robot
-from .segments import check_segments_without_data, compile_sources, expand_segments
+from .segments import CompiledSources, compile_sources, expand_segments
 from .trails import compile_trails, source_timelines, spec_timelines
 
-
-def compile_config(config_path: Path, episodes: str | None = None) -> Plan:
-    """`episodes` (from `run --episodes`) overrides output.episodes."""
-    document = load_document(config_path)
-    require_schema_valid(document)
-    return compile_document(document, episodes)
+P = TypeVar("P", bound=ScenePlan, covariant=True)
 
 
-def compile_document(document: Document, episodes: str | None = None) -> Plan:
-    ctx = CompileContext.for_document(document)
-    compiled_sources = compile_sources(ctx)
-    sources: dict[str, SourcePlan] = compiled_sources.plans
-    model = _compile_model(ctx, {name: plan.names for name, plan in sources.items()})
-    dataset = expand_segments(ctx, compiled_sources, episodes) if len(sources) == len(ctx.data["sources"]) else None
-    timelines = {name: source_timelines(plan) for name, plan in sources.items()}
-    trails = compile_trails(ctx, model.robots, model.edges, model.temporal, model.root, timelines) if model.root is not None else ()
-    ctx.problems.raise_if_any()
-    assert model.root is not None and dataset is not None
-    return Plan(
-        config_path=document.file,
-        robots=model.robots,
-        edges=model.edges,
-        root_frame=model.root,
-        temporal_edges=model.temporal,
-        dataset=dataset,
-        application_id=ctx.data["output"]["application_id"],
-        output_where=ctx.where("output"),
-        trails=trails,
-    )
+@dataclass(frozen=True)
+class NameSource(Generic[P]):
+    """Where the compile finds each source's value names, and so which plan it makes (`P`)."""
+
+    origin: Literal["data", "config", "stream", "live data"]
+    stream: Mapping[str, tuple[str, ...]] = field(default_factory=dict)  # a live stream's first messages, by source
+    episodes: str | None = None  # `run --episodes`, over output.episodes
+
+    @property
+    def live(self) -> bool:
+        return self.origin in ("stream", "live data")
+
+
+FROM_CONFIG = NameSource[Plan]("config")  # `validate --no-data`: `names:`, else a note; never a plan
+FROM_STREAM = NameSource[LivePlan]("stream")  # `live --from`, `validate --live`: `names:`, else the first message's
+FROM_LIVE_DATA = NameSource[LivePlan]("live data")  # the Python API's `live`: `names:`, else the source's metadata
 
 
 @dataclass(frozen=True)
 class DataNote:
-    """What `validate --no-data` could not check because only a source's data holds it."""
+    """What a check without the data could not check because only a source's data (or stream) holds it."""
 
     message: str
     where: Where
 
 
 @dataclass(frozen=True)
-class DatalessCheck:
-    """What checking a config without its data found. It holds no Plan on purpose: a plan made without reading the
-    sources (their files, widths, episodes, segments) must never reach `run`."""
+class Compiled(Generic[P]):
+    """What the compile found. `plan` None when there are errors or notes, and always for FROM_CONFIG: a plan made
+    without reading the sources (their files, widths, episodes, segments) must never reach `run`."""
 
     errors: tuple[UserError, ...]
-    notes: tuple[DataNote, ...]
+    notes: tuple[DataNote, ...]  # what only the data (or the stream) can check
+    plan: P | None
+    sources: tuple[LiveSourceSpec, ...] = ()  # live: the sources a live view reads, by name
+
+    def checked(self) -> P:
+        """The plan, or every error raised at once."""
+        problems = Problems()
+        problems.errors.extend(self.errors)
+        problems.raise_if_any()
+        assert self.plan is not None, "a plan is made once every source's names are known"
+        return self.plan
 
 
-def check_config_without_data(config_path: Path) -> DatalessCheck:
-    """`validate --no-data`: the schema, URDFs, meshes, joint coverage, the frame graph and the output templates,
-    checked from the config alone; no source file is opened, no data path is globbed or even looked at. Source names
-    come from `names:`; a source without them gets a note, and what needs them (map keys, ignore, temporal edge
-    values) is left to the checks that read the data (`validate`, `run`), as are the segments' number and names."""
-    try:
-        document = load_document(config_path)
-        require_schema_valid(document)
-    except UserError as exc:
-        return DatalessCheck(tuple(exc.errors if isinstance(exc, UserErrors) else [exc]), ())
-    ctx = replace(CompileContext.for_document(document), opens_sources=False)
-    names: dict[str, tuple[str, ...] | None] = {}
+def compile_config(config_path: Path, episodes: str | None = None) -> Plan:
+    """`episodes` (from `run --episodes`) overrides output.episodes."""
+    return check_config(config_path, NameSource[Plan]("data", episodes=episodes)).checked()
+
+
+def compile_document(document: Document, episodes: str | None = None) -> Plan:
+    return check_document(document, NameSource[Plan]("data", episodes=episodes)).checked()
+
+
+def check_config(config_path: Path, names: NameSource[P]) -> Compiled[P]:
+    """The config file parsed and checked against the schema (their errors raised), then `check_document`."""
+    document = load_document(config_path)
+    require_schema_valid(document)
+    return check_document(document, names)
+
+
+def check_document(document: Document, names: NameSource[P]) -> Compiled[P]:
+    """The one compile: each source's names (`names`), the robots, edges and frame graph (`_compile_model`), then a
+    run's segments and trails or a live view's sources. Without the data (FROM_CONFIG) no source file is opened and
+    no data path is globbed or even looked at; the segments and trails are checked from the config alone."""
+    ctx = replace(CompileContext.for_document(document), opens_sources=names.origin != "config")
+    data = ctx.data
+    compiled = compile_sources(ctx) if names.origin == "data" else None
+    needed = list(data["sources"])  # the sources whose names are needed, in config order: a live view reads only some
+    if names.live:
+        read = _read_sources(ctx, expand_edge_specs(data.get("edges", []), document, Problems()))
+        needed = [name for name in needed if name in read]
+    found, notes = _source_names(ctx, names, compiled, needed)
+    model = _compile_model(ctx, found)
+    specs: dict[str, LiveSourceSpec] = {}
+    if names.live:
+        specs = {name: _live_spec(ctx, name) for name in sorted(needed)}
+        _refuse_what_live_cannot_read(ctx, names, model.temporal, specs)
+    else:
+        all_compiled = compiled is None or len(compiled.plans) == len(data["sources"])
+        dataset = expand_segments(ctx, compiled, names.episodes) if all_compiled else None
+        timelines = _timelines(ctx, compiled)
+        trails = compile_trails(ctx, model.robots, model.edges, model.temporal, model.root, timelines) if model.root is not None else ()
+    plan: ScenePlan | None = None
+    if not ctx.problems.errors and not notes and names.origin != "config":
+        assert model.root is not None
+        scene = (document.file, model.robots, model.edges, model.root, model.temporal)
+        application_id = data["output"]["application_id"]
+        if names.live:
+            plan = LivePlan(*scene, application_id, tuple(specs[name].with_names(found[name] or ()) for name in needed))
+        else:
+            assert dataset is not None
+            plan = Plan(*scene, dataset, application_id, ctx.where("output"), trails)
+    compiled_plan = Compiled(tuple(ctx.problems.errors), tuple(notes), plan, tuple(specs.values()))
+    return cast(Compiled[P], compiled_plan)  # the plan's type is the one `names` says
+
+
+def _source_names(
+    ctx: CompileContext, names: NameSource[ScenePlan], compiled: CompiledSources | None, needed: list[str]
+) -> tuple[dict[str, tuple[str, ...] | None], list[DataNote]]:
+    """Each source's value names (None: unknown), and a note for each source `needed` whose names only its data (or
+    stream) holds."""
+    if compiled is not None:
+        return {name: plan.names for name, plan in compiled.plans.items()}, []
+    found = {name: names.stream.get(name) or _live_spec(ctx, name).names for name in ctx.data["sources"]}
     notes: list[DataNote] = []
-    for name, spec in ctx.data["sources"].items():
-        names[name] = tuple(spec["names"]) if "names" in spec else None
-        if names[name] is None:
-            notes.append(DataNote(_names_unknown(kind_of(spec)), ctx.where("sources", name)))
-    model = _compile_model(ctx, names)
-    if model.root is not None:
-        timelines = {name: spec_timelines(spec) for name, spec in ctx.data["sources"].items()}
-        compile_trails(ctx, model.robots, model.edges, model.temporal, model.root, timelines)
-    check_segments_without_data(ctx)
-    return DatalessCheck(tuple(ctx.problems.errors), tuple(notes))
+    for name in sorted(needed) if names.origin == "stream" else needed:
+        if found[name] is None and names.origin == "live data":
+            found[name] = _data_names(ctx, name)
+        elif found[name] is None:
+            notes.append(DataNote(_names_unknown(names, name, kind_of(ctx.data["sources"][name])), ctx.where("sources", name)))
+    return found, notes
+
+
+def _timelines(ctx: CompileContext, compiled: CompiledSources | None) -> dict[str, tuple[tuple[str, str], ...]]:
+    """Each source's (timeline, kind), for the trails' windows: from its plan, or without data from its config entry."""
+    if compiled is not None:
+        return {name: source_timelines(source) for name, source in compiled.plans.items()}
+    return {name: spec_timelines(spec) for name, spec in ctx.data["sources"].items()}
 
 
 NAMES_HELD_BY = {  # where a source without `names:` gets them
@@ -104,12 +159,64 @@ NAMES_HELD_BY = {  # where a source without `names:` gets them
 }
 
 
-def _names_unknown(kind: str) -> str:
+def _names_unknown(names: NameSource[ScenePlan], name: str, kind: str) -> str:
+    if names.live:
+        return f"source '{name}': names unknown without data; live takes them from the first message on its topic, and checks the map against them then"
     holder = NAMES_HELD_BY.get(kind, "its data")
     return (
         f"names unknown without data (they come from {holder}): the map keys, ignore and temporal edge values naming "
         "them are checked at run (and by validate without --no-data); give names: [...] to check them here"
     )
+
+
+def _live_spec(ctx: CompileContext, name: str) -> LiveSourceSpec:
+    spec = ctx.data["sources"][name]
+    kind = kind_of(spec)
+    names = tuple(spec["names"]) if "names" in spec else None
+    topic, stamp = spec.get("topic") if kind == "mcap" else None, spec.get("timeline", "header")
+    timeline = MCAP_TIMELINES[stamp] if kind == "mcap" else DEFAULT_TIMELINE  # the timeline a run of the same bag uses
+    return LiveSourceSpec(name, kind, names, ctx.where("sources", name), topic, stamp, timeline)
+
+
+def _read_sources(ctx: CompileContext, edges: list[EdgeSpec]) -> set[str]:
+    """The sources whose values robots and temporal edges read (not a bag's /tf edges: those read its file). The edges'
+    problems (a sidecar file's) are the model's, said once."""
+    used = {spec["joints"]["source"] for spec in ctx.data["robots"].values() if "joints" in spec}
+    return used | {edge.spec["source"] for edge in edges if "source" in edge.spec}
+
+
+def _data_names(ctx: CompileContext, name: str) -> tuple[str, ...] | None:
+    """A source's names as a run reads them (its metadata); a source whose data cannot be read gets an error saying
+    that live use without data needs `names:`."""
+    spec = ctx.data["sources"][name]
+    try:
+        return KINDS[kind_of(spec)].compile_source(name, spec, ctx.document, ctx.config_dir).names
+    except UserError as exc:
+        for error in exc.errors if isinstance(exc, UserErrors) else [exc]:
+            ctx.problems.add(f"{error.message}; a live view without the data needs the names: give names: [...]", error.where)
+        return None
+
+
+def _refuse_what_live_cannot_read(
+    ctx: CompileContext, names: NameSource[ScenePlan], temporal: tuple[TemporalEdgePlan, ...], read: dict[str, LiveSourceSpec]
+) -> None:
+    """A bag's /tf edges are read from the bag's file by `run`; a live view reads joint values only. A stream
+    (`live --from`) gives JointState topics: every source read must be an MCAP source (its topic)."""
+    for edge in temporal:
+        if edge.tf_topic is not None:
+            ctx.problems.add(
+                f"edge {edge.parent} -> {edge.child} reads {edge.tf_topic} of source '{edge.source}''s bag, which run reads and a live "
+                "view does not; drop the edge for live use",
+                edge.where,
+            )
+    for spec in read.values() if names.origin == "stream" else ():
+        if spec.kind != "mcap":
+            ctx.problems.add(
+                f"live --from streams ROS 2 JointState topics; source '{spec.name}' is a {spec.kind} source. Make it "
+                "an mcap source naming the robot's topic (mcap: FILE, topic: /joint_states), or push its values from Python "
+                "with urdf_pipeline.live(...)",
+                spec.where,
+            )
 
 
 @dataclass(frozen=True)
@@ -139,9 +246,7 @@ def _compile_model(ctx: CompileContext, sources: SourceNames) -> _Model:
         warn("no robot of this config is driven by a source: joint_series plots nothing", ctx.where("output", "joint_series"))
 
     edge_specs = expand_edge_specs(data.get("edges", []), ctx.document, problems)  # inline edges and sidecar files, in order
-    used = {spec["joints"]["source"] for spec in data["robots"].values() if "joints" in spec}
-    used |= {edge.spec["source"] for edge in edge_specs if "source" in edge.spec}  # temporal edges read sources too
-    used |= {edge.spec["tf"] for edge in edge_specs if "tf" in edge.spec}  # and a bag's /tf edges
+    used = _read_sources(ctx, edge_specs) | {edge.spec["tf"] for edge in edge_specs if "tf" in edge.spec}  # and a bag's /tf edges
     for name in data["sources"]:
         if name not in used:
             problems.add(

@@ -140,7 +140,10 @@ def _glob_files(ctx: CompileContext, pattern: str, kind: str, where: Where) -> l
     return paths
 
 
-def parse_episodes(spec: str | list[int], where: Where | None) -> str | list[int] | tuple[int | None, int | None]:
+Selection = str | list[int] | tuple[int | None, int | None]  # "all", episode numbers, or a range (A, B)
+
+
+def parse_episodes(spec: str | list[int], where: Where | None) -> Selection:
     """`all`, a list of indices, or `A:B` (either side may be empty) -> "all", the list, or (A, B)."""
     if isinstance(spec, list) or spec == "all":
         return spec
@@ -154,7 +157,7 @@ def parse_episodes(spec: str | list[int], where: Where | None) -> str | list[int
     return (start, stop)
 
 
-def _select(available: list[int], selection: str | list[int] | tuple[int | None, int | None], what: str, where: Where) -> list[int]:
+def _select(available: list[int], selection: Selection, what: str, where: Where) -> list[int]:
     if selection == "all":
         return available
     if isinstance(selection, tuple):
@@ -179,64 +182,82 @@ def _span(indices: list[int]) -> str:
     return f"{indices[0]}..{indices[-1]}" if indices == list(range(indices[0], indices[-1] + 1)) else listing([str(i) for i in indices])
 
 
-def expand_segments(ctx: CompileContext, sources: CompiledSources, episodes_override: str | None) -> DatasetPlan | None:
-    """The run's segments, each with its sources, id and output path; None (with problems added) when they cannot be named."""
-    from ..sources import lerobot
-
-    problems = ctx.problems
-    output = ctx.data["output"]
+def expand_segments(ctx: CompileContext, sources: CompiledSources | None, episodes_override: str | None) -> DatasetPlan | None:
+    """The run's segments, each with its sources, id and output path; None (with problems added) when they cannot be
+    named. Without the data (`sources` None: `validate --no-data`) which episodes or files there are is unknown, so
+    one stand-in segment is named (episode 0, file stem `stem`): the templates, the layout and where the outputs go
+    are checked; what depends on the segments' number or names (ids that collide, output.path without {segment} for
+    several segments, the episodes selected) is left to the checks that read the data."""
+    problems, output, specs = ctx.problems, ctx.data["output"], ctx.data["sources"]
     where_segment = ctx.where("output", "segment")
-    episodic = {n: p for n, p in sources.plans.items() if isinstance(p, LeRobotSourcePlan) and p.per_segment}
+    episodic = [name for name, spec in specs.items() if kind_of(spec) == "lerobot" and "episode" not in spec]
+    globbed = [name for name, spec in specs.items() if kind_of(spec) != "lerobot" and GLOB_CHARACTERS.search(spec[kind_of(spec)])]
     if episodes_override is not None:
-        where_selection = Where(Path("--episodes"), 0)
-        selection = parse_episodes(episodes_override, where_selection)
+        text, where_selection = episodes_override, Where(Path("--episodes"), 0)
     else:
-        selection = parse_episodes(output.get("episodes", "all"), ctx.where("output", "episodes"))
-        where_selection = ctx.where("output", "episodes") if "episodes" in output else where_segment
-    if episodic and sources.files:
-        problems.add(_both_kinds_of_segments(list(episodic), list(sources.files)), ctx.where("sources"))
+        text, where_selection = output.get("episodes", "all"), ctx.where("output", "episodes") if "episodes" in output else where_segment
+    try:
+        selection = parse_episodes(text, where_selection)
+    except UserError as error:
+        problems.extend(error)
+        return None
+    if episodic and globbed:
+        problems.add(_both_kinds_of_segments(episodic, globbed), ctx.where("sources"))
         return None
 
     keys: list[tuple[int | None, str | None]]  # (episode, stem) per segment
-    frames: dict[int, int | None] = {}
-    if episodic:
-        available: set[int] | None = None
-        for plan in episodic.values():
-            try:
-                known = lerobot.episodes(plan)
-            except UserError as error:  # broken metadata: this config's problem, reported with the others
-                problems.extend(error)
-                return None
-            frames = frames or known
-            available = set(known) if available is None else available & set(known)
-        chosen = _select(sorted(available or ()), selection, "the dataset's episodes", where_selection)
-        keys = [(e, None) for e in chosen]
-    elif sources.files:
-        stems = _common_stems(ctx, sources.files)
-        if stems is None:
+    frames: dict[int, int | None] = {}  # rows per episode, when the dataset's metadata says
+    if episodic or globbed:
+        chosen = _chosen(ctx, sources, episodic, selection, where_selection)
+        if chosen is None:
             return None
-        positions = _select(list(range(len(stems))), selection, f"{len(stems)} files", where_selection)
-        keys = [(i, stems[i]) for i in positions]
+        keys, frames = chosen
+    elif episodes_override is not None or "episodes" in output:
+        problems.add(NOTHING_TO_SELECT, where_selection)
+        return None
     else:
-        if episodes_override is not None or "episodes" in output:
-            problems.add(NOTHING_TO_SELECT, where_selection)
-            return None
-        pinned = [p.episode for p in sources.plans.values() if isinstance(p, LeRobotSourcePlan)]
+        pinned = [spec["episode"] for spec in specs.values() if kind_of(spec) == "lerobot"]
         keys = [(pinned[0] if len(pinned) == 1 else None, None)]
 
     ids = _segment_ids(ctx, output["segment"], keys, where_segment)
-    if ids is None:
-        return None
-    paths = output_paths(ctx, output["path"], ids)
-    if paths is None:
+    paths = output_paths(ctx, output["path"], ids) if ids is not None else None
+    if ids is None or paths is None:
         return None
     segments = []
     for (episode, stem), segment_id, path in zip(keys, ids, paths, strict=True):
-        own = tuple(_source_for(plan, sources, episode, stem) for plan in sources.plans.values())
+        own = tuple(_source_for(plan, sources, episode, stem) for plan in sources.plans.values()) if sources is not None else ()
         inputs = tuple(dict.fromkeys(p for plan in own for p in _inputs_of(ctx, plan)))
         rows = frames.get(episode) if episodic and episode is not None else None
         segments.append(Segment(segment_id, episode, stem, own, path, rows, inputs))
     return dataset_plan(ctx, tuple(segments))
+
+
+def _chosen(
+    ctx: CompileContext, sources: CompiledSources | None, episodic: list[str], selection: Selection, where: Where
+) -> tuple[list[tuple[int | None, str | None]], dict[int, int | None]] | None:
+    """The (episode, stem) of each segment `selection` picks among a LeRobot dataset's episodes or the globbed files'
+    stems, and the episodes' rows; without the data one stand-in, episode 0 or the file stem `stem`."""
+    from ..sources import lerobot
+
+    if sources is None:
+        return [(0, None if episodic else "stem")], {}
+    if not episodic:
+        stems = _common_stems(ctx, sources.files)
+        if stems is None:
+            return None
+        return [(i, stems[i]) for i in _select(list(range(len(stems))), selection, f"{len(stems)} files", where)], {}
+    frames: dict[int, int | None] = {}
+    available: set[int] | None = None
+    for plan in (sources.plans[name] for name in episodic):
+        assert isinstance(plan, LeRobotSourcePlan)
+        try:
+            known = lerobot.episodes(plan)
+        except UserError as error:  # broken metadata: this config's problem, reported with the others
+            ctx.problems.extend(error)
+            return None
+        frames = frames or known
+        available = set(known) if available is None else available & set(known)
+    return [(e, None) for e in _select(sorted(available or ()), selection, "the dataset's episodes", where)], frames
 
 
 NOTHING_TO_SELECT = "episodes selects LeRobot episodes (a lerobot source without `episode:`) or globbed files; this config has neither"
@@ -247,38 +268,6 @@ def _both_kinds_of_segments(episodic: list[str], globbed: list[str]) -> str:
         f"segments come either from LeRobot episodes ({listing(sorted(episodic))}) or from globbed files "
         f"({listing(sorted(globbed))}), not both; pin the LeRobot episode with `episode:` or list one file"
     )
-
-
-def check_segments_without_data(ctx: CompileContext) -> None:
-    """`validate --no-data`: what expand_segments checks from the config alone. Which episodes or files there are is
-    unknown, so one stand-in segment is named (episode 0, file stem `stem`): the templates, the layout and where the
-    outputs go are checked; what depends on the segments' number or names (ids that collide, output.path without
-    {segment} for several segments, the episodes selected) is left to the checks that read the data."""
-    problems, output, specs = ctx.problems, ctx.data["output"], ctx.data["sources"]
-    episodic = [name for name, spec in specs.items() if kind_of(spec) == "lerobot" and "episode" not in spec]
-    globbed = [name for name, spec in specs.items() if kind_of(spec) != "lerobot" and GLOB_CHARACTERS.search(spec[kind_of(spec)])]
-    if "episodes" in output:
-        try:
-            parse_episodes(output["episodes"], ctx.where("output", "episodes"))
-        except UserError as error:
-            problems.extend(error)
-            return
-    if episodic and globbed:
-        problems.add(_both_kinds_of_segments(episodic, globbed), ctx.where("sources"))
-        return
-    key: tuple[int | None, str | None]
-    if episodic or globbed:
-        key = (0, "stem" if globbed else None)
-    elif "episodes" in output:
-        problems.add(NOTHING_TO_SELECT, ctx.where("output", "episodes"))
-        return
-    else:
-        pinned = [spec["episode"] for spec in specs.values() if kind_of(spec) == "lerobot"]
-        key = (pinned[0] if len(pinned) == 1 else None, None)
-    ids = _segment_ids(ctx, output["segment"], [key], ctx.where("output", "segment"))
-    paths = output_paths(ctx, output["path"], ids) if ids is not None else None
-    if ids is not None and paths is not None:
-        dataset_plan(ctx, (Segment(ids[0], key[0], key[1], (), paths[0], None, ()),))
 
 
 def _common_stems(ctx: CompileContext, files: dict[str, dict[str, SourcePlan]]) -> list[str] | None:

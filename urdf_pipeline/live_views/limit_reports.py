@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import time
 
-from ..compile import LiveSource
 from ..errors import Problems, Where, warn
 from ..execute import TemporalEdgeStats, TemporalEdgeValues, check_joint_statistics, check_temporal_edges
+from ..plan import LiveSource
 from ..sources import ChannelStats, JointValueMapper, RobotStats
 
 REPORT_SECONDS = 5.0

@@ -1,6 +1,6 @@
 """`urdf-pipeline live CONFIG --from URL`: a robot's stream into a viewer and/or a file, with the config's checks.
 
-The config is checked before anything is subscribed (`check_live_config`, as `validate --live`); each MCAP source's
+The config is checked before anything is subscribed (`FROM_STREAM`, as `validate --live`); each MCAP source's
 names come from `names:` or from the first message on its topic, and the plan is compiled then (a map naming a joint
 the stream lacks is refused at that first message). Samples are sent as each poll of the feed brings them. Ctrl-C and
 SIGTERM end the view as the end of the stream does (views closed, the recording finished, `--save` renamed into place;
@@ -11,16 +11,17 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..compile import LivePlan, LiveSourceSpec, check_live_config, compile_live
+from ..compile import FROM_STREAM, Compiled, check_config
 from ..errors import UserError, UserErrors, Where, shown
 from ..execute import provenance_stream, write_file_atomically
 from ..logs import say
+from ..plan import LivePlan
 from ..process import Stopped, deferred_signals, signal_name, stop_signal
 from ..sources import checked_first_names
 from .joint_state import Feed, JointStateSample, same_topic
@@ -96,7 +97,7 @@ def live_command(options: LiveOptions) -> LiveSummary:
     Ctrl-C and SIGTERM end the view as the stream's end does (within a poll of the feed: views closed, the recording
     finished, `--save` renamed into place, the last line said), then go on as every command's interruption does: the
     signal is delivered to the handler it had (`process.deferred_signals`), so the command line exits 130 or 143."""
-    check = check_live_config(options.config, stream_only=True)
+    check = check_config(options.config, FROM_STREAM)
     if check.errors:
         raise UserErrors(list(check.errors))
     topics = {spec.topic: spec.where for spec in check.sources if spec.topic is not None}
@@ -105,7 +106,7 @@ def live_command(options: LiveOptions) -> LiveSummary:
     say(f"live: {options.config} from {feed.description}, topics {', '.join(shown(t) for t in topics)}")
     try:
         with deferred_signals() as stop:  # the handlers only record the signal: the session sees it between batches
-            session = _Session(options, check.sources, summary, stop)
+            session = _Session(options, check, summary, stop)
             try:
                 if options.save is None:
                     session.run(feed, None)
@@ -134,8 +135,8 @@ class _NothingSaved(Exception):
 class _Session:
     """One subscription's views: made once every source's names are known, fed each poll's samples."""
 
-    def __init__(self, options: LiveOptions, specs: tuple[LiveSourceSpec, ...], summary: LiveSummary, stop: list[int]) -> None:
-        self.options, self.specs, self.summary = options, specs, summary
+    def __init__(self, options: LiveOptions, check: Compiled[LivePlan], summary: LiveSummary, stop: list[int]) -> None:
+        self.options, self.specs, self.summary, self.check = options, check.sources, summary, check
         self.stop = stop  # the signals received (deferred_signals): the session ends at the next batch
         self.stream_names: dict[str, tuple[str, ...]] = {}
         self.early = WaitingSamples(MAX_EARLY_SAMPLES, MAX_QUEUED_BYTES)
@@ -153,8 +154,8 @@ class _Session:
         noted = started
         ahead = Prefetched(feed)
         try:
-            if all(spec.names is not None for spec in self.specs):
-                self._make_views(partial)
+            if self.check.plan is not None:  # every source's names from `names:`: the check's plan
+                self._make_views(self.check.plan, partial)
             for batch in ahead.batches():
                 if self.stop:
                     break  # a batch that came with the signal is left out: --save holds every sample sent
@@ -192,11 +193,10 @@ class _Session:
         self.early_dropped += self.early.append(batch) if batch else 0  # said by _note_waiting, counted in the last line
         if len(self.stream_names) < len([s for s in self.specs if s.topic is not None]):
             return []
-        self._make_views(partial)
+        self._make_views(check_config(self.options.config, replace(FROM_STREAM, stream=self.stream_names)).checked(), partial)
         return self.early.take_all()
 
-    def _make_views(self, partial: Path | None) -> None:
-        plan = compile_live(self.options.config, self.stream_names)
+    def _make_views(self, plan: LivePlan, partial: Path | None) -> None:
         _require_robots(plan)
         self.recording = _recording(plan, self.options.viewer_url, partial)
         self.recording.send_chunks(provenance_stream(plan, "all", {"live_from": self.options.source}))

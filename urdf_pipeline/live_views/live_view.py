@@ -18,7 +18,6 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 import pyarrow as pa
 
-from ..compile import LivePlan
 from ..execute import (
     ClosedFormJointTransforms,
     TemporalEdgeValues,
@@ -28,7 +27,7 @@ from ..execute import (
     robot_model_stream,
     transform_fields,
 )
-from ..plan import RobotPlan
+from ..plan import LivePlan, RobotPlan
 from ..sources import JointValueMapper
 from .limit_reports import REPORT_SECONDS, LimitReports
 from .value_rows import ValueRows

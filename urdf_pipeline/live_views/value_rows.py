@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from ..compile import LiveSource
 from ..errors import UserError, did_you_mean, listing, quoted
+from ..plan import LiveSource
 
 _CACHED_ORDERS = 64  # distinct name orders kept per source (a driver publishes one, or a few)
 

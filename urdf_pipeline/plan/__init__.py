@@ -5,8 +5,8 @@ and `run` read); `RecordingPlan` is one recording of it (a segment, or the split
 writes), made by `Plan.for_segment` / `for_model`. Only the latter has sources and an output.
 
 Its parts, one module each: the sources (`source_plans.py`), the robots and the edges between their frames
-(`robot_plans.py`), the outputs, segments and the plans themselves (`scene_plans.py`). Every stage imports them from
-here, the package's surface.
+(`robot_plans.py`), the outputs, segments and the plans themselves (`scene_plans.py`), a live view's plan
+(`live_plans.py`). Every stage imports them from here, the package's surface.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 from ..package import lazy_surface
 
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
+    from .live_plans import DEFAULT_TIMELINE, LivePlan, LiveSource, LiveSourceSpec
     from .robot_plans import Comparison, EdgeKind, EdgePlan, FixedChain, HeldJoint, JointChannel, MimicJoint, RobotPlan, TemporalEdgePlan
     from .scene_plans import DatasetPlan, Layout, OutputPlan, Plan, RecordingPlan, RemoteOutputs, ScenePlan, Segment
     from .source_plans import (

@@ -22,7 +22,7 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
     from .joint_state_cdr import JOINT_STATE, MAX_NAMES, MAX_SCHEMA_BYTES, JointStateUnreadable, definition_differs, read_joint_state
     from .joint_values import ChannelStats, JointValueMapper, RobotStats, raw_matrix, wrapped
     from .lerobot import local_dataset
-    from .mcap import checked_first_names
+    from .mcap import MCAP_TIMELINES, checked_first_names
     from .mcap_chunks import HEAD, MAGIC, InflationBudget, McapRefused, chunk_records, parsed_chunk, refusal, short_reason
     from .ordering import NeedsSorting, sorted_in_memory, with_sorting_retry
     from .stream import SourceStream

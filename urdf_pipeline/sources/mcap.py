@@ -37,8 +37,8 @@ PLAN_TYPE = McapSourcePlan
 SPEC_FORM = "mcap:FILE[#TOPIC]"
 SUFFIXES = (".mcap",)
 JOINT_STATE = "sensor_msgs/msg/JointState"
-TIMELINES = {"header": "ros2_timestamp", "log_time": "message_log_time", "publish_time": "message_publish_time"}
-ALL_TIMELINES = tuple(TIMELINES.values())
+MCAP_TIMELINES = {"header": "ros2_timestamp", "log_time": "message_log_time", "publish_time": "message_publish_time"}
+ALL_TIMELINES = tuple(MCAP_TIMELINES.values())
 
 
 def _first_message_names(path: Path, topic: str, where: Where) -> tuple[str, ...]:
@@ -141,8 +141,8 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
     info = _info(path, document.where(*here, "mcap"))
     _checked_topic(spec, info, str(path), document, here)
     topic = topic_entity(spec["topic"])
-    timeline = TIMELINES[spec.get("timeline", "header")]
-    if timeline == TIMELINES["log_time"]:
+    timeline = MCAP_TIMELINES[spec.get("timeline", "header")]
+    if timeline == MCAP_TIMELINES["log_time"]:
         _check_log_times(_local_late(path, document.where(*here, "mcap")), path.name, topic, info, document.where(*here, "timeline"))
     names = tuple(spec["names"]) if "names" in spec else _first_message_names(path, topic, document.where(*here, "topic"))
     return with_duplicates(McapSourcePlan(name, path, topic, timeline, names, document.where(*here)), spec)
@@ -157,11 +157,11 @@ def _compile_remote(name: str, spec: dict[str, Any], document: Document) -> Mcap
     remote = remote_file(spec["mcap"], document.where(*here, "mcap"), "mcap file")
     file_name = remote.url.rsplit("/", 1)[-1]
     topic = topic_entity(spec["topic"])
-    timeline = TIMELINES[spec.get("timeline", "header")]
+    timeline = MCAP_TIMELINES[spec.get("timeline", "header")]
     with remote_mcap(remote, document.where(*here, "mcap")) as file:
         info = file.info()
         channels = _checked_topic(spec, info, remote.url, document, here)
-        if timeline == TIMELINES["log_time"]:
+        if timeline == MCAP_TIMELINES["log_time"]:
             _check_log_times(file.late_messages, file_name, topic, info, document.where(*here, "timeline"))
         if "names" in spec:
             names = tuple(spec["names"])

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from urdf_pipeline.compile import check_config_without_data
+from urdf_pipeline.compile import FROM_CONFIG, check_config
 from urdf_pipeline.review.validate.annotations import ConfigResult, validate_config
 from urdf_pipeline.sources import KINDS, lerobot
 
@@ -242,8 +242,8 @@ def test_temporal_edge_with_names_only_the_data_holds(tmp_path: Path, run_cli) -
 
 def test_the_check_returns_no_plan(examples_dir: Path) -> None:
     """Nothing a run could take: errors and notes only."""
-    found = check_config_without_data(examples_dir / "demo.yaml")
-    assert (found.errors, found.notes) == ((), ())
+    found = check_config(examples_dir / "demo.yaml", FROM_CONFIG)
+    assert (found.errors, found.notes, found.plan) == ((), (), None)
     assert not hasattr(found, "robots") and not hasattr(found, "dataset")
 
 

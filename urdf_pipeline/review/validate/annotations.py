@@ -113,7 +113,7 @@ def validate_config(config: str, *, data: bool = True, skip_non_configs: bool = 
     holds. `live` (`--live`): what `live --from` checks before it subscribes, opening no source file (every source a
     robot reads is an MCAP topic). `skip_non_configs`: a YAML file that is no config (non_config.py) is skipped rather
     than refused."""
-    from ...compile import check_config_without_data, check_live_config, compile_config
+    from ...compile import FROM_CONFIG, FROM_STREAM, check_config, compile_config
 
     if skip_non_configs:
         reason = not_a_config(Path(config))
@@ -124,14 +124,10 @@ def validate_config(config: str, *, data: bool = True, skip_non_configs: bool = 
     warnings: list[ConfigWarning]
     with collect_warnings() as warnings:
         try:  # one catch for both paths: a check that raises instead of collecting is a problem of this config too
-            if live:
-                checked = check_live_config(Path(config), stream_only=True)
-                errors = list(checked.errors)
-                notes = tuple(Problem("note", note.message, note.where) for note in checked.notes)
-            elif data:
+            if data and not live:
                 compile_config(Path(config))
             else:
-                found = check_config_without_data(Path(config))
+                found = check_config(Path(config), FROM_STREAM if live else FROM_CONFIG)
                 errors = list(found.errors)
                 notes = tuple(Problem("note", note.message, note.where) for note in found.notes)
         except UserError as exc:
