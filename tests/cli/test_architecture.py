@@ -298,3 +298,29 @@ def test_each_surface_lists_its_names_once() -> None:
             if isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value in names:
                 twice.append(f"urdf_pipeline.{package}.{node.value}")
     assert not twice, "public names written a second time (derive them from the TYPE_CHECKING imports): " + ", ".join(twice)
+
+
+def test_no_module_imports_another_modules_private_name() -> None:
+    """A name with a leading underscore is its module's own: another module that needs it gets a public name."""
+    found = [
+        f"{_module_name(path)}: {alias.name}"
+        for path in sorted(PACKAGE.rglob("*.py"))
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
+        if isinstance(node, ast.ImportFrom) and (node.level or (node.module or "").startswith("urdf_pipeline"))
+        for alias in node.names
+        if alias.name.startswith("_")
+        and not alias.name.startswith("__")
+        or (alias.asname or "").startswith("_")
+        and not (alias.asname or "").startswith("__")
+    ]
+    assert not found, "private names imported across modules: " + "; ".join(found)
+
+
+OWNS_CELL = 420  # characters: one sentence; the details are the module docstrings'
+
+
+def test_each_package_says_what_it_owns_in_one_sentence() -> None:
+    text = ARCHITECTURE.read_text(encoding="utf-8")
+    table = text[text.index("| package | owns |") :].split("\n\n")[0].splitlines()[2:]
+    long = [row.split(" | ")[0] for row in table if len(row.split(" | ", 1)[1]) > OWNS_CELL]
+    assert not long, f"'owns' cells over {OWNS_CELL} characters (say it in one sentence): " + ", ".join(long)
