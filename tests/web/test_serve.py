@@ -41,7 +41,7 @@ def site(tmp_path: Path) -> Path:
 @pytest.fixture
 def server(site: Path) -> Iterator[SiteServer]:
     running = SiteServer(site_folder(site), 0)
-    running.serve_in_thread()
+    threading.Thread(target=running.serve_forever, daemon=True).start()
     try:
         yield running
     finally:

@@ -14,10 +14,9 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
     from .foxglove_feed import FoxgloveFeed
     from .joint_state import JOINT_STATE, Feed, JointStateDecoder, JointStateSample
     from .latency import Latencies
-    from .live_run import LiveOptions, LiveSummary, live_command, open_feed
+    from .live_run import LiveOptions, LiveSummary, live_command, live_recording, open_feed
     from .live_view import LiveView, TimeKind
     from .mcap_follow import McapFollowFeed
-    from .recordings import live_recording
 
 if not TYPE_CHECKING:  # the names above, imported when first used
     __all__, __getattr__ = lazy_surface(__name__, __file__)

@@ -26,7 +26,6 @@ class LimitReports:
     ) -> None:
         self.mapper, self.temporal, self.source, self.every = mapper, temporal, source, every
         self.last = -float("inf")
-        self.reported = 0  # warnings given, over the view's life
         self.before = 0  # samples of the windows already reported: row numbers in messages count from the view's start
 
     def due(self) -> bool:
@@ -46,7 +45,6 @@ class LimitReports:
         window = "since the view started" if self.last == -float("inf") else f"in the last {time.monotonic() - self.last:.0f} s"
         for text, where in lines:
             warn(f"live: {text} ({window}; a live view shows the samples it can, it cannot refuse them)", where)
-        self.reported += len(lines)
         self.last = time.monotonic()
         self.before += self.mapper.stats.rows
         self.mapper.stats = RobotStats(channels=[ChannelStats() for _ in self.mapper.robot.channels])

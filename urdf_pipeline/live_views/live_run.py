@@ -9,6 +9,7 @@ nothing saved when no sample came), then end the command as they end any other (
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
@@ -28,7 +29,6 @@ from .joint_state import Feed, JointStateSample, same_topic
 from .latency import Latencies
 from .live_view import LiveView
 from .prefetch import MAX_QUEUED_BYTES, Prefetched, WaitingSamples
-from .recordings import live_recording
 
 if TYPE_CHECKING:
     from rerun import RecordingStream
@@ -92,11 +92,7 @@ def open_feed(source: str, topics: Mapping[str, Where | None], reconnects: int) 
 
 def live_command(options: LiveOptions) -> LiveSummary:
     """Check, subscribe, show; the summary of what was seen. A problem found once samples were sent keeps them in
-    `--save` (a complete recording of what came before it) and is raised after, saying so.
-
-    Ctrl-C and SIGTERM end the view as the stream's end does (within a poll of the feed: views closed, the recording
-    finished, `--save` renamed into place, the last line said), then go on as every command's interruption does: the
-    signal is delivered to the handler it had (`process.deferred_signals`), so the command line exits 130 or 143."""
+    `--save` (a complete recording of what came before it) and is raised after, saying so."""
     check = check_config(options.config, FROM_STREAM)
     if check.errors:
         raise UserErrors(list(check.errors))
@@ -198,7 +194,7 @@ class _Session:
 
     def _make_views(self, plan: LivePlan, partial: Path | None) -> None:
         _require_robots(plan)
-        self.recording = _recording(plan, self.options.viewer_url, partial)
+        self.recording = live_recording(plan.application_id, partial, self.options.viewer_url)
         self.recording.send_chunks(provenance_stream(plan, "all", {"live_from": self.options.source}))
         for source in plan.sources:
             assert source.topic is not None
@@ -274,5 +270,14 @@ def _times(samples: list[JointStateSample], stamp: str, view: LiveView) -> np.nd
     return times
 
 
-def _recording(plan: LivePlan, viewer_url: str | None, partial: Path | None) -> RecordingStream:
-    return live_recording(plan.application_id, partial, viewer_url)
+def live_recording(application_id: str, save: str | os.PathLike[str] | Path | None, *viewers: str | None) -> RecordingStream:
+    """A new recording (when the caller gives none) whose sinks are the viewers at `viewers` (None: not one, their URLs
+    settled by the caller: `process.spawn_viewer`, `process.require_viewer`) and the file `save`, as asked."""
+    import rerun as rr
+
+    sinks: list[Any] = [rr.GrpcSink(url) for url in viewers if url is not None]
+    if save is not None:
+        sinks.append(rr.FileSink(str(save)))
+    recording = rr.RecordingStream(application_id)
+    recording.set_sinks(*sinks)
+    return recording

@@ -2,10 +2,8 @@
 Rerun recording as they come, with the run's corrections (map, units, sign, offset, wrap, holds, mimic joints, limits,
 NaN policy) and the run's FK (`execute`'s closed-form joint transforms, checked against Rerun's at construction).
 
-A batch costs one `send_columns` per entity, whatever its rows, not one `log` per joint: about 0.4 ms for one row
-and 0.6 ms for 100 of a 29-joint humanoid. So `push` checks the sample and keeps it, and the samples kept are sent
-together by the view's own flusher thread once the oldest is `max_delay` old (10 ms: within a 60 Hz viewer's
-frame); the caller's thread pays microseconds per push.
+A batch costs one `send_columns` per entity, whatever its rows, so `push` checks the sample and keeps it, and the
+view's own flusher thread sends what is kept every `max_delay` (10 ms: within a 60 Hz viewer's frame).
 """
 
 from __future__ import annotations
@@ -110,21 +108,12 @@ class LiveView:
         raw = self.rows.many(values)
         stamps = self._times(len(raw), times)
         self._raise_failure()
-        with self._sending:
-            self._send(*self._take())
-            with self._lock:
-                self.count += len(raw)
-            self._send(raw, stamps)
+        self._send_now(raw, stamps)
 
     def push_named(self, names: Sequence[tuple[str, ...]], values: Sequence[np.ndarray], times_ns: np.ndarray) -> None:
         """Rows that name their values (JointState messages), stamped in int64 nanoseconds on the view's timeline,
         sent at once."""
-        raw = self.rows.named(names, values)
-        with self._sending:
-            self._send(*self._take())
-            with self._lock:
-                self.count += len(raw)
-            self._send(raw, np.asarray(times_ns, dtype=np.int64))
+        self._send_now(self.rows.named(names, values), np.asarray(times_ns, dtype=np.int64))
 
     def flush(self) -> None:
         """Send what `push` kept now."""
@@ -150,6 +139,14 @@ class LiveView:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+    def _send_now(self, raw: np.ndarray, stamps: np.ndarray) -> None:
+        """Rows sent at once, after what earlier pushes kept."""
+        with self._sending:
+            self._send(*self._take())
+            with self._lock:
+                self.count += len(raw)
+            self._send(raw, stamps)
 
     def _take(self) -> tuple[np.ndarray, np.ndarray]:
         """The pending rows and their times, taken under the short lock (pushes wait only for this)."""
@@ -202,8 +199,7 @@ class LiveView:
             return np.round(times.astype(np.float64) * 1e9).astype(np.int64)
         if self.time_kind == "sequence":
             return np.arange(self.count, self.count + rows, dtype=np.int64)
-        now = time.time_ns() if self.time_kind == "timestamp" else time.monotonic_ns() - self.started
-        return np.full(rows, now, dtype=np.int64)
+        return np.full(rows, self._stamp(None), dtype=np.int64)
 
     def _send(self, raw: np.ndarray, times: np.ndarray) -> None:
         if not len(raw):

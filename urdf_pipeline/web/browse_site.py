@@ -1,17 +1,10 @@
-"""`urdf-pipeline browse CONFIG -o DIR`: a dataset browser over a config's written outputs, as a static site.
+"""`urdf-pipeline browse CONFIG -o DIR`: a dataset browser over a config's written outputs, as a static site (docs/web.md;
+what it trusts of a manifest, which anyone may have written: docs/security.md).
 
-It reads the run's manifest only (`dataset.segment_summaries`: ids, frames and each segment's summary, gathered
-during the run), never a recording. `index.html` is a small page; the rows are `segments.json`, which `browse.js`
-fetches, searches and pages, drawing only the current page's rows and sparklines (10,000 segments stay fast). A
-segment opens in the viewer pane beside the list: an iframe of the site's viewer whose address fragment changes,
-so the wasm is loaded once. The recordings are put into the site (hard links where the file system allows, else
-copies): a static host serves only what is inside the site. A manifest is data (a pull request can write one): every
-file it names passed the read rule and is a recording the tool wrote (`dataset.segment_summaries`, `run_output`), and
-goes into the site under a name of the site's choosing (`recordings/000123.rrd`), never the manifest's.
-
-With `--base DIR_OR_GLOB` (`dataset.base_files`, as `run --base` reads them), a segment whose id is a base recording's opens with the base files too:
-same recording id, so the viewer merges base and layer into one recording. A segment without one gets a row note,
-not an error as in `run --base`: `run` refuses to write a layer that would never attach; `browse` shows what exists.
+It reads the run's manifest only (`dataset.segment_summaries`), never a recording. The rows are `segments.json`, which
+`browse.js` pages (10,000 segments stay fast); a segment opens in an iframe of the site's viewer whose fragment changes,
+so the wasm is loaded once. A segment without a `--base` recording gets a row note, not an error as in `run --base`:
+`run` refuses to write a layer that would never attach; `browse` shows what exists.
 """
 
 from __future__ import annotations

@@ -1,19 +1,8 @@
 """`urdf-pipeline serve DIR`: a site on http://127.0.0.1:PORT/ (the wasm does not load from `file://`).
 
-Only this machine can connect (127.0.0.1, never every interface), and only with a Host header naming it (a web page
-elsewhere cannot reach the server by pointing its own name at 127.0.0.1). Only files inside DIR are served: a path
-that leaves it, also through a symbolic link, is not found; folders are not listed. `.wasm` goes out as
-`application/wasm` (the browser compiles it while it downloads), `.rrd` as `application/octet-stream`, every answer
-with `X-Content-Type-Options: nosniff` (a browser never guesses HTML from a file's bytes) and `Cache-Control: no-cache`
-(a site written again shows at once; unchanged files are answered 304).
-
-Whatever a client sends, the server answers with a status, never a traceback, and holds nothing for long: a request's
-head (its line and headers) is read by us, bounded in bytes (REQUEST_LINE_LIMIT: 414, HEAD_LIMIT and HEADER_LINES:
-431) and in time from the connection's start (HEAD_SECONDS, however slowly it trickles in: 408, or a plain close when
-nothing came); a byte no request may hold (a control character, NUL, a byte over 0x7f in the request line, a bad
-percent-escape, a path that is not UTF-8) is a 400. Each connection is one request (HTTP/1.0), on a thread of its own,
-at most MAX_CONNECTIONS at once: one more is answered 503 at once and closed. Stopping (Ctrl-C, SIGTERM) closes the
-listening socket and every open connection.
+Whatever a local client sends (docs/security.md lists the bounds: 127.0.0.1 and its Host only, files inside DIR only,
+the request's head read by us within bytes and seconds, at most MAX_CONNECTIONS at once), it gets a status, never a
+traceback, and holds nothing for long. Stopping (Ctrl-C, SIGTERM) closes the listening socket and every open connection.
 """
 
 from __future__ import annotations
@@ -111,12 +100,6 @@ class SiteServer(ThreadingHTTPServer):
     @property
     def url(self) -> str:
         return f"http://{HOST}:{self.port}/"
-
-    def serve_in_thread(self) -> threading.Thread:
-        """For tests and embedding: serve on a daemon thread until `shutdown()`."""
-        thread = threading.Thread(target=self.serve_forever, name="urdf-pipeline-serve", daemon=True)
-        thread.start()
-        return thread
 
     def process_request(self, request: Any, client_address: Any) -> None:
         """A thread for the connection while fewer than MAX_CONNECTIONS are open; else a 503 at once (never waiting on
