@@ -17,8 +17,7 @@ import pytest
 
 import urdf_pipeline.web.viewer_cache as cache_module
 from urdf_pipeline.web import CACHE_VARIABLE, ViewerAssets, viewer_assets
-from urdf_pipeline.web.binary_server import rerun_binary, serving_web_viewer
-from urdf_pipeline.web.viewer_cache import FILES, INDEX, cache_root
+from urdf_pipeline.web.viewer_cache import FILES, INDEX, cache_root, rerun_binary, serving_web_viewer
 
 from ..conftest import REPO
 

@@ -4,7 +4,8 @@ per-user cache, one folder per Rerun version.
 A recording opens only in its own release's viewer, and the npm package stops at 0.33: the binary that ships in
 rerun-sdk serves the matching `re_viewer.js` and `re_viewer_bg.wasm` (`rerun --serve-web`). It is started once per
 Rerun version and machine, on 127.0.0.1 with ports the system picks, asked for the files, and stopped whatever
-happens. It runs with `CI` set, Rerun's own switch that keeps its usage analytics off (it counts each wasm it serves).
+happens: in a session of its own (Ctrl-C in the terminal reaches us, not it), dying with us on Linux, telling its port
+in its log. It runs with `CI` set, Rerun's own switch that keeps its usage analytics off (it counts each wasm it serves).
 
 The cache (`$URDF_PIPELINE_WEB_CACHE`, else `$XDG_CACHE_HOME/urdf-pipeline/web-viewer`, else
 `~/.cache/urdf-pipeline/web-viewer`) holds `<version>/` once complete: it is built in a temporary folder beside it and
@@ -18,7 +19,9 @@ import contextlib
 import fcntl
 import json
 import os
+import re
 import shutil
+import subprocess
 import tempfile
 import time
 import urllib.error
@@ -29,12 +32,14 @@ from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 from ..errors import UserError
-from .binary_server import rerun_binary, serving_web_viewer
+from ..process import start_viewer, stop_session, viewer_binary
 
 CACHE_VARIABLE = "URDF_PIPELINE_WEB_CACHE"
 FILES = ("re_viewer.js", "re_viewer_bg.wasm", "favicon.ico")
 WASM_MAGIC = b"\0asm"
 INDEX = "viewer.json"  # written last: a folder without it is not a complete copy
+STARTUP_SECONDS = 30.0  # for the binary to say the port it serves the web viewer on
+HOSTING = re.compile(r"Hosting a web-viewer at http://127\.0\.0\.1:(\d+)")
 
 
 @dataclass(frozen=True)
@@ -171,3 +176,51 @@ def _check(folder: Path, wanted: str) -> None:
     script = (folder / "re_viewer.js").read_text(encoding="utf-8", errors="replace")
     if "wasm_bindgen" not in script or "WebHandle" not in script:
         raise UserError(f"the rerun binary of rerun-sdk {wanted} served an unexpected re_viewer.js; reinstall rerun-sdk")
+
+
+def rerun_binary(wanted: str) -> str:
+    """The viewer binary of rerun-sdk (`process.viewer_binary`), checked to be release `wanted` (`rerun --version`)."""
+    binary = viewer_binary("serve Rerun's web viewer")
+    try:
+        said = subprocess.run([binary, "--version"], capture_output=True, text=True, timeout=60, env=_environment()).stdout
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        raise UserError(f"cannot run the rerun binary {binary}: {exc}") from None
+    found = said.split()[1] if len(said.split()) > 1 else said.strip()
+    if found != wanted:
+        raise UserError(
+            f"the rerun binary {binary} is release {found or 'unknown'}, not the installed rerun-sdk {wanted}; reinstall rerun-sdk"
+        )
+    return binary
+
+
+def _environment() -> dict[str, str]:
+    """`CI` keeps Rerun's usage analytics off (its native pipeline's own rule); `RERUN_APP_ONLY` its first-run prompt."""
+    return {**os.environ, "CI": "1", "RERUN_APP_ONLY": "true", "RUST_LOG": "info"}
+
+
+@contextlib.contextmanager
+def serving_web_viewer(binary: str, folder: Path) -> Iterator[int]:
+    """`rerun --serve-web` on 127.0.0.1 for the duration of the block; yields the web viewer's HTTP port."""
+    log_path = folder / "rerun.log"
+    args = ["--serve-web", "--bind", "127.0.0.1", "--web-viewer-port", "0", "--port", "0"]
+    with open(log_path, "wb") as log:
+        process = start_viewer(binary, args, log, folder, _environment())
+    try:
+        yield _announced_port(process, log_path)
+    finally:
+        stop_session(process)
+
+
+def _announced_port(process: subprocess.Popen[bytes], log_path: Path) -> int:
+    """The port the binary says it hosts the web viewer on (its log line), once it says so."""
+    deadline = time.monotonic() + STARTUP_SECONDS
+    while True:
+        text = log_path.read_text(encoding="utf-8", errors="replace")
+        found = HOSTING.search(text)
+        if found:
+            return int(found.group(1))
+        if process.poll() is not None or time.monotonic() > deadline:
+            last = [line for line in text.splitlines() if line.strip()][-1:] or ["(no output)"]
+            state = f"stopped (exit status {process.returncode})" if process.returncode is not None else "did not start"
+            raise UserError(f"the rerun binary serving the web viewer {state} within {STARTUP_SECONDS:.0f} s: {last[0][:300]}")
+        time.sleep(0.05)
