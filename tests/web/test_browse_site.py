@@ -13,8 +13,7 @@ from typing import Any
 from urdf_pipeline import cli
 from urdf_pipeline.execute import SegmentSummary
 from urdf_pipeline.web import ViewerAssets
-from urdf_pipeline.web.browse_rows import BrowseSegment
-from urdf_pipeline.web.browse_site import Shared, build_browser
+from urdf_pipeline.web.browse_site import BrowseSegment, Shared, build_browser
 
 from ..conftest import CliResult
 

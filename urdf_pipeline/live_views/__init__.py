@@ -13,8 +13,7 @@ from ..package import lazy_surface
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
     from .foxglove_feed import FoxgloveFeed
     from .joint_state import JOINT_STATE, Feed, JointStateDecoder, JointStateSample
-    from .latency import Latencies
-    from .live_run import LiveOptions, LiveSummary, live_command, live_recording, open_feed
+    from .live_run import Latencies, LiveOptions, LiveSummary, live_command, live_recording, open_feed
     from .live_view import LiveView, TimeKind
     from .mcap_follow import McapFollowFeed
 

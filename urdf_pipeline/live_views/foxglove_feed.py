@@ -89,15 +89,14 @@ class _Session:
         return samples
 
     def _take(self, opcode: int, data: bytes, received_ns: int, samples: list[JointStateSample]) -> None:
-        if opcode == TEXT:
-            self._control(self._message(data))
-        elif opcode == BINARY:
-            try:
-                parsed = message_data(data)
-            except ProtocolError as exc:
-                raise self._broken(exc) from None
-            if parsed is not None and (subscription := self._subscriptions.get(parsed[0])) is not None:
-                samples.append(self._sample(subscription, parsed[1], parsed[2], received_ns))
+        try:
+            if opcode == TEXT:
+                self._control(server_message(data))
+            elif opcode == BINARY and (parsed := message_data(data)) is not None:
+                if (subscription := self._subscriptions.get(parsed[0])) is not None:
+                    samples.append(self._sample(subscription, parsed[1], parsed[2], received_ns))
+        except ProtocolError as exc:
+            raise self._broken(exc) from None
 
     def _sample(self, subscription: _Subscription, timestamp_ns: int, payload: memoryview, received_ns: int) -> JointStateSample:
         try:
@@ -117,16 +116,13 @@ class _Session:
         return UserError(f"{self.url} does not speak the Foxglove WebSocket protocol: it sent {shown(exc)}")
 
     def _control(self, message: dict[str, Any]) -> None:
-        try:
-            if message["op"] == "advertise":
-                self._advertise(advertised(message))
-            elif message["op"] == "unadvertise":
-                for channel in unadvertised(message):
-                    self._subscriptions.pop(self._by_channel.pop(channel, -1), None)
-            elif message["op"] == "status":
-                self._status(message)
-        except ProtocolError as exc:
-            raise self._broken(exc) from None
+        if message["op"] == "advertise":
+            self._advertise(advertised(message))
+        elif message["op"] == "unadvertise":
+            for channel in unadvertised(message):
+                self._subscriptions.pop(self._by_channel.pop(channel, -1), None)
+        elif message["op"] == "status":
+            self._status(message)
 
     def _status(self, message: dict[str, Any]) -> None:
         """The server's warnings and errors (a subscription it refused: why no data comes), the first few of each
@@ -143,8 +139,7 @@ class _Session:
     def _subscribe_again(self, channel: int) -> bool:
         """foxglove-sdk (0.30) sends a new channel's advertise before it records the channel, and answers a
         subscription that comes in between with "Unknown channel ID" (its connected_client.rs): a channel we
-        subscribed is subscribed again a moment later (by `batch`), a few times per connection at most. Seen here
-        in about one in ten late advertisements on a loaded machine."""
+        subscribed is subscribed again a moment later (by `batch`), a few times per connection at most."""
         if channel not in self._by_channel or self._resubscribed >= MAX_RESUBSCRIBES:
             return False
         self._resubscribed += 1

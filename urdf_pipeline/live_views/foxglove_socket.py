@@ -1,16 +1,11 @@
-"""One WebSocket connection to a Foxglove server, through the `websockets` library's synchronous client: it speaks RFC
-6455 (the upgrade, frames, masking, control frames, the closing handshake) with its own bounds on what it reads: the
-HTTP answer to the upgrade (header count, line length, body size), a message's size checked from each frame's header
-before its payload is read (fragments included), control frames (whole, at most 125 bytes), frames per message.
+"""One WebSocket connection to a Foxglove server, through the `websockets` library's synchronous client, which speaks
+RFC 6455 with its own bounds on what it reads (docs/security.md lists them all).
 
-Ours around it, kept small: the TCP connect (in steps, so that `goodbye` from another thread ends it at once, and so
-that we hold the socket a `goodbye` shuts down whatever the library is doing on it: the TLS or WebSocket handshake, a
-read, a send), the 5 s deadline of the whole handshake, a JSON message's tighter size bound, the silence rule (pinged
-after 2 s, lost after 10 s without a message or a pong: a frame on its way blocks pongs, so no frame takes longer), and
-the translation of the library's exceptions into our one-line messages.
-
-Its failures come in two kinds: `Lost` (refused, closed, reset, silent, too slow: the feed reconnects) and `UserError`
-(no Foxglove server at that URL, a frame too large or malformed: reconnecting would not help).
+Ours around it, kept small: the TCP connect (in steps, and on a socket we hold, so that `goodbye` from another thread
+ends a connect, a TLS or WebSocket handshake, a read or a send at once), the handshake's deadline, a JSON message's
+tighter size bound, the silence rule (a frame on its way blocks pongs, so no frame takes longer), and the library's
+exceptions in our one-line messages: `Lost` (refused, closed, reset, silent, too slow: the feed reconnects) or
+`UserError` (no Foxglove server at that URL, a frame too large or malformed: reconnecting would not help).
 """
 
 from __future__ import annotations

@@ -16,18 +16,21 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 import pyarrow as pa
 
+from ..errors import Problems, Where, warn
 from ..execute import (
     ClosedFormJointTransforms,
+    TemporalEdgeStats,
     TemporalEdgeValues,
     cached_tree,
     calibration_stream,
+    check_joint_statistics,
+    check_temporal_edges,
     provenance_stream,
     robot_model_stream,
     transform_fields,
 )
 from ..plan import LivePlan, RobotPlan
-from ..sources import JointValueMapper
-from .limit_reports import REPORT_SECONDS, LimitReports
+from ..sources import ChannelStats, JointValueMapper, RobotStats
 from .value_rows import ValueRows
 
 if TYPE_CHECKING:
@@ -38,9 +41,7 @@ Values = Sequence[float] | Mapping[str, float] | np.ndarray
 
 
 class LiveView:
-    """`push(values, time=None)` one sample; `push_batch(values, times)` many. `values` in the source's `names` order,
-    or a mapping name -> value. `time`: seconds (timestamp: since the epoch; duration: since any start) or an integer
-    (sequence); None stamps it now (timestamp), since the view began (duration) or with a counter (sequence)."""
+    """One robot's live view: `urdf_pipeline.live` (api/calls.py) says what `push` and `push_batch` take."""
 
     def __init__(
         self,
@@ -50,7 +51,6 @@ class LiveView:
         *,
         timeline: str | None = None,
         time_kind: TimeKind = "timestamp",
-        report_every: float = REPORT_SECONDS,
         scene: bool = True,
         max_delay: float = 0.01,
         owns_recording: bool = False,
@@ -66,7 +66,7 @@ class LiveView:
         self.temporal = [TemporalEdgeValues(e, self.source) for e in plan.temporal_edges if e.source == self.source.name]
         read = [self.mapper.columns, *(v.columns for v in self.temporal)]
         self.rows = ValueRows(self.source, np.unique(np.concatenate(read)), f"urdf_pipeline.live robot '{robot.key}'")
-        self.reports = LimitReports(self.mapper, self.temporal, self.source, report_every)
+        self.reports = LimitReports(self.mapper, self.temporal)
         self.started = time.monotonic_ns()
         self.count = 0  # samples pushed
         self.sent = 0  # samples sent (a sample left out for NaN values is pushed, not sent)
@@ -90,7 +90,7 @@ class LiveView:
 
     def push(self, values: Values, time: float | None = None) -> None:
         """One sample: checked now (a wrong count or name raises here), sent within `max_delay`."""
-        row = self.rows.one(values)[0]
+        row = self.rows.many([values])[0]
         stamp = self._stamp(time)
         self._raise_failure()
         with self._lock:
@@ -250,6 +250,7 @@ class LiveView:
 
 
 _MAX_PENDING = 1000  # rows kept at most: a loop faster than 100 kHz sends every 1000 pushes
+REPORT_SECONDS = 5.0  # a live view's limit reports: at most one per window this long
 
 
 class _Arrow:
@@ -260,3 +261,47 @@ class _Arrow:
 
     def as_arrow_array(self) -> pa.Array:
         return self.array
+
+
+class LimitReports:
+    """The window's statistics of one live view's mapper and temporal edges (limits, NaN, dropped rows, as a run reports
+    them after its pass), reported when something is wrong and the last report is REPORT_SECONDS old (the first at
+    once), then started afresh. A stream cannot be refused: values beyond the limits are clamped or shown as given
+    (`joints.limits.on_violation`: clamp clamps; error and ignore show them, error as an error-worded warning naming
+    the likely cause), and a sample with NaN values is left out unless `joints.nan` says how to fill it."""
+
+    def __init__(self, mapper: JointValueMapper, temporal: list[TemporalEdgeValues]) -> None:
+        self.mapper, self.temporal = mapper, temporal
+        self.last = -float("inf")
+        self.before = 0  # samples of the windows already reported: row numbers in messages count from the view's start
+
+    def due(self) -> bool:
+        return time.monotonic() - self.last >= REPORT_SECONDS and self._anything()
+
+    def report(self, final: bool = False) -> None:
+        """The window's warnings (`final`: whatever is left when the view closes), then a fresh window."""
+        if not (self._anything() and (final or self.due())):
+            return
+        for channel in self.mapper.stats.channels:
+            if channel.first_nonfinite_row >= 0:
+                channel.first_nonfinite_row += self.before
+        problems = Problems()
+        lines: list[tuple[str, Where | None]] = [(text, None) for text in check_joint_statistics(self.mapper, problems)]
+        check_temporal_edges([v for v in self.temporal if v.stats.rows], problems)
+        lines += [(error.message, error.where) for error in problems.errors]
+        window = "since the view started" if self.last == -float("inf") else f"in the last {time.monotonic() - self.last:.0f} s"
+        for text, where in lines:
+            warn(f"live: {text} ({window}; a live view shows the samples it can, it cannot refuse them)", where)
+        self.last = time.monotonic()
+        self.before += self.mapper.stats.rows
+        self.mapper.stats = RobotStats(channels=[ChannelStats() for _ in self.mapper.robot.channels])
+        for values in self.temporal:
+            values.stats = TemporalEdgeStats()
+
+    def _anything(self) -> bool:
+        stats = self.mapper.stats
+        if stats.dropped_rows or stats.filled_rows:
+            return True
+        if any(c.clamped_rows or c.beyond_rows or c.nonfinite_rows for c in stats.channels):
+            return True
+        return any(v.stats.nonfinite_rows or v.stats.zero_quaternion_rows for v in self.temporal)

@@ -3,12 +3,9 @@ are not all there yet waits for the next piece. The framing (the magic, then rec
 little-endian length) is read here; each record's content is parsed by the `mcap` library's record classes, a chunk's
 records by the sources' `chunk_records`, which every MCAP chunk the tool reads goes through.
 
-Everything is bounded before it is allocated: a record longer than FOLLOWED_RECORD_BYTES is refused from its length, before
-its bytes are kept, and a chunk is inflated only within FOLLOWED_CHUNK_BYTES (a quarter of what a finished file's chunk may
-hold: every message of a chunk is decoded in one step, at about twelve bytes of memory per byte of small JointStates,
-so 16 MiB keeps `live` within 400 MB) and its stated size, checked on the bytes it produces (a zstd frame header or an lz4 stream that says more is no reason to allocate
-more; a chunk stating less than it holds is refused after one byte more), so a damaged or hostile file costs a located
-error, never a traceback or the machine's memory.
+Everything is bounded before it is allocated (docs/security.md): a record longer than FOLLOWED_RECORD_BYTES is refused
+from its length, before its bytes are kept, and `chunk_records` inflates a chunk only within FOLLOWED_CHUNK_BYTES (every
+message of a chunk is decoded in one step, at about twelve bytes of memory per byte: 16 MiB keeps `live` within 400 MB).
 """
 
 from __future__ import annotations

@@ -31,17 +31,8 @@ class ValueRows:
         self.label = label  # "urdf_pipeline.live robot 'arm'", "topic '/joint_states'"
         self._orders: dict[tuple[str, ...], np.ndarray] = {}
 
-    def one(self, values: Sequence[float] | Mapping[str, float] | np.ndarray) -> np.ndarray:
-        """One sample -> a (1 x width) matrix."""
-        if isinstance(values, Mapping):
-            return self.named([tuple(values)], [np.fromiter(values.values(), np.float64, len(values))])
-        row = np.asarray(values, dtype=np.float64)
-        if row.ndim != 1 or row.shape[0] != self.width:
-            raise self._count_error(row.shape[0] if row.ndim == 1 else row.size)
-        return row[None, :]
-
     def many(self, values: Sequence[Any] | np.ndarray) -> np.ndarray:
-        """Rows of a batch: a (rows x width) array, or a sequence of sequences or mappings."""
+        """Rows of a batch (`[values]`: one push): a (rows x width) array, or a sequence of sequences or mappings."""
         if len(values) and isinstance(values[0], Mapping):
             return self.named([tuple(v) for v in values], [np.fromiter(v.values(), np.float64, len(v)) for v in values])
         matrix = np.asarray(values, dtype=np.float64)
