@@ -4,9 +4,6 @@ MCAP file being written) yields, read from CDR by the sources' one bounded reade
 
 A run reads finished bags with Rerun's McapReader; a live feed has one message at a time, so it decodes here. Both
 take the same fields: the header stamp (`timeline: header`), the log and publish times, `name` and `position`.
-
-Nothing the stream sends is compiled: the definition a channel advertises is only compared with JointState's own
-(`sources.definition_differs`), and every message's cost is bounded by its bytes.
 """
 
 from __future__ import annotations

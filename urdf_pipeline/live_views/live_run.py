@@ -1,10 +1,9 @@
-"""`urdf-pipeline live CONFIG --from URL`: a robot's stream into a viewer and/or a file, with the config's checks.
+"""`urdf-pipeline live CONFIG --from URL`: a robot's stream into a viewer and/or a file, with the config's checks
+(docs/live.md says what it does at the first message, at its end, and on Ctrl-C and SIGTERM).
 
-The config is checked before anything is subscribed (`FROM_STREAM`, as `validate --live`); each MCAP source's
-names come from `names:` or from the first message on its topic, and the plan is compiled then (a map naming a joint
-the stream lacks is refused at that first message). Samples are sent as each poll of the feed brings them. Ctrl-C and
-SIGTERM end the view as the end of the stream does (views closed, the recording finished, `--save` renamed into place;
-nothing saved when no sample came), then end the command as they end any other (exit 130, 143).
+The config is checked before anything is subscribed (`FROM_STREAM`, as `validate --live`), and the plan compiled once
+every source's names are known (`names:`, or the first message on its topic). A signal ends the view as the end of
+the stream does, then ends the command as it ends any other (`process.deferred_signals`: exit 130, 143).
 """
 
 from __future__ import annotations

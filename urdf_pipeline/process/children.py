@@ -1,8 +1,6 @@
-"""The child processes the tool starts (the headless viewer for pictures, the `rerun` binary that serves the web
-viewer's files): each in a session of its own, dying with this process, and stopped whole. And the one runner of a
-child that reads a stranger's file and answers one JSON line (the xacro, MJCF and MCAP readers: `run_bounded_child`),
-the bounds such a child sets on itself (`limit_this_process`), with the bounds the person running the tool may raise
-from the environment (`bound_from_environment`), never a config."""
+"""The child processes the tool starts, each in a session of its own, dying with this process, and stopped whole; and
+the one runner of a child that reads a stranger's file (the xacro, MJCF and MCAP readers), with the bounds it sets on
+itself, which only the person running the tool may change (from the environment, never a config)."""
 
 from __future__ import annotations
 

@@ -1,9 +1,8 @@
 """The site's HTML: one page template (its Content-Security-Policy, the shared stylesheet, relative links only), the
 escape for text from input, and the relative link that opens recordings in the site's viewer.
 
-Every link a page holds is relative to that page (`relative_href`), so a site works under any path prefix, on any
-static host, and from an unpacked artifact. Pages are named by their site-relative POSIX path (`index.html`,
-`segments/episode_000.html`): that is what `at` and `from_page` mean below.
+Every link is relative to its page, so a site works under any path prefix; pages are named by their site-relative POSIX
+path (`index.html`, `segments/episode_000.html`): that is what `at` and `from_page` mean below.
 """
 
 from __future__ import annotations
@@ -51,11 +50,9 @@ def relative_href(from_page: str, target: str) -> str:
 
 def viewer_href(from_page: str, recordings: Sequence[str], asset: str | None = None, into: str | None = None) -> str:
     """The relative link, from the page at `from_page`, that opens the site's `recordings` (site paths of `.rrd` and
-    `.rbl` files, e.g. what `SiteWriter.add_recording` returned) together in the site's viewer:
-    `viewer/index.html#url=../recordings/a.rrd&url=...`. Each recording is written relative to the viewer page (the
-    viewer's boot.js resolves it against its own address). `asset` and `into`: a split layout's model (site path),
-    added by boot.js to the recording whose recording id is `into` (the segment's). Percent-encoded: safe in a quoted
-    attribute as it is."""
+    `.rbl` files) together in the site's viewer: `viewer/index.html#url=../recordings/a.rrd&url=...`, each relative to
+    the viewer page (boot.js resolves it). `asset` and `into`: a split layout's model (site path), added by boot.js to
+    the recording whose recording id is `into`. Percent-encoded: safe in a quoted attribute as it is."""
     parts = [("url", relative_href(VIEWER_PAGE, recording)) for recording in recordings]
     if asset is not None and into is not None:
         parts += [("asset", relative_href(VIEWER_PAGE, asset)), ("into", into)]

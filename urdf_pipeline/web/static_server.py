@@ -7,6 +7,7 @@ traceback, and holds nothing for long. Stopping (Ctrl-C, SIGTERM) closes the lis
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import io
 import os
@@ -105,7 +106,9 @@ class SiteServer(ThreadingHTTPServer):
         """A thread for the connection while fewer than MAX_CONNECTIONS are open; else a 503 at once (never waiting on
         the client: the accepting thread sends into an empty buffer without blocking) and the connection closed."""
         if not self._slots.acquire(blocking=False):
-            _refuse(request)
+            with contextlib.suppress(OSError):  # the client is gone already
+                request.setblocking(False)
+                request.send(BUSY)
             self.shutdown_request(request)
             return
         with self._open_lock:
@@ -136,18 +139,8 @@ class SiteServer(ThreadingHTTPServer):
         with self._open_lock:
             still_open = list(self._open)
         for connection in still_open:
-            try:
+            with contextlib.suppress(OSError):  # closed meanwhile
                 connection.shutdown(socket.SHUT_RDWR)
-            except OSError:
-                pass  # closed meanwhile
-
-
-def _refuse(request: socket.socket) -> None:
-    try:
-        request.setblocking(False)
-        request.send(BUSY)
-    except OSError:
-        pass  # the client is gone already
 
 
 class _Handler(SimpleHTTPRequestHandler):
@@ -158,10 +151,8 @@ class _Handler(SimpleHTTPRequestHandler):
     default_request_version = "HTTP/1.0"  # never 0.9's bare body: every answer has its status line and headers
 
     def handle(self) -> None:
-        try:
+        with contextlib.suppress(OSError):  # the client went away, or stopped taking the answer (a reload, a closed tab, SEND_SECONDS)
             super().handle()
-        except OSError:
-            pass  # the client went away, or stopped taking the answer (a reload, a closed tab, SEND_SECONDS)
 
     def handle_one_request(self) -> None:
         """One request: its head read and checked by us (bounded in bytes and time), then answered."""
