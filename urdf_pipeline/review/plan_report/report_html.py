@@ -12,6 +12,7 @@ from .report_cells import (
     EDGE_HEADER,
     EDGES_NOTE,
     JOINT_HEADER,
+    ORDER_NOTE,
     SOURCE_HEADER,
     Markup,
     edge_cells,
@@ -34,11 +35,6 @@ NO_PICTURES = (
     "No pictures in this site: run the command with <code>--render DIR</code> as well, and the Rerun viewer draws them "
     "(headless; it needs a Vulkan driver, e.g. <code>apt-get install mesa-vulkan-drivers</code>)."
 )
-ORDER_NOTE = (
-    "Per source value, in this order: wrap (source units) → value × unit factor × scale × sign + offset (offset in URDF "
-    "units), or source_range mapped onto the joint's range → limits (clamped within the slack) → mimic joints. Limits in "
-    "source units are the raw values these corrections send onto the URDF limits, low to high."
-)
 TREE_LABELS = {
     "urdf_moving_joint": "URDF moving joint",
     "urdf_fixed_joint": "URDF fixed joint",
@@ -60,11 +56,6 @@ def code(value: object, limit: int = PATH_LIMIT) -> str:
     return f"<code>{html_text(value, limit)}</code>"
 
 
-def _names(names: Sequence[str]) -> str:
-    more = f" and {len(names) - HTML_NAMES:,} more" if len(names) > HTML_NAMES else ""
-    return ", ".join(code(name) for name in names[:HTML_NAMES]) + more
-
-
 MARKUP = Markup(
     code=code,
     path=code,
@@ -74,7 +65,7 @@ MARKUP = Markup(
     good=lambda word: f'<span class="good">{word}</span>',
     count=lambda rows: f"{rows:,}",
     setting=code,
-    names=_names,
+    names_shown=HTML_NAMES,
 )
 
 
@@ -161,7 +152,7 @@ def render_html(report: PlanReport, at: str = "index.html", viewer_html: str = "
         '<h2 id="robots">Robots</h2>',
     ]
     if any(robot.joints for robot in report.robots):
-        lines.append(f'<p class="muted">{ORDER_NOTE}</p>')
+        lines.append(f'<p class="muted">{ORDER_NOTE}.</p>')
     for robot in report.robots:
         lines += _robot(robot, report.sample)
     lines += [

@@ -10,6 +10,7 @@ from .report_cells import (
     EDGE_HEADER,
     EDGES_NOTE,
     JOINT_HEADER,
+    ORDER_NOTE,
     SOURCE_HEADER,
     Markup,
     edge_cells,
@@ -25,19 +26,6 @@ from .report_model import OutputEntry, PictureEntry, PlanReport, RobotEntry, Sam
 
 MARKDOWN_SEGMENTS = 20  # segment rows shown in markdown; json lists them all
 MARKDOWN_NAMES = 24  # names in one line of a list (ignored source values); json lists them all
-ORDER_NOTE = (
-    "Per source value, in this order: wrap (source units) → value × unit factor × scale × sign + offset (offset in URDF "
-    "units), or source_range mapped onto the joint's range → limits (clamped within the slack) → mimic joints. "
-    "Limits in source units are the raw values these corrections send onto the URDF limits, low to high (as "
-    "`urdf-pipeline check` and a run's limit error show them)."
-)
-
-
-def _names(names: Sequence[str]) -> str:
-    """Code spans, the first MARKDOWN_NAMES of them: one line stays readable however many names there are."""
-    more = f" and {len(names) - MARKDOWN_NAMES:,} more" if len(names) > MARKDOWN_NAMES else ""
-    return ", ".join(code(name) for name in names[:MARKDOWN_NAMES]) + more
-
 
 # every name from the config, URDF or data is a code span (markdown_text.py: inert whatever it holds)
 MARKUP = Markup(
@@ -49,7 +37,7 @@ MARKUP = Markup(
     good=str,
     count=str,
     setting=plain,
-    names=_names,
+    names_shown=MARKDOWN_NAMES,
 )
 
 
@@ -107,7 +95,7 @@ def render_markdown(report: PlanReport) -> str:
         "",
     ]
     if any(robot.joints for robot in report.robots):
-        lines += [f"> {ORDER_NOTE}", ""]
+        lines += [f"> {ORDER_NOTE} (as `urdf-pipeline check` and a run's limit error show them).", ""]
     for robot in report.robots:
         lines += _robot_markdown(robot, report.sample)
     lines += [
