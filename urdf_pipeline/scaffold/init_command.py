@@ -35,7 +35,6 @@ import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import yaml
 
@@ -44,6 +43,7 @@ from ..errors import UserError
 from ..sources import SourceDescription
 from ..urdf import UrdfModel
 from .init_joints import Source, drivable, joints_block
+from .init_messages import SampleVerdict, Scaffold, compiled, summary_lines
 from .init_units import SampledUnits
 from .init_urdf import InitUrdf, UrdfArgument, load_robot, package_paths
 from .name_match import Match, match_names
@@ -87,21 +87,6 @@ def write_schema(target: Path) -> None:
         with contextlib.suppress(OSError):
             partial.unlink(missing_ok=True)
         raise UserError(f"cannot write the schema to {target}: {exc.strerror or exc}") from None
-
-
-@dataclass(frozen=True)
-class Scaffold:
-    """The config text and what it holds, counted for the summary init prints."""
-
-    text: str
-    data: dict[str, Any]  # what the text reads back as
-    stub: bool  # no --source: the stub source
-    mapped: int
-    by_name: int
-    held: int
-    ignored: int
-    todos: int
-    mismatch: str = ""  # a positional source whose width is not the URDF's joints to drive: what differs, what to edit
 
 
 def _pair(source: SourceDescription, joint_names: list[str]) -> tuple[list[str], list[Match]]:
@@ -311,7 +296,6 @@ def self_check(result: Scaffold, out_file: Path) -> Document:
 def init_config(urdf: UrdfArgument, source: str | None, output: Path | None, force: bool) -> tuple[Scaffold, list[str]]:
     """Scaffold, check and write (to `output`, or return it for stdout); the lines to say on stderr. With a source,
     a bounded sample (check's) chooses each joint's unit, and check's rules judge the result (init_units.py)."""
-    from .init_messages import SampleVerdict, compiled, summary_lines
     from .init_units import read_units, refused_by_check
 
     out_file = (output if output is not None else Path.cwd() / "urdf-pipeline.yaml").absolute()
