@@ -77,10 +77,6 @@ def pictures_markdown(pictures: Sequence[PictureEntry], note: str) -> list[str]:
     return [f"{note} " + " · ".join(f"[{plain(picture.label)}]({link_target(picture.path)})" for picture in pictures), ""]
 
 
-def _pictures_markdown(pictures: Sequence[PictureEntry]) -> list[str]:
-    return pictures_markdown(pictures, "Pictures (the rest pose, drawn by the Rerun viewer):")
-
-
 def render_markdown(report: PlanReport) -> str:
     segments = report.output.segment_count
     lines = [
@@ -88,7 +84,7 @@ def render_markdown(report: PlanReport) -> str:
         "",
         f"{summary(report, MARKUP)}.",
         "",
-        *_pictures_markdown(report.pictures),
+        *pictures_markdown(report.pictures, "Pictures (the rest pose, drawn by the Rerun viewer):"),
         "#### Sources" + (" (the first segment's)" if segments > 1 else ""),
         "",
         *_table(SOURCE_HEADER, [source_cells(s, MARKUP) for s in report.sources_by_name]),
