@@ -1,14 +1,5 @@
-"""The semantic difference of two compiled plans, for `urdf-pipeline diff` and pull-request review.
-
-Two configs are compiled with `compile_config` and their plans compared, not their YAML: key order, comments,
-quoting, flow vs block style and equal spellings (`rpy_deg` vs the same `quaternion_xyzw`) make no difference.
-Floats are compared with a tolerance of 1e-9, `where` fields (line numbers) and labels are ignored, and paths are
-compared relative to each config's folder (a path equal either relatively or absolutely is the same path), so a
-config moved together with its inputs shows no change.
-
-The changes come in a fixed order, grouped: robots (by key: diff_robots.py), then edges (the root frame, static edges
-by (parent, child), temporal edges), then sources (by name), then the output; within a group in a fixed order, so
-the same two plans always give the same report (diff_base.DiffReport; diff_render.py prints it).
+"""The semantic difference of two compiled plans (what counts as none: docs/commands.md#diff), in a fixed order:
+robots (diff_robots.py), edges, sources, output.
 
 What the plan report holds is compared as its plain data (`Changes.walk` over two `report_model.as_data`): a field
 added to the report is a change `diff` shows, labelled with its name. The wording tables (`*_WORDING`) name the

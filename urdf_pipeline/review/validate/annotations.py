@@ -1,13 +1,6 @@
-"""`validate`: what validating each config found (ConfigResult), and its text, github and json renderings.
-
-`text` prints each config's warnings and notes (stderr) and `ok: CONFIG` (stdout) as it is validated, then every error
-of every config (stderr). `github` renders each problem as a GitHub Actions workflow command (`::error file=F,line=L,
-col=C::PATH: message`; a note is a `::notice`), so the problems show as annotations on the pull request's files; `json`
-as a list of objects. Both sort records by file, line, column, YAML path, severity (errors, warnings, notes) and
-message, and print identical ones (a sidecar shared by two configs) once. Line and column are 1-based, 0 when unknown
-(a problem with the file as a whole). Notes come from `--no-data` only: what it could not check without the data. A
-file skipped by `--skip-non-configs` is one `skipped: FILE: not a urdf-pipeline config (WHY)` line on stderr.
-"""
+"""`validate`: what validating each config found (ConfigResult), and its text, github and json renderings (their
+forms: docs/commands.md#validate). github and json sort the records and print identical ones (a sidecar shared by two
+configs) once."""
 
 from __future__ import annotations
 
