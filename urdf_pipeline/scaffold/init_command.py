@@ -1,30 +1,9 @@
-"""`urdf-pipeline init`: scaffold a config from a URDF, optionally pre-matched to a source's names.
+"""`urdf-pipeline init`: scaffold a config from a URDF (any form `run` accepts: init_urdf.py), optionally pre-matched to
+a source's names (source_probe.py, name_match.py); what it writes: docs/commands.md#init.
 
-The URDF comes in any form `run` accepts (`--urdf PATH`, `--xacro FILE --arg NAME=VALUE`, `--robot-descriptions
-NAME`), loaded as `run` loads it and written in the matching form: see `init_urdf.py`.
-
-The result is YAML text with comments, generated here (not dumped) so that every guess carries its reason:
-`# TODO: ...` marks what init could not know (a stub to fill in, a decision to make: an ignored name, a held joint,
-the calibration edge), `# review: ...` a guess to check (a name match and its score, a unit). `validate` refuses
-the result only on stubs that cannot work as they are, all marked TODO: the stub source file (which does not exist),
-a package folder init could not find. The text is deterministic for a given URDF, source and output location.
-
-SOURCE_SPEC is `KIND:PATH[#PART]` (PATH relative to the current directory): each kind in `sources.KINDS` says its
-form (`SPEC_FORM`, e.g. `parquet:FILE[#COLUMN]`), what PART defaults to, and describes the source (`describe`) from
-its metadata only, as `validate` reads it, never joint values. `KIND:` may be left out when the path says it (the
-kinds' `SUFFIXES`, a directory holding meta/info.json). A glob in a file path (`data/*.parquet`) becomes a globbed
-source, one segment per file. `source_probe.py` turns the description into the config entry.
-
-Sources with names are matched to the URDF's joints by name similarity (see `match_names`); sources without names
-(parquet, HDF5, a LeRobot feature without names) are matched by position and get the URDF joint names as `names`;
-when their width differs from the URDF's joints to drive, that guess is surely wrong in part: the names carry a TODO
-and init says what differs instead of "the config validates".
-
-The `# yaml-language-server: $schema=...` line points at the nearest `schemas/urdf-pipeline.schema.json` found in the
-output's folder or one of its parents (this repository's, or a copy vendored in the user's repository with
-`urdf-pipeline schema -o schemas/urdf-pipeline.schema.json`), as a relative path; otherwise at the schema's `$id`, the
-URL of the released schema of this version. Either works on another machine; a path into the installing virtualenv
-would not.
+The YAML text is generated here, not dumped, so that every guess carries its reason in a comment: `# TODO: ...` what
+init could not know (a stub to fill in, a decision to make), `# review: ...` a guess to check. `validate` refuses the
+result only on stubs marked TODO. The text is deterministic for a given URDF, source and output location.
 """
 
 from __future__ import annotations
