@@ -18,13 +18,13 @@ from .report_cells import (
     edge_cells,
     joint_cells,
     output_items,
+    plural,
     robot_items,
     segment_cells,
     source_cells,
     summary,
     warning_items,
 )
-from .report_cells import plural as counted
 from .report_model import EdgeEntry, OutputEntry, PictureEntry, PlanReport, RobotEntry, SampleEntry
 
 HTML_SEGMENTS = 500  # segment rows on the page; json lists them all
@@ -77,10 +77,6 @@ def table(header: Sequence[str], rows: Sequence[Sequence[str]], numbers: Sequenc
 
     body = "\n".join(f"<tr>{cells('td', row)}</tr>" for row in rows)
     return f"<table>\n<thead><tr>{cells('th', header)}</tr></thead>\n<tbody>\n{body}\n</tbody>\n</table>"
-
-
-def plural(count: int, word: str) -> str:
-    return counted(count, word, MARKUP)
 
 
 def pictures_html(pictures: Sequence[PictureEntry], at: str, note: str) -> str:
@@ -143,7 +139,7 @@ def render_html(report: PlanReport, at: str = "index.html", viewer_html: str = "
     viewer) goes after the summary."""
     lines = [
         f"<h1>Plan of {code(report.config.relative)}</h1>",
-        f"<p>{summary(report, MARKUP)}; {plural(len(report.warnings), 'warning')}.</p>",
+        f"<p>{summary(report, MARKUP)}; {plural(len(report.warnings), 'warning', MARKUP)}.</p>",
         viewer_html,
         '<h2 id="pictures">Pictures</h2>',
         pictures_html(report.pictures, at, "The rest pose, drawn by the Rerun viewer."),

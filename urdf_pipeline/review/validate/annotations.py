@@ -101,11 +101,9 @@ class Annotation:
 
 
 def validate_config(config: str, *, data: bool = True, skip_non_configs: bool = False, live: bool = False) -> ConfigResult:
-    """Compile the config as `validate` does, collecting its errors and warnings instead of printing them. `data`
-    False (`--no-data`): every check that opens no source file, and a note per source whose names only its data
-    holds. `live` (`--live`): what `live --from` checks before it subscribes, opening no source file (every source a
-    robot reads is an MCAP topic). `skip_non_configs`: a YAML file that is no config (non_config.py) is skipped rather
-    than refused."""
+    """Compile the config as `validate` does, collecting its errors and warnings instead of printing them. `data` False
+    (`--no-data`) and `live` (`--live`) open no source file (their checks: docs/commands.md#validate);
+    `skip_non_configs`: a YAML file that is no config (non_config.py) is skipped rather than refused."""
     from ...compile import FROM_CONFIG, FROM_STREAM, check_config, compile_config
 
     if skip_non_configs:
