@@ -134,18 +134,11 @@ class ScaffoldInputs:
     info: SourceInfo
     source: str | None
     out_file: Path
-
-    @property
-    def key(self) -> str:
-        return _robot_key(self.description)
+    key: str  # the robot's key in the config (_robot_key)
 
     @property
     def source_key(self) -> str:
         return f"{self.key}_state"
-
-    @property
-    def source_spec(self) -> Source:
-        return Source(self.source_key, self.info.description, self.source is None)
 
 
 def _robot_key(description: InitUrdf) -> str:
@@ -158,7 +151,7 @@ def load_inputs(urdf: UrdfArgument, source: str | None, out_file: Path) -> Scaff
     joint_names = [j.name for j in drivable(description.model)]
     key = _robot_key(description)
     info = stub_source(key, joint_names) if source is None else read_source(source, f"{key}_state", out_file)
-    return ScaffoldInputs(description, info, source, out_file)
+    return ScaffoldInputs(description, info, source, out_file, key)
 
 
 def compose(inputs: ScaffoldInputs, units: SampledUnits | None = None) -> Scaffold:
@@ -204,7 +197,8 @@ def _robots(inputs: ScaffoldInputs, names: list[str], matches: list[Match], unit
     if paths is not None:
         stubbed = any("TODO" in i.comment for i in paths.items if isinstance(i, Item))
         robot.add("package_paths", paths, "TODO: meshes that do not resolve until the stubs below are filled in" if stubbed else "")
-    robot.add("joints", joints_block(inputs.description.model, inputs.source_spec, names, matches, units))
+    source_spec = Source(inputs.source_key, inputs.info.description, inputs.source is None)
+    robot.add("joints", joints_block(inputs.description.model, source_spec, names, matches, units))
     robots = Block()
     robots.add(inputs.key, robot)
     return robots
