@@ -1,10 +1,5 @@
-"""The review commands, one subpackage each: `validate/`, `check/`, `plan_report/` (`plan`), `diff/`; what two of them
-share stays here (`markdown_text.py`, `picture_entries.py`). Each builds one typed report model that text, markdown and
-json render.
-
-The names below are the package's public surface; other packages import them from here, never from its modules.
-check's sample and candidates are on it for `scaffold/` (init chooses each joint's unit as check judges it).
-"""
+"""The review commands, one subpackage each: `validate/`, `check/`, `plan_report/` (`plan`), `diff/`. check's sample
+and candidates are on the surface for `scaffold/` (init chooses each joint's unit as check judges it)."""
 
 from __future__ import annotations
 

@@ -1,12 +1,6 @@
 """Text from a pull request (joint, link, frame, source and file names, YAML values, messages that quote them) inside
-the Markdown that `plan` and `diff` write for a pull-request comment: inert, whatever it holds.
-
-A name goes into a code span (`code`) whose backtick fence is longer than any backtick run inside it, so nothing in
-it is Markdown, HTML, a link, a mention or a heading. Plain text (`plain`: a message, a setting's value, an edge's
-origin) has every character Markdown or HTML would read escaped (`<`, `>`, `&` as entities; `[`, `]`, `` ` ``, `*`,
-`#`, ... with a backslash). Both are one line (errors.shown: control characters visible, a long name shortened
-with its length). Table cells escape `|` (`cell`), which GitHub reads as a cell border even inside a code span.
-"""
+the Markdown that `plan` and `diff` write for a pull-request comment: inert, whatever it holds (a name a code span,
+other text escaped, each one line; docs/security.md#text)."""
 
 from __future__ import annotations
 

@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -16,17 +16,10 @@ if TYPE_CHECKING:
     from ..render import Picture, Size
 
 
-def _entries(pictures: tuple[Picture, ...]) -> tuple[PictureEntry, ...]:
-    return tuple(PictureEntry(picture.label, str(picture.path)) for picture in pictures)
-
-
 def plan_pictures(plan: Plan, folder: Path, size: Size | None) -> tuple[PictureEntry, ...]:
-    from ..render import DEFAULT_SIZE, announce, render_plan
+    from ..render import DEFAULT_SIZE, render_plan
 
-    started = time.perf_counter()
-    pictures = render_plan(plan, folder, size or DEFAULT_SIZE)
-    announce(pictures, time.perf_counter() - started)
-    return _entries(pictures)
+    return _announced(lambda: render_plan(plan, folder, size or DEFAULT_SIZE))
 
 
 def diff_pictures(
@@ -34,12 +27,19 @@ def diff_pictures(
 ) -> tuple[PictureEntry, ...]:
     """Old, new, side by side, and the old as a ghost over the new whose caption lists `changes` (named as the report
     names the configs: `OLD`, `CONFIG@REV`)."""
-    from ..render import DEFAULT_SIZE, DiffNames, announce, render_diff
+    from ..render import DEFAULT_SIZE, DiffNames, render_diff
+
+    return _announced(lambda: render_diff(old, new, folder, stem, size or DEFAULT_SIZE, DiffNames(*names, caption_changes(changes))))
+
+
+def _announced(draw: Callable[[], tuple[Picture, ...]]) -> tuple[PictureEntry, ...]:
+    """The pictures `draw` draws, announced with the time they took, as the reports list them."""
+    from ..render import announce
 
     started = time.perf_counter()
-    pictures = render_diff(old, new, folder, stem, size or DEFAULT_SIZE, DiffNames(*names, caption_changes(changes)))
+    pictures = draw()
     announce(pictures, time.perf_counter() - started)
-    return _entries(pictures)
+    return tuple(PictureEntry(picture.label, str(picture.path)) for picture in pictures)
 
 
 def caption_changes(changes: Sequence[Change]) -> tuple[str, ...]:

@@ -1,14 +1,5 @@
-"""`plan --html DIR` and `diff --html DIR`: the report as a static site on Rerun's web viewer (`web.write_site`).
-
-A site holds `index.html` (the report, by `report_html` or `diff_html`), the pictures of `--render` under `pictures/`
-(shown inline), and the plans at their rest pose as recordings under `recordings/`, which the page opens in the
-site's viewer: embedded below the summary, and full page by link. The recordings are what `plan --render` and
-`diff --render` draw (`render.scene_chunks`: each robot's model at the rest pose, the calibration frames' axes),
-written by Rerun's writer, each with a blueprint (`.rbl`: one 3D view, the pictures' three-quarter camera framing the
-robots, `render.scene_camera`). For `diff`, old and new are two recordings at the same joint values
-(`render.shared_values`) seen from one camera, with the recording ids `old` and `new` and the names `old: OLD` and
-`new: NEW` in the viewer's recording list.
-"""
+"""`plan --html DIR` and `diff --html DIR`: the report as a static site on Rerun's web viewer (`web.write_site`), with
+the plans at their rest pose as recordings the page opens in it (what a site holds: docs/web.md)."""
 
 from __future__ import annotations
 
@@ -41,10 +32,10 @@ PLAN_RECORDING = "rest_pose"
 
 def write_plan_site(site: SiteWriter, plan: Plan, report: PlanReport) -> None:
     """The plan's report as `index.html`, its rest pose as a recording the page opens in the viewer, the pictures."""
-    from ..render import rest_values, scene_chunks
+    from ..render import rest_values, scene_camera, scene_chunks
 
     chunks = scene_chunks(plan, rest_values(plan))
-    camera = _camera([(plan, chunks)])
+    camera = scene_camera([(plan, chunks)], *VIEW_ASPECT)
     recording = _scene_recording(site, plan, chunks, camera, PLAN_RECORDING, f"rest pose: {report.config.relative}")
     report = replace(report, pictures=_site_pictures(site, report.pictures, "plan"))
     viewer = _viewer_section(
@@ -58,12 +49,12 @@ def write_plan_site(site: SiteWriter, plan: Plan, report: PlanReport) -> None:
 def write_diff_site(site: SiteWriter, old: Plan, new: Plan, report: DiffReport) -> None:
     """The diff as `index.html`; old and new at the same joint values, from one camera, as two recordings, which
     the page opens together in the embedded viewer, and each alone or both full page; the pictures."""
-    from ..render import scene_chunks, shared_values
+    from ..render import scene_camera, scene_chunks, shared_values
 
     values = shared_values(old, new)
     sides = {"old": (old, report.old), "new": (new, report.new)}
     chunks = {side: scene_chunks(plan, values) for side, (plan, _) in sides.items()}
-    camera = _camera([(plan, chunks[side]) for side, (plan, _) in sides.items()])
+    camera = scene_camera([(plan, chunks[side]) for side, (plan, _) in sides.items()], *VIEW_ASPECT)
     files = {side: _scene_recording(site, plan, chunks[side], camera, side, f"{side}: {name}") for side, (plan, name) in sides.items()}
     report = replace(report, pictures=_site_pictures(site, report.pictures, "diff"))
     viewer = _viewer_section(
@@ -88,12 +79,6 @@ def _viewer_section(choices: Sequence[tuple[str, Sequence[str]]], what: str) -> 
             "</section>",
         ]
     )
-
-
-def _camera(scenes: Sequence[tuple[Plan, Sequence[Chunk]]]) -> Camera:
-    from ..render import scene_camera
-
-    return scene_camera(scenes, *VIEW_ASPECT)
 
 
 def _scene_recording(site: SiteWriter, plan: Plan, chunks: list[Chunk], camera: Camera, recording_id: str, name: str) -> list[str]:

@@ -1,8 +1,6 @@
 """`init`: a config scaffolded from a URDF (any form `run` accepts) and, optionally, a source's names and a sample of
-its values; and the schema file `schema -o` writes beside the configs. It writes configs, it does not review them: it
-sits after `review/` because it asks check (through review's surface) which unit each joint's sampled values are in.
-
-The names below are the package's public surface; other packages import them from here, never from its modules.
+its values; and the schema file `schema -o` writes beside the configs. It sits after `review/` because it asks check
+(through review's surface) which unit each joint's sampled values are in.
 """
 
 from __future__ import annotations

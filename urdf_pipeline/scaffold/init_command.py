@@ -1,30 +1,9 @@
-"""`urdf-pipeline init`: scaffold a config from a URDF, optionally pre-matched to a source's names.
+"""`urdf-pipeline init`: scaffold a config from a URDF (any form `run` accepts: init_urdf.py), optionally pre-matched to
+a source's names (source_probe.py, name_match.py); what it writes: docs/commands.md#init.
 
-The URDF comes in any form `run` accepts (`--urdf PATH`, `--xacro FILE --arg NAME=VALUE`, `--robot-descriptions
-NAME`), loaded as `run` loads it and written in the matching form: see `init_urdf.py`.
-
-The result is YAML text with comments, generated here (not dumped) so that every guess carries its reason:
-`# TODO: ...` marks what init could not know (a stub to fill in, a decision to make: an ignored name, a held joint,
-the calibration edge), `# review: ...` a guess to check (a name match and its score, a unit). `validate` refuses
-the result only on stubs that cannot work as they are, all marked TODO: the stub source file (which does not exist),
-a package folder init could not find. The text is deterministic for a given URDF, source and output location.
-
-SOURCE_SPEC is `KIND:PATH[#PART]` (PATH relative to the current directory): each kind in `sources.KINDS` says its
-form (`SPEC_FORM`, e.g. `parquet:FILE[#COLUMN]`), what PART defaults to, and describes the source (`describe`) from
-its metadata only, as `validate` reads it, never joint values. `KIND:` may be left out when the path says it (the
-kinds' `SUFFIXES`, a directory holding meta/info.json). A glob in a file path (`data/*.parquet`) becomes a globbed
-source, one segment per file. `source_probe.py` turns the description into the config entry.
-
-Sources with names are matched to the URDF's joints by name similarity (see `match_names`); sources without names
-(parquet, HDF5, a LeRobot feature without names) are matched by position and get the URDF joint names as `names`;
-when their width differs from the URDF's joints to drive, that guess is surely wrong in part: the names carry a TODO
-and init says what differs instead of "the config validates".
-
-The `# yaml-language-server: $schema=...` line points at the nearest `schemas/urdf-pipeline.schema.json` found in the
-output's folder or one of its parents (this repository's, or a copy vendored in the user's repository with
-`urdf-pipeline schema -o schemas/urdf-pipeline.schema.json`), as a relative path; otherwise at the schema's `$id`, the
-URL of the released schema of this version. Either works on another machine; a path into the installing virtualenv
-would not.
+The YAML text is generated here, not dumped, so that every guess carries its reason in a comment: `# TODO: ...` what
+init could not know (a stub to fill in, a decision to make), `# review: ...` a guess to check. `validate` refuses the
+result only on stubs marked TODO. The text is deterministic for a given URDF, source and output location.
 """
 
 from __future__ import annotations
@@ -35,7 +14,6 @@ import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import yaml
 
@@ -44,6 +22,7 @@ from ..errors import UserError
 from ..sources import SourceDescription
 from ..urdf import UrdfModel
 from .init_joints import Source, drivable, joints_block
+from .init_messages import SampleVerdict, Scaffold, compiled, summary_lines
 from .init_units import SampledUnits
 from .init_urdf import InitUrdf, UrdfArgument, load_robot, package_paths
 from .name_match import Match, match_names
@@ -87,21 +66,6 @@ def write_schema(target: Path) -> None:
         with contextlib.suppress(OSError):
             partial.unlink(missing_ok=True)
         raise UserError(f"cannot write the schema to {target}: {exc.strerror or exc}") from None
-
-
-@dataclass(frozen=True)
-class Scaffold:
-    """The config text and what it holds, counted for the summary init prints."""
-
-    text: str
-    data: dict[str, Any]  # what the text reads back as
-    stub: bool  # no --source: the stub source
-    mapped: int
-    by_name: int
-    held: int
-    ignored: int
-    todos: int
-    mismatch: str = ""  # a positional source whose width is not the URDF's joints to drive: what differs, what to edit
 
 
 def _pair(source: SourceDescription, joint_names: list[str]) -> tuple[list[str], list[Match]]:
@@ -170,18 +134,11 @@ class ScaffoldInputs:
     info: SourceInfo
     source: str | None
     out_file: Path
-
-    @property
-    def key(self) -> str:
-        return _robot_key(self.description)
+    key: str  # the robot's key in the config (_robot_key)
 
     @property
     def source_key(self) -> str:
         return f"{self.key}_state"
-
-    @property
-    def source_spec(self) -> Source:
-        return Source(self.source_key, self.info.description, self.source is None)
 
 
 def _robot_key(description: InitUrdf) -> str:
@@ -194,7 +151,7 @@ def load_inputs(urdf: UrdfArgument, source: str | None, out_file: Path) -> Scaff
     joint_names = [j.name for j in drivable(description.model)]
     key = _robot_key(description)
     info = stub_source(key, joint_names) if source is None else read_source(source, f"{key}_state", out_file)
-    return ScaffoldInputs(description, info, source, out_file)
+    return ScaffoldInputs(description, info, source, out_file, key)
 
 
 def compose(inputs: ScaffoldInputs, units: SampledUnits | None = None) -> Scaffold:
@@ -240,7 +197,8 @@ def _robots(inputs: ScaffoldInputs, names: list[str], matches: list[Match], unit
     if paths is not None:
         stubbed = any("TODO" in i.comment for i in paths.items if isinstance(i, Item))
         robot.add("package_paths", paths, "TODO: meshes that do not resolve until the stubs below are filled in" if stubbed else "")
-    robot.add("joints", joints_block(inputs.description.model, inputs.source_spec, names, matches, units))
+    source_spec = Source(inputs.source_key, inputs.info.description, inputs.source is None)
+    robot.add("joints", joints_block(inputs.description.model, source_spec, names, matches, units))
     robots = Block()
     robots.add(inputs.key, robot)
     return robots
@@ -311,7 +269,6 @@ def self_check(result: Scaffold, out_file: Path) -> Document:
 def init_config(urdf: UrdfArgument, source: str | None, output: Path | None, force: bool) -> tuple[Scaffold, list[str]]:
     """Scaffold, check and write (to `output`, or return it for stdout); the lines to say on stderr. With a source,
     a bounded sample (check's) chooses each joint's unit, and check's rules judge the result (init_units.py)."""
-    from .init_messages import SampleVerdict, compiled, summary_lines
     from .init_units import read_units, refused_by_check
 
     out_file = (output if output is not None else Path.cwd() / "urdf-pipeline.yaml").absolute()

@@ -5,49 +5,37 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol
+from typing import Any
 
 from ..config import Document
-from ..errors import UserError
+from ..errors import UserError, UserErrors
 from ..plan import Plan
 
 
-class Scaffold(Protocol):
-    """What summary_lines reads of scaffold.Scaffold (a protocol: scaffold imports this module)."""
+@dataclass(frozen=True)
+class Scaffold:
+    """The config text and what it holds, counted for the summary init prints."""
 
-    @property
-    def stub(self) -> bool: ...
-
-    @property
-    def mapped(self) -> int: ...
-
-    @property
-    def by_name(self) -> int: ...
-
-    @property
-    def held(self) -> int: ...
-
-    @property
-    def ignored(self) -> int: ...
-
-    @property
-    def todos(self) -> int: ...
-
-    @property
-    def mismatch(self) -> str: ...
+    text: str
+    data: dict[str, Any]  # what the text reads back as
+    stub: bool  # no --source: the stub source
+    mapped: int
+    by_name: int
+    held: int
+    ignored: int
+    todos: int
+    mismatch: str = ""  # a positional source whose width is not the URDF's joints to drive: what differs, what to edit
 
 
 def compiled(document: Document) -> tuple[Plan | None, list[str]]:
     """The plan, or what `validate` would refuse (as messages without the file location)."""
     from ..compile import compile_document
-    from ..errors import UserErrors
 
     try:
         return compile_document(document), []
-    except UserErrors as exc:
-        return None, [f"{e.where.path}: {e.message}" if e.where and e.where.path else e.message for e in exc.errors]
     except UserError as exc:
-        return None, [f"{exc.where.path}: {exc.message}" if exc.where and exc.where.path else exc.message]
+        errors = exc.errors if isinstance(exc, UserErrors) else [exc]
+        return None, [f"{e.where.path}: {e.message}" if e.where and e.where.path else e.message for e in errors]
 
 
 @dataclass(frozen=True)

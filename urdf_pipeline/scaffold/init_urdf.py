@@ -1,17 +1,10 @@
-"""init's view of a robot description: the URDF forms `run` accepts, loaded by the code `run` uses, and the package
-folders the config's `package_paths` need.
+"""init's view of a robot description: the URDF forms `run` accepts, loaded by the code `run` uses
+(`urdf.load_urdf_source`), each written as the matching `robots.KEY.urdf` entry, and the package folders the config's
+`package_paths` need.
 
-The forms are `--urdf PATH` (a plain file), `--xacro FILE [--arg NAME=VALUE ...]` and `--robot-descriptions NAME`;
-each becomes the matching `robots.KEY.urdf` entry (paths relative to the output config). A xacro and a
-robot_descriptions module are loaded by `urdf.load_urdf_source`, as `validate` and `run` load them: the xacro in the
-bounded child process, robot_descriptions from its cache. The xacro is expanded under the output config's
-confinement (what `validate` will allow) widened by the folders the user named or init found: the xacro's own folder
-and each `$(find PKG)` folder. When xacro says it needs `$(find PKG)`, init looks for PKG as it looks for a mesh
-package and expands again with it; the folder goes into `package_paths`, as `validate` needs it there.
-
-A package folder is looked for as a user places one: an ancestor folder named PKG of the URDF (or xacro) file, PKG
-(or share/PKG, PKG/share/PKG) beside one of its ancestors, then ROS_PACKAGE_PATH / AMENT_PREFIX_PATH. A package the
-form itself provides (robot_descriptions' repository) needs no entry.
+A xacro is expanded under the output config's confinement (what `validate` will allow) widened by the folders the
+user named or init found: when xacro says it needs `$(find PKG)`, init looks for PKG as it looks for a mesh package,
+expands again with it, and puts the folder into `package_paths`, as `validate` needs it there.
 """
 
 from __future__ import annotations
@@ -207,9 +200,7 @@ def _package_uris(model: UrdfModel) -> dict[str, list[str]]:
 def _package_candidates(package: str, urdf: Path) -> list[tuple[Path, str]]:
     """Where package NAME may be: an ancestor named NAME, NAME (or share/NAME, NAME/share/NAME) beside an ancestor,
     then ROS_PACKAGE_PATH / AMENT_PREFIX_PATH."""
-    chains = []
-    for folder in (Path(os.path.abspath(urdf)).parent, Path(os.path.realpath(urdf)).parent):
-        chains.append([folder, *folder.parents])
+    chains = [[folder, *folder.parents] for folder in (Path(os.path.abspath(urdf)).parent, Path(os.path.realpath(urdf)).parent)]
     found: list[tuple[Path, str]] = []
     for chain in chains:
         found += [(a, "an ancestor folder of the URDF") for a in chain if a.name == package]
@@ -218,13 +209,11 @@ def _package_candidates(package: str, urdf: Path) -> list[tuple[Path, str]]:
             for candidate in (ancestor / package, ancestor / "share" / package, ancestor / package / "share" / package):
                 found.append((candidate, "found beside the URDF"))
     found += [(root, "from ROS_PACKAGE_PATH / AMENT_PREFIX_PATH") for root in package_roots(package)]
-    seen: set[str] = set()
-    unique = []
+    unique: dict[Path, str] = {}  # each folder once, with the first reason found
     for path, why in found:
-        if str(path) not in seen and path.is_dir():
-            seen.add(str(path))
-            unique.append((path, why))
-    return unique
+        if path not in unique and path.is_dir():
+            unique[path] = why
+    return list(unique.items())
 
 
 def _count(folder: Path, rests: list[str]) -> int:

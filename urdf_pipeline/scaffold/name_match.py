@@ -18,10 +18,6 @@ class NameKey:
     def numbers(self) -> tuple[str, ...]:
         return tuple(t for t in self.tokens if t.isdigit())
 
-    @property
-    def text(self) -> str:
-        return "_".join(self.tokens)
-
 
 _CAMEL = re.compile(r"(?<=[a-z0-9])(?=[A-Z])|(?<=[A-Z])(?=[A-Z][a-z])")
 _JOINT_WORDS = {"joint", "jnt", "j"}
@@ -81,7 +77,7 @@ class Match:
     score: float
 
 
-def match_names(source_names: list[str], joints: list[str], cutoff: float = MATCH_CUTOFF) -> list[Match]:
+def match_names(source_names: list[str], joints: list[str]) -> list[Match]:
     """One-to-one pre-matching, best pairs first (identical names before equal scores), in source order.
 
     Each name is compared as is and without the leading and trailing tokens all names of its side share (`panda_` in
@@ -93,7 +89,7 @@ def match_names(source_names: list[str], joints: list[str], cutoff: float = MATC
     for i, name in enumerate(source_names):
         for k, joint in enumerate(joints):
             score = 1.0 if name == joint else max(similarity(a, b) for a in set(source_keys[i]) for b in set(joint_keys[k]))
-            if score >= cutoff:
+            if score >= MATCH_CUTOFF:
                 pairs.append((-round(score, 6), name != joint, i, k))
     used_sources: set[int] = set()
     used_joints: set[int] = set()

@@ -1,13 +1,5 @@
-"""`urdf-pipeline check`: which corrections put a sample of each mapped joint's values inside its URDF limits.
-
-The candidates (check_candidates.py) combine the units of the joint's kind (deg <-> rad; m, cm, mm) with the sign,
-a wrap by a full turn and offsets of +-90 and +-180 degrees; candidates that give the same values on the sample are
-one (the simplest is shown). The config's own corrections fit: "fits as configured" (or, when the values fit a
-bigger unit as well and look like it, ambiguous: say so). Else the simplest fitting candidate (fewest changes) is the
-advice with the YAML to paste ("the values fit if they are degrees: `unit: deg`", and for the whole robot's
-`joints.unit` when every joint of that kind agrees); several equally simple: ambiguous, settle against a known pose;
-none: the column is probably another joint or the order is off.
-"""
+"""`urdf-pipeline check`: which corrections put a sample of each mapped joint's values inside its URDF limits, from
+check_candidates.py's candidates; its verdicts and advice: docs/commands.md#check."""
 
 from __future__ import annotations
 

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ...errors import listing
 from ...urdf import Quaternion, Vector, normalized_quaternion, quaternion_multiply
 from ..plan_report.report_model import PictureEntry, rounded
 
@@ -92,6 +93,13 @@ def value_text(value: Any) -> str:
     if isinstance(value, str):
         return value if value else '""'
     return str(value)
+
+
+def added_removed(old: Sequence[Any], new: Sequence[Any], colon: str = "", limit: int = 12) -> str:
+    """`added A, B; removed C` (each list bounded by `errors.listing`), "" when neither list holds an item the other lacks."""
+    added = [str(item) for item in new if item not in old]
+    removed = [str(item) for item in old if item not in new]
+    return "; ".join(f"{word}{colon} {listing(items, limit)}" for word, items in (("added", added), ("removed", removed)) if items)
 
 
 def rounded_text(values: Sequence[float]) -> str:

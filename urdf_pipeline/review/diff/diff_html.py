@@ -7,7 +7,8 @@ from itertools import groupby
 
 from ...errors import LINE_LIMIT
 from ...web import html_text
-from ..plan_report.report_html import code, pictures_html, plural, table
+from ..plan_report.report_cells import plural
+from ..plan_report.report_html import MARKUP, code, pictures_html, table
 from .diff_base import DiffReport
 
 GROUPS = {"robot": "Robots", "edges": "Edges", "sources": "Sources", "output": "Output"}
@@ -17,7 +18,7 @@ def render_diff_html(report: DiffReport, at: str = "index.html", viewer_html: st
     """The diff as the body of the page at site path `at`; `viewer_html` (old and new in the site's viewer) goes
     after the summary."""
     count = len(report.changes)
-    summary = f"{plural(count, 'change')} in the compiled plans." if count else "No semantic difference between the compiled plans."
+    summary = f"{plural(count, 'change', MARKUP)} in the compiled plans." if count else "No semantic difference between the compiled plans."
     lines = [
         f"<h1>Diff of {code(report.old)} → {code(report.new)}</h1>",
         f"<p>{summary} Key order, comments and equal spellings do not count.</p>",

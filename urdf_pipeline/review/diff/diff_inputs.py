@@ -1,12 +1,6 @@
-"""What `diff` compares: two config files, or a config and its text at a git revision, each compiled quietly.
-
-`diff CONFIG --git REV` compiles the config's text at REV from a hidden temporary file beside the config, so relative
-paths resolve as for the working tree's config. REV is first verified as a commit (`git rev-parse --verify
---end-of-options REV^{commit}`): what a user (or a workflow fed by a pull request) passes never reaches git as an
-option; the text is then read by the commit's hash (`git cat-file blob --end-of-options HASH:./NAME`, run in the
-config's folder). Everything else the old config refers to (URDF, data, sidecar edge files) is read from the working
-tree.
-"""
+"""What `diff` compares: two config files, or a config and its text at a git revision, each compiled quietly. The
+text at REV is compiled from a hidden copy beside the config, so its relative paths resolve as the working tree's
+config's; REV reaches git only once verified as a commit (`verified_revision`), never as an option."""
 
 from __future__ import annotations
 

@@ -1,14 +1,5 @@
-"""The semantic difference of two compiled plans, for `urdf-pipeline diff` and pull-request review.
-
-Two configs are compiled with `compile_config` and their plans compared, not their YAML: key order, comments,
-quoting, flow vs block style and equal spellings (`rpy_deg` vs the same `quaternion_xyzw`) make no difference.
-Floats are compared with a tolerance of 1e-9, `where` fields (line numbers) and labels are ignored, and paths are
-compared relative to each config's folder (a path equal either relatively or absolutely is the same path), so a
-config moved together with its inputs shows no change.
-
-The changes come in a fixed order, grouped: robots (by key: diff_robots.py), then edges (the root frame, static edges
-by (parent, child), temporal edges), then sources (by name), then the output; within a group in a fixed order, so
-the same two plans always give the same report (diff_base.DiffReport; diff_render.py prints it).
+"""The semantic difference of two compiled plans (what counts as none: docs/commands.md#diff), in a fixed order:
+robots (diff_robots.py), edges, sources, output.
 
 What the plan report holds is compared as its plain data (`Changes.walk` over two `report_model.as_data`): a field
 added to the report is a change `diff` shows, labelled with its name. The wording tables (`*_WORDING`) name the
@@ -26,7 +17,7 @@ from ...errors import listing
 from ...plan import EdgePlan, LeRobotSourcePlan, Plan, TemporalEdgePlan
 from ..plan_report.report import build_report
 from ..plan_report.report_model import as_data
-from .diff_base import Change, Changes, PathValue, Wording, pose_change, rounded_text, same, value_text
+from .diff_base import Change, Changes, PathValue, Wording, added_removed, pose_change, rounded_text, same, value_text
 from .diff_robots import robot_changes
 
 _SAID = ("config", "root_frame", "robots", "edges", "sources", "output", "frame_tree", "warnings", "sample", "pictures", "report_version")
@@ -115,10 +106,8 @@ def _temporal_summary(edge: TemporalEdgePlan) -> str:
 def _static_edge_changes(report: Changes, subject: str, old: EdgePlan, new: EdgePlan) -> None:
     report.field("edges", subject, "kind", old.kind, new.kind)
     if old.fixed_chain is not None and new.fixed_chain is not None:
-        report.field("edges", subject, "fixed_chain robot", old.fixed_chain.robot, new.fixed_chain.robot)
-        report.field("edges", subject, "fixed_chain from", old.fixed_chain.start, new.fixed_chain.start)
-        report.field("edges", subject, "fixed_chain to", old.fixed_chain.end, new.fixed_chain.end)
-        report.field("edges", subject, "fixed_chain joints", old.fixed_chain.joints, new.fixed_chain.joints)
+        for name, attribute in (("robot", "robot"), ("from", "start"), ("to", "end"), ("joints", "joints")):
+            report.field("edges", subject, f"fixed_chain {name}", getattr(old.fixed_chain, attribute), getattr(new.fixed_chain, attribute))
     moved = pose_change(old.translation, old.quaternion_xyzw, new.translation, new.quaternion_xyzw)
     if moved is not None:
         report.add("edges", subject, moved, [*old.translation, *old.quaternion_xyzw], [*new.translation, *new.quaternion_xyzw])
@@ -144,11 +133,7 @@ def _source_changes(report: Changes, old: Plan, new: Plan, old_data: dict[str, A
         if len(old_files) == 1 and len(new_files) == 1:
             report.field("sources", subject, "root" if "root" in new_settings[name] else "path", old_files[0], new_files[0])
         elif not same(old_files, new_files):
-            added = [str(f) for f in new_files if f not in old_files]
-            removed = [str(f) for f in old_files if f not in new_files]
-            what = "; ".join(
-                part for part in (f"added: {listing(added)}" if added else "", f"removed: {listing(removed)}" if removed else "") if part
-            )
+            what = added_removed(old_files, new_files, ":")
             report.add(
                 "sources",
                 subject,
@@ -187,13 +172,9 @@ def _episode(source: LeRobotSourcePlan) -> str:
 def _names_changes(report: Changes, subject: str, old: tuple[str, ...], new: tuple[str, ...]) -> None:
     if old == new:
         return
-    added = [n for n in new if n not in old]
-    removed = [n for n in old if n not in new]
-    if not added and not removed:
-        report.add("sources", subject, f"names reordered: {value_text(old)} -> {value_text(new)}", list(old), list(new))
-        return
-    parts = ([f"added {listing(added)}"] if added else []) + ([f"removed {listing(removed)}"] if removed else [])
-    report.add("sources", subject, f"names: {'; '.join(parts)}", list(old), list(new))
+    changed = added_removed(old, new)
+    what = f"names: {changed}" if changed else f"names reordered: {value_text(old)} -> {value_text(new)}"
+    report.add("sources", subject, what, list(old), list(new))
 
 
 # ---------------------------------------------------------------------------------------------------------- output
@@ -219,10 +200,8 @@ def _output_changes(report: Changes, old: Plan, new: Plan, old_data: dict[str, A
         elif renamed:
             report.add("output", subject, f"segment ids ({len(renamed)} of {len(pairs)}): {listing(renamed, limit=3)}", old_ids, new_ids)
     else:
-        added = [i for i in new_ids if i not in old_ids]
-        removed = [i for i in old_ids if i not in new_ids]
-        parts = ([f"added {listing(added, limit=5)}"] if added else []) + ([f"removed {listing(removed, limit=5)}"] if removed else [])
-        report.add("output", subject, f"segments {len(old_ids)} -> {len(new_ids)} ({'; '.join(parts)})", old_ids, new_ids)
+        changed = added_removed(old_ids, new_ids, limit=5)
+        report.add("output", subject, f"segments {len(old_ids)} -> {len(new_ids)} ({changed})", old_ids, new_ids)
         new_by_id = {s.id: s for s in new_segments}
         pairs = [(o, new_by_id[o.id]) for o in old_segments if o.id in new_by_id]
     moved = [(report.old_path(o.output), report.new_path(n.output)) for o, n in pairs]

@@ -174,12 +174,9 @@ def _channel_changes(
         pairs = [(o, n) for o in old for n in new if o.joint == n.joint]
     for o, n in pairs:
         label = f"{name} -> {n.joint}"
-        report.field("robot", subject, f"{label}: sign", o.sign, n.sign)
-        report.field("robot", subject, f"{label}: unit", o.source_unit, n.source_unit)
-        report.field("robot", subject, f"{label}: scale", o.scale, n.scale)
-        report.field("robot", subject, f"{label}: offset", o.offset, n.offset)
-        report.field("robot", subject, f"{label}: wrap", o.wrap, n.wrap)
-        report.field("robot", subject, f"{label}: source_range", o.source_range, n.source_range)
+        for field in ("sign", "unit", "scale", "offset", "wrap", "source_range"):
+            attribute = "source_unit" if field == "unit" else field
+            report.field("robot", subject, f"{label}: {field}", getattr(o, attribute), getattr(n, attribute))
         if not (_follows_limits(o) and _follows_limits(n)):  # URDF limits changes are reported with the URDF
             report.field("robot", subject, f"{label}: joint_range", o.target_range, n.target_range)
         if o.joint == n.joint:  # what the changes above (or the URDF's) mean for the data, as plan and check print it
@@ -228,9 +225,8 @@ def _added_removed(report: Changes, subject: str, what: str, old: list[str], new
 
 def _urdf_joint_changes(report: Changes, subject: str, old: Joint, new: Joint) -> None:
     label = f"URDF joint {old.name}"
-    report.field("robot", subject, f"{label}: type", old.type, new.type)
-    report.field("robot", subject, f"{label}: parent", old.parent, new.parent)
-    report.field("robot", subject, f"{label}: child", old.child, new.child)
+    for attribute in ("type", "parent", "child"):
+        report.field("robot", subject, f"{label}: {attribute}", getattr(old, attribute), getattr(new, attribute))
     moved = pose_change(old.xyz, quaternion_from_rpy(*old.rpy), new.xyz, quaternion_from_rpy(*new.rpy))
     if moved is not None:
         report.add("robot", subject, f"{label}: origin {moved}", [*old.xyz, *old.rpy], [*new.xyz, *new.rpy])

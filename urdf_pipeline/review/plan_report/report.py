@@ -1,11 +1,5 @@
-"""`urdf-pipeline plan`: the plan's report model (report_model.PlanReport), built here, rendered as text, markdown or
-json (its plain data, report_model.as_data).
-
-The model keeps what every format shows: paths both as planned and relative to the config's folder, order fixed
-(config order where it means something, tree order for edges, names otherwise), so markdown and json are the same
-bytes for the same inputs and golden files pin them. None of it reads joint values, except `--sample`
-(check.plan_sample); none imports Rerun otherwise.
-"""
+"""`urdf-pipeline plan`: the plan's report model (report_model.PlanReport), built here from the plan alone (joint
+values only with `--sample`), in a fixed order, so that markdown and json are the same bytes for the same inputs."""
 
 from __future__ import annotations
 
@@ -307,15 +301,7 @@ def _edges(plan: Plan, models: dict[str, UrdfModel], paths: _Paths) -> tuple[lis
         place = f"{temporal.label}, line {line}" if os.path.abspath(temporal.where.file) == config else f"{file}:{line}"
         description = f"temporal edge from source {temporal.source} ({place}{overridden.get((temporal.parent, temporal.child), '')})"
         origin = EdgeOrigin("temporal", description, file=file, line=line, label=temporal.label, source=temporal.source)
-        values = TemporalValues(
-            temporal.source,
-            temporal.entity,
-            temporal.translation_names,
-            temporal.translation_indices,
-            temporal.quaternion_names,
-            temporal.quaternion_indices,
-            temporal.tf_topic,
-        )
+        values = TemporalValues(**{item.name: getattr(temporal, item.name) for item in fields(TemporalValues)})  # the plan's, by name
         configured.append(EdgeEntry(temporal.parent, temporal.child, origin, None, None, temporal=values))
     return urdf_edges, configured
 

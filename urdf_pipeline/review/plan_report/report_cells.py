@@ -34,6 +34,11 @@ SOURCE_HEADER = ["source", "kind", "file", "reads", "values"]
 JOINT_HEADER = ["source name", "URDF joint", "type", "unit", "sign", "offset (URDF units)", "scale / range map"]
 JOINT_HEADER += ["limits (source units)", "mimic driver / hold"]
 EDGE_HEADER = ["parent", "child", "translation (m)", "rotation (rpy deg)", "origin"]
+ORDER_NOTE = (  # each renderer ends the sentence
+    "Per source value, in this order: wrap (source units) → value × unit factor × scale × sign + offset (offset in URDF "
+    "units), or source_range mapped onto the joint's range → limits (clamped within the slack) → mimic joints. Limits in "
+    "source units are the raw values these corrections send onto the URDF limits, low to high"
+)
 
 
 @dataclass(frozen=True)
@@ -48,7 +53,12 @@ class Markup:
     good: Callable[[str], str]
     count: Callable[[int], str]
     setting: Callable[[object], str]  # a source setting's value from input (a dataset, a column, a topic)
-    names: Callable[[Sequence[str]], str]  # a list of names from input, as many as this format shows
+    names_shown: int  # names in one list (ignored source values): one line stays readable however many there are
+
+    def names(self, names: Sequence[str]) -> str:
+        """Code spans, the first `names_shown` of them."""
+        more = f" and {len(names) - self.names_shown:,} more" if len(names) > self.names_shown else ""
+        return ", ".join(self.code(name) for name in names[: self.names_shown]) + more
 
 
 def plural(count: int, word: str, markup: Markup) -> str:
@@ -214,8 +224,7 @@ def output_items(output: OutputEntry, markup: Markup) -> list[str]:
         where = f"{markup.code(trail.robot)}'s {markup.code(trail.link)} in {markup.code(trail.frame)}"
         items.append(f"trail of {where}: {trail.style}, window {trail.window} ({markup.code('trails')})")
     what = "layer (forward kinematics, calibration edges)" if output.layout == "split" else "recording"
-    count = output.segment_count
-    items.append(f"{markup.count(count)} segment{'' if count == 1 else 's'}, each a {what} whose recording_id is the segment id:")
+    items.append(f"{plural(output.segment_count, 'segment', markup)}, each a {what} whose recording_id is the segment id:")
     return items
 
 

@@ -12,18 +12,19 @@ from .report_cells import (
     EDGE_HEADER,
     EDGES_NOTE,
     JOINT_HEADER,
+    ORDER_NOTE,
     SOURCE_HEADER,
     Markup,
     edge_cells,
     joint_cells,
     output_items,
+    plural,
     robot_items,
     segment_cells,
     source_cells,
     summary,
     warning_items,
 )
-from .report_cells import plural as counted
 from .report_model import EdgeEntry, OutputEntry, PictureEntry, PlanReport, RobotEntry, SampleEntry
 
 HTML_SEGMENTS = 500  # segment rows on the page; json lists them all
@@ -33,11 +34,6 @@ TREE_DEPTH = 40  # indentation levels of the frame tree; deeper frames say their
 NO_PICTURES = (
     "No pictures in this site: run the command with <code>--render DIR</code> as well, and the Rerun viewer draws them "
     "(headless; it needs a Vulkan driver, e.g. <code>apt-get install mesa-vulkan-drivers</code>)."
-)
-ORDER_NOTE = (
-    "Per source value, in this order: wrap (source units) → value × unit factor × scale × sign + offset (offset in URDF "
-    "units), or source_range mapped onto the joint's range → limits (clamped within the slack) → mimic joints. Limits in "
-    "source units are the raw values these corrections send onto the URDF limits, low to high."
 )
 TREE_LABELS = {
     "urdf_moving_joint": "URDF moving joint",
@@ -60,11 +56,6 @@ def code(value: object, limit: int = PATH_LIMIT) -> str:
     return f"<code>{html_text(value, limit)}</code>"
 
 
-def _names(names: Sequence[str]) -> str:
-    more = f" and {len(names) - HTML_NAMES:,} more" if len(names) > HTML_NAMES else ""
-    return ", ".join(code(name) for name in names[:HTML_NAMES]) + more
-
-
 MARKUP = Markup(
     code=code,
     path=code,
@@ -74,7 +65,7 @@ MARKUP = Markup(
     good=lambda word: f'<span class="good">{word}</span>',
     count=lambda rows: f"{rows:,}",
     setting=code,
-    names=_names,
+    names_shown=HTML_NAMES,
 )
 
 
@@ -86,10 +77,6 @@ def table(header: Sequence[str], rows: Sequence[Sequence[str]], numbers: Sequenc
 
     body = "\n".join(f"<tr>{cells('td', row)}</tr>" for row in rows)
     return f"<table>\n<thead><tr>{cells('th', header)}</tr></thead>\n<tbody>\n{body}\n</tbody>\n</table>"
-
-
-def plural(count: int, word: str) -> str:
-    return counted(count, word, MARKUP)
 
 
 def pictures_html(pictures: Sequence[PictureEntry], at: str, note: str) -> str:
@@ -152,7 +139,7 @@ def render_html(report: PlanReport, at: str = "index.html", viewer_html: str = "
     viewer) goes after the summary."""
     lines = [
         f"<h1>Plan of {code(report.config.relative)}</h1>",
-        f"<p>{summary(report, MARKUP)}; {plural(len(report.warnings), 'warning')}.</p>",
+        f"<p>{summary(report, MARKUP)}; {plural(len(report.warnings), 'warning', MARKUP)}.</p>",
         viewer_html,
         '<h2 id="pictures">Pictures</h2>',
         pictures_html(report.pictures, at, "The rest pose, drawn by the Rerun viewer."),
@@ -161,7 +148,7 @@ def render_html(report: PlanReport, at: str = "index.html", viewer_html: str = "
         '<h2 id="robots">Robots</h2>',
     ]
     if any(robot.joints for robot in report.robots):
-        lines.append(f'<p class="muted">{ORDER_NOTE}</p>')
+        lines.append(f'<p class="muted">{ORDER_NOTE}.</p>')
     for robot in report.robots:
         lines += _robot(robot, report.sample)
     lines += [

@@ -10,6 +10,7 @@ from .report_cells import (
     EDGE_HEADER,
     EDGES_NOTE,
     JOINT_HEADER,
+    ORDER_NOTE,
     SOURCE_HEADER,
     Markup,
     edge_cells,
@@ -25,19 +26,6 @@ from .report_model import OutputEntry, PictureEntry, PlanReport, RobotEntry, Sam
 
 MARKDOWN_SEGMENTS = 20  # segment rows shown in markdown; json lists them all
 MARKDOWN_NAMES = 24  # names in one line of a list (ignored source values); json lists them all
-ORDER_NOTE = (
-    "Per source value, in this order: wrap (source units) → value × unit factor × scale × sign + offset (offset in URDF "
-    "units), or source_range mapped onto the joint's range → limits (clamped within the slack) → mimic joints. "
-    "Limits in source units are the raw values these corrections send onto the URDF limits, low to high (as "
-    "`urdf-pipeline check` and a run's limit error show them)."
-)
-
-
-def _names(names: Sequence[str]) -> str:
-    """Code spans, the first MARKDOWN_NAMES of them: one line stays readable however many names there are."""
-    more = f" and {len(names) - MARKDOWN_NAMES:,} more" if len(names) > MARKDOWN_NAMES else ""
-    return ", ".join(code(name) for name in names[:MARKDOWN_NAMES]) + more
-
 
 # every name from the config, URDF or data is a code span (markdown_text.py: inert whatever it holds)
 MARKUP = Markup(
@@ -49,7 +37,7 @@ MARKUP = Markup(
     good=str,
     count=str,
     setting=plain,
-    names=_names,
+    names_shown=MARKDOWN_NAMES,
 )
 
 
@@ -89,10 +77,6 @@ def pictures_markdown(pictures: Sequence[PictureEntry], note: str) -> list[str]:
     return [f"{note} " + " · ".join(f"[{plain(picture.label)}]({link_target(picture.path)})" for picture in pictures), ""]
 
 
-def _pictures_markdown(pictures: Sequence[PictureEntry]) -> list[str]:
-    return pictures_markdown(pictures, "Pictures (the rest pose, drawn by the Rerun viewer):")
-
-
 def render_markdown(report: PlanReport) -> str:
     segments = report.output.segment_count
     lines = [
@@ -100,14 +84,14 @@ def render_markdown(report: PlanReport) -> str:
         "",
         f"{summary(report, MARKUP)}.",
         "",
-        *_pictures_markdown(report.pictures),
+        *pictures_markdown(report.pictures, "Pictures (the rest pose, drawn by the Rerun viewer):"),
         "#### Sources" + (" (the first segment's)" if segments > 1 else ""),
         "",
         *_table(SOURCE_HEADER, [source_cells(s, MARKUP) for s in report.sources_by_name]),
         "",
     ]
     if any(robot.joints for robot in report.robots):
-        lines += [f"> {ORDER_NOTE}", ""]
+        lines += [f"> {ORDER_NOTE} (as `urdf-pipeline check` and a run's limit error show them).", ""]
     for robot in report.robots:
         lines += _robot_markdown(robot, report.sample)
     lines += [

@@ -330,16 +330,12 @@ class FrameTree:
     mermaid: str  # the frame tree as a mermaid `graph TD`
 
 
-def by_name(sources: tuple[SourceEntry, ...]) -> tuple[SourceEntry, ...]:
-    return tuple(sorted(sources, key=lambda s: s.name))
-
-
 @dataclass(frozen=True)
 class PlanReport:
     """What a run of the config would do, read from its plan (and, with --sample, the first rows of its sources)."""
 
     DATA: ClassVar[DataSpec] = {
-        "sources": lambda r: {"sources": by_name(r.sources)},
+        "sources": lambda r: {"sources": r.sources_by_name},
         "configured_edges": None,
         "pictures": when_set("pictures"),
     }
@@ -359,4 +355,5 @@ class PlanReport:
 
     @property
     def sources_by_name(self) -> tuple[SourceEntry, ...]:
-        return by_name(self.sources)
+        """The data's order, and the tables'."""
+        return tuple(sorted(self.sources, key=lambda s: s.name))

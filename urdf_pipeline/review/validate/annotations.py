@@ -1,13 +1,6 @@
-"""`validate`: what validating each config found (ConfigResult), and its text, github and json renderings.
-
-`text` prints each config's warnings and notes (stderr) and `ok: CONFIG` (stdout) as it is validated, then every error
-of every config (stderr). `github` renders each problem as a GitHub Actions workflow command (`::error file=F,line=L,
-col=C::PATH: message`; a note is a `::notice`), so the problems show as annotations on the pull request's files; `json`
-as a list of objects. Both sort records by file, line, column, YAML path, severity (errors, warnings, notes) and
-message, and print identical ones (a sidecar shared by two configs) once. Line and column are 1-based, 0 when unknown
-(a problem with the file as a whole). Notes come from `--no-data` only: what it could not check without the data. A
-file skipped by `--skip-non-configs` is one `skipped: FILE: not a urdf-pipeline config (WHY)` line on stderr.
-"""
+"""`validate`: what validating each config found (ConfigResult), and its text, github and json renderings (their
+forms: docs/commands.md#validate). github and json sort the records and print identical ones (a sidecar shared by two
+configs) once."""
 
 from __future__ import annotations
 
@@ -108,11 +101,9 @@ class Annotation:
 
 
 def validate_config(config: str, *, data: bool = True, skip_non_configs: bool = False, live: bool = False) -> ConfigResult:
-    """Compile the config as `validate` does, collecting its errors and warnings instead of printing them. `data`
-    False (`--no-data`): every check that opens no source file, and a note per source whose names only its data
-    holds. `live` (`--live`): what `live --from` checks before it subscribes, opening no source file (every source a
-    robot reads is an MCAP topic). `skip_non_configs`: a YAML file that is no config (non_config.py) is skipped rather
-    than refused."""
+    """Compile the config as `validate` does, collecting its errors and warnings instead of printing them. `data` False
+    (`--no-data`) and `live` (`--live`) open no source file (their checks: docs/commands.md#validate);
+    `skip_non_configs`: a YAML file that is no config (non_config.py) is skipped rather than refused."""
     from ...compile import FROM_CONFIG, FROM_STREAM, check_config, compile_config
 
     if skip_non_configs:

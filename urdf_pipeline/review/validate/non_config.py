@@ -1,10 +1,5 @@
-"""`validate --skip-non-configs` (the pre-commit hook): which YAML files under `configs/` are not configs at all.
-
-A repository keeps sidecar calibration-edge files (a top-level list) and other YAML (ROS parameters) beside its
-configs; those must not fail the hook. The rule is conservative, so that a config with a typo still fails: a file
-is skipped only when it parses and is a top-level list, or a mapping none of whose keys is (or is close to) one of
-the config's own top-level keys. A file that does not parse, is empty or holds a scalar is validated (and refused).
-"""
+"""`validate --skip-non-configs` (the pre-commit hook): which YAML files beside the configs are not configs at all
+(sidecar edge files, ROS parameters). The rule is conservative, so that a config with a typo still fails."""
 
 from __future__ import annotations
 
