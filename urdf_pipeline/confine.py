@@ -80,7 +80,7 @@ def os_cause(exc: BaseException, path: Path | str | None = None) -> str:
         return f"a name in it is too long for the file system (at most {NAME_MAX} bytes per name); shorten it"
     if code in (errno.EACCES, errno.EPERM):
         return "permission denied"
-    if code == errno.ENOTDIR and path is not None:
+    if code in (errno.ENOTDIR, errno.EEXIST) and path is not None:  # EEXIST: mkdir over a file
         blocker = _file_in_the_way(Path(path))
         if blocker is not None:
             return f"{blocker} is a file, not a folder"

@@ -280,3 +280,15 @@ def test_name_matching_rules() -> None:
     assert pairs(["shoulder_pitch"], ["shoulder_roll_joint"]) == {}
     exact = match_names(["elbow_joint", "elbow"], ["elbow_joint"])  # an identical name wins a tie
     assert [(m.source_name, m.score) for m in exact] == [("elbow_joint", 1.0)]
+
+
+@pytest.mark.parametrize("command", [["init", "--urdf", "URDF"], ["schema"]])
+def test_an_output_under_a_file_is_a_user_error_naming_the_file(command: list[str], examples_dir: Path, run_cli, tmp_path: Path) -> None:
+    """`-o` below a file (a folder cannot be made there): exit 1 naming the file in the way, nothing written."""
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    argv = [str(examples_dir / "robots" / "panda.urdf") if part == "URDF" else part for part in command]
+    result = run_cli(*argv, "-o", str(blocker / "out.yaml"))
+    assert result.code == 1, result.err
+    assert result.err.strip().endswith(f"{blocker} is a file, not a folder") and "Traceback" not in result.err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file"]

@@ -18,6 +18,7 @@ from pathlib import Path
 import yaml
 
 from ..config import SCHEMA_RESOURCE, Document, parse_document, schema_text
+from ..confine import os_cause
 from ..errors import UserError
 from ..sources import SourceDescription
 from ..urdf import UrdfModel
@@ -55,17 +56,22 @@ def schema_reference(out_dir: Path) -> str:
 
 
 def write_schema(target: Path) -> None:
-    """`urdf-pipeline schema -o FILE`: the schema vendored where `schema_reference` finds it, written whole or not at
-    all (a temporary file beside it, then renamed); its folders are created."""
+    """`urdf-pipeline schema -o FILE`: the schema vendored where `schema_reference` finds it."""
+    write_whole(target, schema_text(), "the schema")
+
+
+def write_whole(target: Path, text: str, what: str) -> None:
+    """`text` written whole or not at all (a temporary file beside it, then renamed), its folders created; what the OS
+    refuses (a file where a folder goes, no permission) is a user error naming the path."""
     partial = target.with_name(f".{target.name}.{os.getpid()}.partial")
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
-        partial.write_text(schema_text(), encoding="utf-8")
+        partial.write_text(text, encoding="utf-8")
         partial.replace(target)
     except OSError as exc:
         with contextlib.suppress(OSError):
             partial.unlink(missing_ok=True)
-        raise UserError(f"cannot write the schema to {target}: {exc.strerror or exc}") from None
+        raise UserError(f"cannot write {what} to {target}: {os_cause(exc, target)}") from None
 
 
 def _pair(source: SourceDescription, joint_names: list[str]) -> tuple[list[str], list[Match]]:
@@ -286,8 +292,5 @@ def init_config(urdf: UrdfArgument, source: str | None, output: Path | None, for
         refused = tuple(refused_by_check(plan, sample)) if plan is not None and units is not None else ()
         verdict = SampleVerdict(refused, unread, units.rows if units is not None else 0)
     if output is not None:
-        out_file.parent.mkdir(parents=True, exist_ok=True)
-        partial = out_file.with_name(out_file.name + ".partial")
-        partial.write_text(result.text, encoding="utf-8")
-        partial.replace(out_file)
+        write_whole(out_file, result.text, "the config")
     return result, summary_lines(result, problems, output, verdict)
