@@ -27,7 +27,7 @@ from .mcap_probe import MESSAGE_COMPONENT, probe, summary_info, topic_entity, to
 from .mcap_remote import late_messages, remote_mcap
 from .named_rows import NAME_FIELD, NAMED_COMPONENT, VALUE_FIELD, named_rows_column
 from .ordering import in_time_order, with_duplicates
-from .stream import SourceStream
+from .stream import SourceStream, component_field
 from .time_range import INT64_MAX
 
 if TYPE_CHECKING:
@@ -227,8 +227,7 @@ def _named_rows(plan: McapSourcePlan, chunk: Chunk) -> list[Chunk]:
         raise UserError(f"rows on '{plan.topic}' do not hold exactly one message each", plan.where)
     structs = messages.flatten()
     column = named_rows_column(pc.struct_field(structs, NAME_FIELD), pc.struct_field(structs, VALUE_FIELD))
-    field = pa.field(NAMED_COMPONENT, column.type, metadata={b"rerun:kind": b"data", b"rerun:component": NAMED_COMPONENT.encode()})
-    batch = batch.set_column(index, field, column)
+    batch = batch.set_column(index, component_field(NAMED_COMPONENT, column.type), column)
     batch = batch.drop_columns([name for name in ALL_TIMELINES if name != plan.timeline and name in batch.schema.names])
     return Chunk.from_record_batch(batch)
 

@@ -20,6 +20,7 @@ import pyarrow.compute as pc
 
 from ..errors import UserError, listing
 from ..plan import NamedSource
+from .stream import per_row
 
 NAMED_COMPONENT = "urdf_pipeline:named_joint_values"
 NAME_FIELD = "name"
@@ -34,7 +35,7 @@ def named_rows_column(names: pa.Array, values: pa.Array) -> pa.ListArray:
     """Per-row names (list<string>) and values (list<number>) -> a component column holding one struct per row."""
     value_type = pa.large_list(pa.float64()) if pa.types.is_large_list(values.type) else pa.list_(pa.float64())
     struct = pa.StructArray.from_arrays([names, values.cast(value_type)], [NAME_FIELD, VALUE_FIELD])
-    return pa.ListArray.from_arrays(pa.array(np.arange(len(struct) + 1, dtype=np.int32)), struct)
+    return per_row(struct)
 
 
 def named_matrix(rows: pa.Array, source: NamedSource, required: Sequence[int] | np.ndarray, consumer: str) -> np.ndarray:

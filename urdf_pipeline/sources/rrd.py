@@ -26,7 +26,7 @@ from .base import EntryField, SourceDescription, file_input, resolve_input, show
 from .lerobot import VECTOR_COMPONENT
 from .named_rows import NAMED_COMPONENT, named_rows_column
 from .ordering import in_time_order, read_all, with_duplicates
-from .stream import SourceStream
+from .stream import SourceStream, component_field, is_list_type, per_row
 
 if TYPE_CHECKING:
     from rerun.chunk import Chunk, LazyStore
@@ -46,18 +46,14 @@ def _is_number(value_type: pa.DataType) -> bool:
     return pa.types.is_floating(value_type) or pa.types.is_integer(value_type)
 
 
-def _is_list(value_type: pa.DataType) -> bool:
-    return pa.types.is_list(value_type) or pa.types.is_large_list(value_type) or pa.types.is_fixed_size_list(value_type)
-
-
 def layout_of(column_type: pa.DataType) -> str | None:
     """'scalars': a row's instances are its values (Scalars); 'vector': one instance per row holding all values."""
-    if not _is_list(column_type):
+    if not is_list_type(column_type):
         return None
     instance = column_type.value_type
     if _is_number(instance):
         return "scalars"
-    if _is_list(instance) and _is_number(instance.value_type):
+    if is_list_type(instance) and _is_number(instance.value_type):
         return "vector"
     return None
 
@@ -185,10 +181,6 @@ def describe(name: str, path: str, part: str | None, document: Document) -> Sour
     return SourceDescription("rrd", fields, plan.names, None, given.segment, pattern=given.pattern)
 
 
-def _component_field(name: str, column: pa.Array) -> pa.Field:
-    return pa.field(name, column.type, metadata={b"rerun:kind": b"data", b"rerun:component": name.encode()})
-
-
 def _one_instance_per_row(plan: RrdSourcePlan, chunk: Chunk) -> list[Chunk]:
     """Repack the rows that hold values: a vector per row, or {name, position} per row when the names are per row."""
     from rerun.chunk import Chunk
@@ -213,10 +205,10 @@ def _one_instance_per_row(plan: RrdSourcePlan, chunk: Chunk) -> list[Chunk]:
                 plan.where,
             )
         column, component = named_rows_column(names, values), NAMED_COMPONENT
-        batch = batch.set_column(index, _component_field(component, column), column).remove_column(names_index)
+        batch = batch.set_column(index, component_field(component, column.type), column).remove_column(names_index)
     elif layout_of(values.type) == "scalars":
-        column = pa.ListArray.from_arrays(pa.array(np.arange(len(values) + 1, dtype=np.int32)), values)
-        batch = batch.set_column(index, _component_field(VECTOR_COMPONENT, column), column)
+        column = per_row(values)
+        batch = batch.set_column(index, component_field(VECTOR_COMPONENT, column.type), column)
     else:
         counts = values.value_lengths().to_numpy(zero_copy_only=False)
         if np.any(counts != 1):
@@ -224,7 +216,7 @@ def _one_instance_per_row(plan: RrdSourcePlan, chunk: Chunk) -> list[Chunk]:
                 f"'{plan.entity}' {plan.component} has rows of {int(counts[counts != 1][0])} lists; one list of values per row is needed",
                 plan.where,
             )
-        batch = batch.set_column(index, _component_field(VECTOR_COMPONENT, values), values)
+        batch = batch.set_column(index, component_field(VECTOR_COMPONENT, values.type), values)
     return Chunk.from_record_batch(batch)
 
 
