@@ -1,10 +1,6 @@
-"""A local, content-addressed cache of downloaded objects: `run` fetches what a segment needs into it, then Rerun's
-readers read the files as local ones. An entry is keyed by what the bytes are (the object's URL and its ETag,
-VersionId or Hub commit), so a re-run with nothing changed downloads nothing, and a changed object is a new entry,
-never a mix of old and new.
-
-Several processes share one cache (a pool's workers, the Ray workers of one machine; a machine of its own has a cache
-of its own), so everything goes through `flock` locks and atomic renames, never through what a process remembers:
+"""A local, content-addressed cache of downloaded objects (docs/remote.md: its purpose, variables and bound). Several
+processes share one cache, so everything goes through `flock` locks and atomic renames, never through what a process
+remembers:
 
     ROOT/.bytes           the ledger: the complete entries' bytes, as last counted (flocked while read or written)
     ROOT/ab/abcd.../      one entry, the sha256 of (url, version, name)
@@ -13,11 +9,9 @@ of its own), so everything goes through `flock` locks and atomic renames, never 
         .fetch.lock       exclusive while one process downloads the entry (the others wait, then read what it wrote)
         .partial-*        a download under way, or a killed one's leftover (the next fetch of the entry removes it)
 
-Eviction: when a download takes the ledger over the bound, the tree is walked once and the least recently used
-complete entries are removed until the cache holds at most 90% of the bound (so that the next downloads do not walk
-it again), each only under a non-blocking exclusive lock: an entry in use or being downloaded is skipped. Entries are
-renamed aside before they are removed, so no process ever reads half of a removed entry. The cache should be on a local
-disk: `flock` on a network file system is not what it is on a local one.
+Eviction walks the tree once, then removes least recently used entries down to LOW_WATER of the bound, each only
+under a non-blocking exclusive lock (one in use or being downloaded is skipped) and renamed aside first, so that no
+process ever reads half of a removed entry.
 """
 
 from __future__ import annotations

@@ -1,12 +1,9 @@
 """What a ROS 2 bag (MCAP) says of itself: its robot description (`std_msgs/msg/String` on /robot_description) and
 its static transforms (`tf2_msgs/msg/TFMessage` on /tf_static), so a bag is self-contained.
 
-Both are metadata-sized and read at compile, so `validate` refuses what `run` would. The summary is checked here
-(topic, schema, the size of the chunks that hold the topic: a 2 GB description is refused before any of it is read);
-the messages are decoded by Rerun's MCAP reader (ros2_reflection) in a bounded child process (`mcap_probe.in_child`,
-after every chunk of the file was inflated within its bounds), as a joint-state topic's first message is, so a corrupt
-file or a decompression bomb cannot hang this process or take its memory. Strings from the bag are strangers'
-text: the child bounds them, messages show them through `errors.shown`.
+Both are read at compile, so `validate` refuses what `run` would: the summary here (topic, schema, the size of the
+chunks holding the topic), the messages by Rerun's MCAP reader in a bounded child (`mcap_probe.in_child`), so that a
+corrupt file or a decompression bomb cannot hang this process or take its memory.
 """
 
 from __future__ import annotations

@@ -1,10 +1,6 @@
-"""A 2-D HDF5 dataset [rows, values] (e.g. ALOHA's /observations/qpos, both arms in one vector), read with Rerun's Hdf5Reader.
-
-Validation opens the file with h5py and reads metadata only: the dataset's shape and type, the index dataset's; then
-(of a local file) their values decode and the index's times fit. Of `hdf5: s3://BUCKET/KEY`, h5py reads the structure
-through bounded ranged GETs (a file whose structure is spread wider is downloaded at validation instead) and the values
-are checked once `run` has downloaded it. At run time every other dataset of the file (camera images, ...) is ignored,
-so only these two are loaded.
+"""A 2-D HDF5 dataset [rows, values] (e.g. ALOHA's /observations/qpos), read with Rerun's Hdf5Reader. Validation reads
+metadata with h5py (of a remote file, through bounded ranged GETs: see `_compile_remote`), then of a local file the
+values; at run time every other dataset of the file (camera images, ...) is ignored, so only these two are loaded.
 """
 
 from __future__ import annotations

@@ -1,12 +1,7 @@
-"""Data files are checked with pyarrow and h5py before Rerun's native readers see them.
-
-Rerun's readers do not survive every corrupt file: a parquet data page that fails to decompress panics a reader
-thread (the process aborts, or waits forever), an HDF5 chunk that fails to inflate surfaces as a bare RuntimeError.
-pyarrow and h5py raise ordinary exceptions, which become one user error naming the file and the row group or
-dataset. (MCAP files are probed in a child process instead: see mcap_probe.py.)
-
-Corruption that decodes (flipped bits inside plain float values of a file written without page checksums) cannot
-be told from data; limits and NaN checks still apply to it.
+"""Data files are checked with pyarrow and h5py before Rerun's native readers see them: a parquet data page that fails
+to decompress panics a reader thread (the process aborts, or waits forever), an HDF5 chunk that fails to inflate
+surfaces as a bare RuntimeError; pyarrow and h5py raise ordinary exceptions, which become one user error naming the
+file and the row group or dataset. (MCAP files are probed in a child process instead: mcap_probe.py.)
 """
 
 from __future__ import annotations

@@ -1,14 +1,7 @@
-"""A LeRobot dataset where a team keeps it: `lerobot: s3://BUCKET/PREFIX/DATASET`, or on the Hugging Face Hub
-`lerobot: hf://datasets/ORG/NAME@REV` (or the revision in a `revision:` key), in the v2.x and v3 layouts the local
-reader takes.
-
-Compile reads metadata only: the files of `meta/` a reader needs (info.json, the episodes' and tasks' tables; not the
-statistics), downloaded as metadata (S3: into the download cache, pinned to their ETags; the Hub: into its client's
-cache, at the commit the revision resolves to now) and checked as a local dataset's are, through a local view of them.
-An S3 dataset's `data/` is listed once (no data file is read): each episode's data files are pinned to their ETags in
-its segment's plan. The Hub's commit pins every file. `run` fetches a segment's files (the metadata and its episode's
-data files, nothing else) and Rerun's LeRobotReader reads them from a temporary folder of links in the dataset's
-layout (`remote.fetched_folder`), removed after the segment.
+"""A LeRobot dataset where a team keeps it: `lerobot: s3://BUCKET/PREFIX/DATASET`, or `hf://datasets/ORG/NAME@REV`
+(or a `revision:` key), in the layouts the local reader takes (docs/remote.md: what each command reads). Compile checks
+the metadata a reader needs through a local view of it, as a local dataset's; an S3 dataset's `data/` is listed once,
+each episode's data files pinned to their ETags in its segment's plan (the Hub's commit pins every file).
 """
 
 from __future__ import annotations

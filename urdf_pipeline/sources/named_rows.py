@@ -1,13 +1,7 @@
 """Rows that name their own values (ROS JointState messages, recordings with per-row names): map by name, columnar.
 
-A named row is a struct {name: list<string>, position: list<number>}: the i-th position belongs to the i-th name, and
-the order of the names may change from one row to the next. `named_matrix` turns a batch of such rows into the same
-(rows x source names) matrix a vector source gives, in the order of the source's `names`, without a Python loop over
-rows: the names are flattened, looked up with `pyarrow.compute.index_in`, and the values scattered with numpy.
-
-Refused, naming what is wrong: a row whose name and value counts differ, a name that is not among the source's names
-(neither mapped nor ignored), a name given twice in one row, and a row lacking a name its consumer maps.
-Names the consumer does not use (ignored names) may be absent; their cells stay NaN and are never read.
+A named row is a struct {name: list<string>, position: list<number>}, the order of its names free from row to row.
+`named_matrix` turns a batch of them into the matrix a vector source gives, without a Python loop over rows.
 """
 
 from __future__ import annotations

@@ -1,10 +1,8 @@
 """Joint values already in a Rerun recording (.rrd): one component of one entity, read with Rerun's RrdReader.
 
-Validation reads the recording's manifest (entities, components, types) and, for names, the entity's static
-`SeriesLines:names` (as Rerun's LeRobot importer writes it). When the names are per row instead (Rerun's MCAP
-importer writes `SeriesLines:names` with every message, in the message's order), values are mapped by name, row by row.
-Rerun's reader opens local files only: an `rrd: s3://BUCKET/KEY` recording is downloaded into the download cache by
-validation already, and `run` reads it from there.
+Validation reads the recording's manifest and, for names, the entity's static `SeriesLines:names` (as Rerun's LeRobot
+importer writes it), else per-row names (as its MCAP importer writes them), mapped row by row. Rerun's reader opens
+local files only: a remote recording is downloaded by validation already (`_compile_remote`).
 """
 
 from __future__ import annotations

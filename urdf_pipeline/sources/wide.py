@@ -1,10 +1,8 @@
 """Wide tables: one numeric column per name and one index column, the usual shape of exported logs (CSV, parquet).
 
-Compile: the header alone (a CSV's first block, a parquet footer) says which columns exist and what they hold, so
-the index and every value column are checked before any further row is read. Run: the file comes in bounded
-batches (pyarrow's streaming CSV reader, parquet batches by row group); each batch becomes, column by column with
-numpy, chunks of BLOCK_ROWS rows holding one joint vector per row: the stream every other kind gives, checked for
-time order by `in_time_order`. No row is ever looked at on its own in Python.
+Compile checks the header alone (a CSV's first block, a parquet footer). Run: the file comes in bounded batches, each
+made, column by column with numpy, into chunks of BLOCK_ROWS rows holding one joint vector per row, the stream every
+other kind gives; no row is ever looked at on its own in Python.
 """
 
 from __future__ import annotations
