@@ -1,15 +1,11 @@
-"""An MCAP topic is first read in a child process, bounded in memory, CPU and wall-clock time, and killed at Rerun's
-first read error.
+"""An MCAP topic is first read in a child process, bounded in memory, CPU and wall-clock time (security.md#mcap-files),
+and killed at Rerun's first read error.
 
 Rerun's MCAP reader (native code) logs "Failed to read message from MCAP file" for a chunk that does not decompress
 and then spins at 100% CPU forever, deaf to Ctrl-C; for a chunk whose CRC fails it logs the same line and decodes
-garbage. The file's summary does not show either. So, before any of it reaches Rerun's reader, every chunk of the file
-is inflated once within its bounds (`mcap_chunks.check_chunks`: Rerun's reader inflates every chunk, trusting the size
-it states); then the child decodes the topic exactly as a run does, under the limits every child reading a stranger's
-file sets on itself (`process.limit_this_process`: address space, CPU seconds, output size, no core), the parent
-watches the child's log and stops it at the first such line (or after BASE_SECONDS plus SECONDS_PER_BYTE per byte),
-and only a file the child read cleanly reaches Rerun in this process. The child dies with this process (SIGTERM when it
-ends, however it ends). Run as a module, this file is the child.
+garbage. The file's summary does not show either. So every chunk is first inflated here within its bounds
+(`mcap_chunks.check_chunks`), then a child decodes the topic exactly as a run does, the parent stops it at the first
+such line, and only a file the child read cleanly reaches Rerun in this process. Run as a module, this file is the child.
 """
 
 from __future__ import annotations

@@ -16,12 +16,8 @@ if TYPE_CHECKING:
 
 @dataclass(frozen=True)
 class SourceStream:
-    """A lazy stream whose `component` on `entity` holds one instance per row.
-
-    The instance is either a joint-value vector (a list of `width` numbers, in the order of the source's names), or,
-    when `named` is true, a struct {name: list<string>, position: list<double>} whose values are mapped by name, row
-    by row (see `urdf_pipeline.sources.named_rows`): MCAP JointState messages and recordings with per-row names.
-    """
+    """A lazy stream whose `component` on `entity` holds one instance per row: a joint-value vector (`width` numbers,
+    in the order of the source's names), or, when `named`, a struct mapped by name, row by row (named_rows.py)."""
 
     stream: LazyChunkStream
     entity: str
