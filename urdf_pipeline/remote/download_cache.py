@@ -150,10 +150,8 @@ class DownloadCache:
 
     @contextmanager
     def fetched(self, key: CacheKey, download: Callable[[Path], None]) -> Iterator[Path]:
-        """The entry's file, downloaded once: `download(temp)` writes the whole object to `temp` (a file in the
-        cache's own folder, on the same file system), and checks it is whole (its size, its ETag); an exception
-        leaves no entry. While the `with` block runs the entry is in use and never evicted. An object bigger than the
-        bound alone is still fetched (and evicted by a later download, once no longer in use)."""
+        """The entry's file, downloaded once: `download(temp)` writes the whole object to `temp` (in the cache's own
+        folder) and checks it is whole; an exception leaves no entry. The entry is never evicted while the block runs."""
         self._make_root()
         folder = self.folder(key)
         target = folder / key.file_name

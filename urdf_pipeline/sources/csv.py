@@ -60,9 +60,8 @@ def _header(source: Path | pa.NativeFile, shown: str | Path, where: Where | None
 
 
 def _first_block(remote: RemoteObject, where: Where) -> pa.NativeFile:
-    """`csv: s3://BUCKET/KEY`: its first CSV_BLOCK_BYTES bytes (one ranged GET, what pyarrow parses first of a local
-    file: the header, the types, the first rows), cut after their last whole line; the rest is read once `run` has
-    downloaded the file."""
+    """`csv: s3://BUCKET/KEY`: its first CSV_BLOCK_BYTES bytes (one ranged GET: what pyarrow parses first of a local
+    file), cut after their last whole line."""
     from ..remote import open_range
 
     with open_range(remote, where, block=CSV_BLOCK_BYTES, max_requests=1) as reader:

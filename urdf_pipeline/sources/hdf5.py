@@ -14,7 +14,7 @@ from ..config import Document
 from ..errors import UserError, Where, listing
 from ..plan import Hdf5SourcePlan, IndexPlan
 from ..remote import is_remote
-from .base import EntryField, SourceDescription, file_input, resolve_input, shown_file
+from .base import EntryField, SourceDescription, file_input, resolve_input, rooted, shown_file
 from .integrity import HDF5_BLOCK_ROWS, check_hdf5_datasets, hdf5_file_problem, hdf5_storage_problem
 from .ordering import in_blocks, in_time_order, with_duplicates
 from .stream import SourceStream, compile_index, index_column
@@ -25,10 +25,6 @@ SPEC_FORM = "hdf5:FILE#/DATASET"
 SUFFIXES = (".h5", ".hdf5")
 REMOTE_BLOCK = 256 << 10  # bytes a ranged GET fetches at least, reading an S3 file's structure ...
 REMOTE_REQUESTS = 32  # ... and how many it may take before the file is downloaded instead (see _compile_remote)
-
-
-def dataset_path(path: str) -> str:
-    return "/" + path.strip("/")
 
 
 def entity_and_component(dataset: str) -> tuple[str, str]:
@@ -85,10 +81,8 @@ def _opened(source: Path | IO[bytes], named: _Named, where: Where) -> Any:
 
 
 def _compile_remote(name: str, spec: dict[str, Any], document: Document) -> Hdf5SourcePlan:
-    """`hdf5: s3://BUCKET/KEY`: h5py reads the file's structure through ranged GETs (REMOTE_BLOCK bytes at least each,
-    at most REMOTE_REQUESTS of them); a file whose structure is spread wider (many chunks or groups, their index nodes
-    among the data) is downloaded into the cache now, as `run` would, and read locally. The values are checked once
-    `run` has downloaded the file (`check_download`)."""
+    """`hdf5: s3://BUCKET/KEY`: h5py reads the structure through at most REMOTE_REQUESTS ranged GETs, else the file is
+    downloaded into the cache now, as `run` would, and read locally; the values are checked by `check_download`."""
     from ..remote import OverBudget, cached_path, fetched, open_range, remote_file
 
     where = document.where("sources", name, "hdf5")
@@ -115,12 +109,12 @@ def _compiled(file: Any, named: _Named, path: Path, name: str, spec: dict[str, A
     import h5py
 
     here = ("sources", name)
-    dataset = dataset_path(spec["dataset"])
+    dataset = rooted(spec["dataset"])
     names: tuple[str, ...] | None = tuple(spec["names"]) if "names" in spec else None
     index: IndexPlan | None = None
     if "index" in spec:
         parsed = compile_index(spec["index"])
-        index = IndexPlan(dataset_path(parsed.column), parsed.kind, parsed.unit)
+        index = IndexPlan(rooted(parsed.column), parsed.kind, parsed.unit)
     problem = hdf5_file_problem(file)
     if problem is not None:
         raise UserError(f"HDF5 file {named.shown} {problem}", document.where(*here, "hdf5"))
@@ -203,7 +197,7 @@ def describe(name: str, path: str, part: str | None, document: Document) -> Sour
     """For `init`: the width of the 2-D dataset PART names, as `validate` reads its shape. HDF5 has no names: the
     values are matched by position."""
     given = file_input(path)
-    dataset = dataset_path(part or "/")
+    dataset = rooted(part or "/")
     try:
         plan = compile_source(name, {"hdf5": str(given.file), "dataset": dataset}, document, given.file.parent)
     except UserError as exc:

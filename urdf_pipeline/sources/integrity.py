@@ -43,8 +43,8 @@ CHECK_BATCH_ROWS = 65_536
 def check_parquet_pages(
     path: Path, columns: Sequence[str], where: Where | None, index: IndexPlan | None = None, index_where: Where | None = None
 ) -> None:
-    """Every data page of `columns` decodes (page checksums verified when the writer stored them), in batches of
-    CHECK_BATCH_ROWS rows dropped as they come (memory stays bounded); a corrupt page names its row group. `index` (one of `columns`): its values are checked in the
+    """Every data page of `columns` decodes (page checksums verified when stored), CHECK_BATCH_ROWS rows at a time
+    dropped as they come; a corrupt page names its row group. `index` (one of `columns`): its values are checked in the
     same pass as times a timeline can hold (time_range.py), refused at `index_where` once every page has decoded."""
     import pyarrow as pa
     import pyarrow.parquet as pq

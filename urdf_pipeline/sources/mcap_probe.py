@@ -14,7 +14,7 @@ import json
 import os
 import re
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -23,6 +23,7 @@ from ..process import bound_from_environment, limit_this_process, run_bounded_ch
 from .mcap_chunks import McapRefused, check_chunks, read_summary, refusal, require_library
 
 if TYPE_CHECKING:
+    import pyarrow as pa
     from rerun.chunk import LazyChunkStream
 
 BASE_SECONDS = 60.0
@@ -75,6 +76,13 @@ def topic_messages(path: Path, topic: str, component: str = MESSAGE_COMPONENT) -
     entity = topic_entity(topic)
     reader = McapReader(path, decoders=["ros2_reflection"], include_topic_regex=[f"^{re.escape(entity)}$"])
     return reader.stream().filter(content=entity, is_static=False, components=component)
+
+
+def message_rows(path: Path, topic: str, component: str = MESSAGE_COMPONENT) -> Iterator[pa.Array]:
+    """The topic's messages as struct arrays, a chunk's at a time (in the child)."""
+    for chunk in topic_messages(path, topic, component):
+        batch = chunk.to_record_batch()
+        yield batch.column(batch.schema.get_field_index(component)).flatten()
 
 
 def probe(path: Path, topic: str, first_only: bool, where: Where | None, shown_as: str | None = None) -> tuple[str, ...] | None:
@@ -139,9 +147,7 @@ def _names(path: Path, topic: str, mode: str) -> dict[str, Any]:
     from .named_rows import NAME_FIELD
 
     names: list[str] | None = None
-    for chunk in topic_messages(path, topic):
-        batch = chunk.to_record_batch()
-        rows = batch.column(batch.schema.get_field_index(MESSAGE_COMPONENT)).flatten()
+    for rows in message_rows(path, topic):
         if len(rows) and names is None:
             names = [str(n) for n in (pc.struct_field(rows, NAME_FIELD)[0].as_py() or [])]
             if mode == "first":

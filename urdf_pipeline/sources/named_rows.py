@@ -33,11 +33,8 @@ def named_rows_column(names: pa.Array, values: pa.Array) -> pa.ListArray:
 
 
 def named_matrix(rows: pa.Array, source: NamedSource, required: Sequence[int] | np.ndarray, consumer: str) -> np.ndarray:
-    """(rows x len(source.names)) float64 matrix; cells of names a row lacks are NaN.
-
-    `required` are the positions (in source.names) the consumer reads, `consumer` says who it is ("robot 'arm'").
-    Counts in messages are per batch: the run stops at the first batch that shows a problem.
-    """
+    """(rows x len(source.names)) float64 matrix, NaN where a row lacks a name; `required` are the positions the
+    `consumer` ("robot 'arm'") reads. Counts in messages are per batch: the run stops at the first batch with a problem."""
     count, width, label = len(rows), len(source.names), f"source '{source.name}'"
     if rows.null_count:
         raise UserError(f"{label} has {rows.null_count} rows without values", source.where)

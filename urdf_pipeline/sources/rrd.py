@@ -20,7 +20,7 @@ from ..config import Document
 from ..errors import UserError, Where
 from ..plan import RrdSourcePlan
 from ..remote import is_remote
-from .base import EntryField, SourceDescription, file_input, resolve_input, shown_file
+from .base import EntryField, SourceDescription, file_input, resolve_input, rooted, shown_file
 from .lerobot import VECTOR_COMPONENT
 from .named_rows import NAMED_COMPONENT, named_rows_column
 from .ordering import in_time_order, read_all, with_duplicates
@@ -34,10 +34,6 @@ SPEC_FORM = "rrd:FILE#ENTITY"
 SUFFIXES = (".rrd",)
 NAMES_COMPONENT = "SeriesLines:names"
 DEFAULT_COMPONENT = "Scalars:scalars"
-
-
-def entity_path(entity: str) -> str:
-    return "/" + entity.strip("/")
 
 
 def _is_number(value_type: pa.DataType) -> bool:
@@ -99,9 +95,8 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
 
 
 def _compile_remote(name: str, spec: dict[str, Any], document: Document) -> RrdSourcePlan:
-    """`rrd: s3://BUCKET/KEY`: Rerun's reader opens local files only, so the recording is downloaded into the cache now
-    (it is the run's input: `run` finds it there) and its manifest and names read as a local one's; its values are
-    checked once `run` has the file (`check_download`), as the other kinds' are."""
+    """`rrd: s3://BUCKET/KEY`: downloaded into the cache now (Rerun's reader opens local files only; `run` finds it
+    there) and read as a local one; its values are checked by `check_download`."""
     from ..remote import fetched, remote_file
 
     where = document.where("sources", name, "rrd")
@@ -124,7 +119,7 @@ def _compiled(store: LazyStore, path: Path, file_name: str, name: str, spec: dic
     """The plan from the recording's manifest and its names (static, or the first row's): no value is read."""
     here = ("sources", name)
     schema = store.schema()
-    entity = entity_path(spec["entity"])
+    entity = rooted(spec["entity"])
     component = spec.get("component", DEFAULT_COMPONENT)
     if entity not in schema.entity_paths():
         numeric = sorted({c.entity_path for c in schema.component_columns() if c.component == DEFAULT_COMPONENT})
@@ -175,7 +170,7 @@ def describe(name: str, path: str, part: str | None, document: Document) -> Sour
     if part is None:
         raise UserError(f"name the entity holding the values with rrd:FILE#ENTITY, e.g. rrd:{given.file.name}#/observation.state")
     plan = compile_source(name, {"rrd": str(given.file), "entity": part}, document, given.file.parent)
-    fields = (EntryField("entity", entity_path(part)),)
+    fields = (EntryField("entity", rooted(part)),)
     return SourceDescription("rrd", fields, plan.names, None, given.segment, pattern=given.pattern)
 
 
