@@ -238,7 +238,9 @@ class DownloadCache:
         killed process left (an evicted entry half removed, an incomplete entry no one holds) is removed."""
         entries: list[tuple[int, str, Path, int]] = []
         total = 0
-        for shard in _children(self.root, _SHARD):
+        with os.scandir(self.root) as items:  # a symlink or a stranger's file is never a shard
+            shards = [Path(item.path) for item in items if _SHARD.match(item.name) and item.is_dir(follow_symlinks=False)]
+        for shard in shards:
             with os.scandir(shard) as items:
                 listed = list(items)
             for item in listed:
@@ -257,12 +259,6 @@ class DownloadCache:
                 entries.append((used, item.name, Path(item.path), size))
                 total += size
         return entries, total
-
-
-def _children(folder: Path, pattern: re.Pattern[str]) -> list[Path]:
-    """The sub-folders of `folder` whose names match (a symlink or a stranger's file is never one)."""
-    with os.scandir(folder) as items:
-        return [Path(item.path) for item in items if pattern.match(item.name) and item.is_dir(follow_symlinks=False)]
 
 
 def _entry_state(folder: Path) -> tuple[int, int | None] | None:

@@ -44,11 +44,6 @@ class RemoteUrl:
         at = f"@{self.revision}" if self.revision else ""
         return f"hf://datasets/{self.repo}{at}" + (f"/{self.key}" if self.key else "")
 
-    def child(self, key: str) -> RemoteUrl:
-        """The location `key` under this one (a file inside a dataset folder, an object under a prefix)."""
-        joined = f"{self.key.rstrip('/')}/{key}" if self.key else key
-        return RemoteUrl(self.scheme, self.bucket, self.repo, self.revision, joined)
-
     def child_prefix(self, prefix: str) -> RemoteUrl:
         """The listing prefix `prefix/` in the same bucket or dataset ("" for all of it)."""
         return RemoteUrl(self.scheme, self.bucket, self.repo, self.revision, f"{prefix}/" if prefix else "")
@@ -135,9 +130,9 @@ class AllowedPrefix:
         return url.key == prefix or url.key.startswith(prefix + "/")  # s3://b/data allows data/x, not data2/x
 
 
-def allowed_prefixes(environ: dict[str, str] | None = None) -> tuple[AllowedPrefix, ...]:
+def allowed_prefixes() -> tuple[AllowedPrefix, ...]:
     """The environment's allowed prefixes; an entry that is no valid location is a UserError naming the variable."""
-    text = (os.environ if environ is None else environ).get(ALLOW_URLS_ENV, "")
+    text = os.environ.get(ALLOW_URLS_ENV, "")
     entries = [entry.strip() for entry in text.split(",") if entry.strip()]
     prefixes = []
     for entry in entries:

@@ -107,10 +107,6 @@ class JointValueMapper:
         self.stats = RobotStats(channels=[ChannelStats() for _ in channels])
         self._lock = threading.Lock()
 
-    def matrix(self, vectors: pa.Array) -> np.ndarray:
-        """One row per vector; every row must hold exactly one value per source name."""
-        return vector_matrix(self.source, vectors)
-
     def urdf_values(self, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         """(rows x width) raw values -> ((rows x joints) URDF values, mask of rows to leave out or None).
 
