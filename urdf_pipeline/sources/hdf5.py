@@ -27,12 +27,6 @@ REMOTE_BLOCK = 256 << 10  # bytes a ranged GET fetches at least, reading an S3 f
 REMOTE_REQUESTS = 32  # ... and how many it may take before the file is downloaded instead (see _compile_remote)
 
 
-def entity_and_component(dataset: str) -> tuple[str, str]:
-    """Rerun's Hdf5Reader: a group becomes an entity, each of its datasets a component named after the dataset."""
-    group, leaf = posixpath.split(dataset)
-    return group or "/", leaf
-
-
 def _datasets_of_rank(file: Any, rank: int) -> list[str]:
     import h5py
 
@@ -215,7 +209,8 @@ def open_stream(plan: Hdf5SourcePlan) -> SourceStream:
     reader = Hdf5Reader(plan.path)
     keep = {plan.dataset} | ({plan.index.column} if plan.index is not None else set())
     ignored = [info.path for info in reader.datasets() if info.path not in keep]
-    entity, component = entity_and_component(plan.dataset)
+    group, component = posixpath.split(plan.dataset)  # Rerun's Hdf5Reader: a group is an entity, its datasets components
+    entity = group or "/"
     stream = reader.stream(
         index_column=index_column(plan.index) if plan.index is not None else None,
         ignore_datasets=ignored or None,

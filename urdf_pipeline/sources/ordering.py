@@ -88,16 +88,6 @@ def needs_sorting(exc: BaseException) -> NeedsSorting | None:
     return None
 
 
-def _reads_whole(source: str) -> bool:
-    names = _READ_WHOLE.get()
-    return EVERY_SOURCE in names or source in names
-
-
-def duplicates_policy(plan: Any) -> str:
-    """The source's `duplicates:` setting (`error` unless the plan carries another)."""
-    return str(getattr(plan, "duplicates", "error"))
-
-
 def _index_values(batch: pa.RecordBatch, timeline: str) -> np.ndarray | None:
     position = batch.schema.get_field_index(timeline)
     if position < 0:
@@ -325,8 +315,8 @@ def in_time_order(stream: LazyChunkStream, timeline: str | None, plan: Any, path
     from rerun.chunk import LazyChunkStream
 
     label = f"source '{plan.name}'"
-    policy = duplicates_policy(plan)
-    whole = in_memory or _reads_whole(plan.name)
+    policy = str(getattr(plan, "duplicates", "error"))  # the source's `duplicates:`, `error` unless the plan has another
+    whole = in_memory or bool({EVERY_SOURCE, plan.name} & _READ_WHOLE.get())
 
     def checked() -> Iterator[Chunk]:
         if whole:
