@@ -104,7 +104,8 @@ def in_child(
         check_chunks(path)
     except McapRefused as error:
         raise refusal(name, error, where) from None
-    memory_mb, budget = _bounds(path, where)
+    memory_mb = int(bound_from_environment(MEMORY_ENV, DEFAULT_MEMORY_MB, where))  # the child's address space and seconds
+    budget = bound_from_environment(TIMEOUT_ENV, BASE_SECONDS + path.stat().st_size * SECONDS_PER_BYTE, where)
     limits = {"memory_bytes": memory_mb << 20, "cpu_seconds": int(budget) + 1, "output_bytes": OUTPUT_BYTES}
     command = [sys.executable, "-m", module, str(path), topic, mode, json.dumps(limits)]
     outcome = run_bounded_child(
@@ -124,12 +125,6 @@ def in_child(
         "failed": f"{cannot}: {shown(outcome.last or outcome.status)}",
     }  # else an answer over OUTPUT_BYTES, or no answer at all
     raise UserError(messages.get(outcome.kind, f"{cannot}: its reader gave no readable answer"), where)
-
-
-def _bounds(path: Path, where: Where | None) -> tuple[int, float]:
-    """The child's address space (MB) and seconds: the environment's, else the defaults (the seconds grow with the file)."""
-    memory_mb = int(bound_from_environment(MEMORY_ENV, DEFAULT_MEMORY_MB, where))
-    return memory_mb, bound_from_environment(TIMEOUT_ENV, BASE_SECONDS + path.stat().st_size * SECONDS_PER_BYTE, where)
 
 
 def child_main(read: Callable[[Path, str, str], dict[str, Any]]) -> None:
