@@ -13,7 +13,7 @@ import pytest
 from urdf_pipeline.errors import Problems, UserError, Where
 from urdf_pipeline.execute.limits_report import check_joint_statistics
 from urdf_pipeline.plan import HeldJoint, IndexPlan, JointChannel, MimicJoint, ParquetSourcePlan, RobotPlan
-from urdf_pipeline.sources.joint_values import JointValueMapper
+from urdf_pipeline.sources.joint_values import JointValueMapper, raw_matrix
 
 HERE = Where(Path("c.yaml"), 1)
 
@@ -116,7 +116,7 @@ def test_value_count_must_match_names() -> None:
     m = mapper([channel("a", 0)], width=3)
     vectors = pa.array([[1.0, 2.0, 3.0], [1.0, 2.0]], pa.list_(pa.float64()))
     with pytest.raises(UserError, match="rows of 2 values but 3 names"):
-        m.matrix(vectors)
+        raw_matrix(m.source, vectors)
 
 
 def test_nan_values_are_an_error_naming_the_joint() -> None:

@@ -1,9 +1,4 @@
-"""Data where teams keep it: `s3://` objects and `hf://` LeRobot datasets on the Hugging Face Hub, as sources and
-outputs. Which URLs a config may name (only under what the environment allows: `URDF_PIPELINE_ALLOW_URLS`), what an
-object is (its ETag, or the Hub's commit), its metadata read by range requests, and a local, content-addressed cache
-that `run` downloads into before Rerun's readers read the files as local ones. Credentials come from the standard
-chains (AWS, Hugging Face), never from a config, and never reach output.
-
+"""Data where teams keep it: `s3://` objects and `hf://` LeRobot datasets, as sources and outputs (docs/remote.md).
 The names below are the package's public surface; other packages import them from here, never from its modules.
 """
 

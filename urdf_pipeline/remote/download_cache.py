@@ -1,10 +1,6 @@
-"""A local, content-addressed cache of downloaded objects: `run` fetches what a segment needs into it, then Rerun's
-readers read the files as local ones. An entry is keyed by what the bytes are (the object's URL and its ETag,
-VersionId or Hub commit), so a re-run with nothing changed downloads nothing, and a changed object is a new entry,
-never a mix of old and new.
-
-Several processes share one cache (a pool's workers, the Ray workers of one machine; a machine of its own has a cache
-of its own), so everything goes through `flock` locks and atomic renames, never through what a process remembers:
+"""A local, content-addressed cache of downloaded objects (docs/remote.md: its purpose, variables and bound). Several
+processes share one cache, so everything goes through `flock` locks and atomic renames, never through what a process
+remembers:
 
     ROOT/.bytes           the ledger: the complete entries' bytes, as last counted (flocked while read or written)
     ROOT/ab/abcd.../      one entry, the sha256 of (url, version, name)
@@ -13,11 +9,9 @@ of its own), so everything goes through `flock` locks and atomic renames, never 
         .fetch.lock       exclusive while one process downloads the entry (the others wait, then read what it wrote)
         .partial-*        a download under way, or a killed one's leftover (the next fetch of the entry removes it)
 
-Eviction: when a download takes the ledger over the bound, the tree is walked once and the least recently used
-complete entries are removed until the cache holds at most 90% of the bound (so that the next downloads do not walk
-it again), each only under a non-blocking exclusive lock: an entry in use or being downloaded is skipped. Entries are
-renamed aside before they are removed, so no process ever reads half of a removed entry. The cache should be on a local
-disk: `flock` on a network file system is not what it is on a local one.
+Eviction walks the tree once, then removes least recently used entries down to LOW_WATER of the bound, each only
+under a non-blocking exclusive lock (one in use or being downloaded is skipped) and renamed aside first, so that no
+process ever reads half of a removed entry.
 """
 
 from __future__ import annotations
@@ -156,10 +150,8 @@ class DownloadCache:
 
     @contextmanager
     def fetched(self, key: CacheKey, download: Callable[[Path], None]) -> Iterator[Path]:
-        """The entry's file, downloaded once: `download(temp)` writes the whole object to `temp` (a file in the
-        cache's own folder, on the same file system), and checks it is whole (its size, its ETag); an exception
-        leaves no entry. While the `with` block runs the entry is in use and never evicted. An object bigger than the
-        bound alone is still fetched (and evicted by a later download, once no longer in use)."""
+        """The entry's file, downloaded once: `download(temp)` writes the whole object to `temp` (in the cache's own
+        folder) and checks it is whole; an exception leaves no entry. The entry is never evicted while the block runs."""
         self._make_root()
         folder = self.folder(key)
         target = folder / key.file_name
@@ -246,7 +238,9 @@ class DownloadCache:
         killed process left (an evicted entry half removed, an incomplete entry no one holds) is removed."""
         entries: list[tuple[int, str, Path, int]] = []
         total = 0
-        for shard in _children(self.root, _SHARD):
+        with os.scandir(self.root) as items:  # a symlink or a stranger's file is never a shard
+            shards = [Path(item.path) for item in items if _SHARD.match(item.name) and item.is_dir(follow_symlinks=False)]
+        for shard in shards:
             with os.scandir(shard) as items:
                 listed = list(items)
             for item in listed:
@@ -265,12 +259,6 @@ class DownloadCache:
                 entries.append((used, item.name, Path(item.path), size))
                 total += size
         return entries, total
-
-
-def _children(folder: Path, pattern: re.Pattern[str]) -> list[Path]:
-    """The sub-folders of `folder` whose names match (a symlink or a stranger's file is never one)."""
-    with os.scandir(folder) as items:
-        return [Path(item.path) for item in items if pattern.match(item.name) and item.is_dir(follow_symlinks=False)]
 
 
 def _entry_state(folder: Path) -> tuple[int, int | None] | None:

@@ -83,7 +83,7 @@ def cached_path(remote: RemoteObject) -> Path:
 def fetched(remote: RemoteObject, where: Where | None) -> Iterator[Path]:
     """The object's planned version as a local file, downloaded into the cache unless it is there already, and kept
     from eviction while the block runs. A changed object is a UserError (its ETag is not the planned one). A Hub file
-    is the Hub client's cached file at the planned commit (hub.py says why it stays in that cache)."""
+    is the Hub client's cached file at the planned commit (docs/remote.md says why it stays in that cache)."""
     if remote.url.startswith("hf://"):
         yield hub_file(remote, where)
         return

@@ -1,16 +1,9 @@
 """Hugging Face Hub datasets through the Hub's own client, `huggingface_hub`: a revision resolved to its commit, a
-dataset's metadata files, one file at a commit.
+dataset's metadata files, one file at a commit, all kept in the client's own cache (docs/remote.md says why).
 
-Hub files stay in the client's own cache (`HF_HUB_CACHE`, `blobs/` by content, `snapshots/COMMIT/PATH` linking to
-them, `refs/BRANCH` the commit a branch was last seen at): it is content-addressed by commit already, takes a lock
-per file while it downloads, never counts a partial download, and is what the person's other tools (LeRobot, the
-`hf` command) fill and what `HF_HUB_OFFLINE=1` reads. Copying its files into urdf-pipeline's download cache would
-store each episode twice for nothing.
-
-The client's environment is read when each call is made, so that every command (and a long-lived process, a test)
-sees the environment it runs in: HF_HUB_CACHE (else HF_HOME/hub) the cache, HF_HUB_OFFLINE=1 no request at all (the
-cache alone answers), HF_ENDPOINT a private Hub or a mirror. The credentials are the client's: HF_TOKEN, else the
-token `hf auth login` stored; never a config's, and never in a message.
+The client's environment (HF_HUB_CACHE, HF_HOME, HF_HUB_OFFLINE, HF_ENDPOINT; the token: HF_TOKEN or `hf auth login`'s)
+is read when each call is made, so that a long-lived process, a test, sees the environment it runs in. No token is
+ever in a message.
 """
 
 from __future__ import annotations
@@ -38,15 +31,6 @@ def _client() -> ModuleType:
     except ImportError:
         raise UserError("hf:// locations need huggingface_hub: pip install 'urdf-pipeline[hub]'") from None
     return huggingface_hub
-
-
-@contextmanager
-def _quiet() -> Iterator[None]:
-    """The client's progress bars off while it works: the run says what it does itself, one line per segment."""
-    from huggingface_hub.utils import disable_progress_bars
-
-    with disable_progress_bars("huggingface_hub"):
-        yield
 
 
 def offline() -> bool:
@@ -148,18 +132,28 @@ def _errors() -> tuple[type[BaseException], ...]:
     )
 
 
+@contextmanager
+def _asking(url: RemoteUrl, where: Where | None) -> Iterator[ModuleType]:
+    """The client, its progress bars off while it works (the run says what it does itself, one line per segment),
+    and what goes wrong as `hub_error` says it."""
+    hub = _client()
+    from huggingface_hub.utils import disable_progress_bars
+
+    try:
+        with disable_progress_bars("huggingface_hub"):
+            yield hub
+    except _errors() as exc:
+        raise hub_error(exc, url, where) from None
+
+
 def hub_commit(url: RemoteUrl, where: Where | None) -> str:
     """The commit sha the dataset's revision (its default branch when unpinned) is at now; offline, the commit the
     cache last saw it at (refs/)."""
-    hub = _client()
-    try:
-        with _quiet():
-            api = hub.HfApi(endpoint=endpoint())
-            resolved = api.resolve_revision(
-                url.repo, repo_type="dataset", revision=url.revision or None, cache_dir=cache_dir(), local_files_only=offline()
-            )
-    except _errors() as exc:
-        raise hub_error(exc, url, where) from None
+    with _asking(url, where) as hub:
+        api = hub.HfApi(endpoint=endpoint())
+        resolved = api.resolve_revision(
+            url.repo, repo_type="dataset", revision=url.revision or None, cache_dir=cache_dir(), local_files_only=offline()
+        )
     sha = str(resolved.resolved).strip()
     if not COMMIT.match(sha):
         raise UserError(f"{shown(url.url)}: the Hub cache says its revision is at {shown(sha, 60)}, which is no commit sha", where)
@@ -170,35 +164,27 @@ def hub_snapshot(url: RemoteUrl, patterns: Sequence[str], where: Where | None) -
     """The dataset at `url`'s commit with the files matching `patterns` (`fnmatch`, on paths inside the repository)
     downloaded into the client's cache (nothing when they are there), and its snapshot folder: the dataset's files at
     their paths, links into the cache's blobs. Offline, the snapshot the cache holds."""
-    hub = _client()
     assert COMMIT.match(url.revision), "a snapshot is taken at a commit (hub_commit first)"
-    try:
-        with _quiet():
-            folder = hub.snapshot_download(
-                url.repo,
-                repo_type="dataset",
-                revision=url.revision,
-                cache_dir=cache_dir(),
-                local_files_only=offline(),
-                allow_patterns=list(patterns),
-                endpoint=endpoint(),
-            )
-    except _errors() as exc:
-        raise hub_error(exc, url, where) from None
+    with _asking(url, where) as hub:
+        folder = hub.snapshot_download(
+            url.repo,
+            repo_type="dataset",
+            revision=url.revision,
+            cache_dir=cache_dir(),
+            local_files_only=offline(),
+            allow_patterns=list(patterns),
+            endpoint=endpoint(),
+        )
     return Path(folder)
 
 
 def hub_file(remote: RemoteObject, where: Where | None) -> Path:
     """One file of a dataset at the commit it was planned at, in the client's cache (downloaded unless it is there:
     a cached file at a commit costs no request)."""
-    hub = _client()
     url = parse_url(remote.url, where)
     options: dict[str, Any] = {"cache_dir": cache_dir(), "local_files_only": offline(), "endpoint": endpoint()}
-    try:
-        with _quiet():
-            path = hub.hf_hub_download(url.repo, url.key, repo_type="dataset", revision=remote.version, **options)
-    except _errors() as exc:
-        raise hub_error(exc, url, where) from None
+    with _asking(url, where) as hub:
+        path = hub.hf_hub_download(url.repo, url.key, repo_type="dataset", revision=remote.version, **options)
     return Path(path)
 
 

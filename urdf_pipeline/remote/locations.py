@@ -1,14 +1,8 @@
 """Remote locations a config may name, and the rule of which ones it may: `s3://BUCKET/KEY` and
-`hf://datasets/ORG/NAME[@REV][/PATH]`, each only under a prefix the person running the tool allows in
-`URDF_PIPELINE_ALLOW_URLS` (comma-separated, e.g. `s3://robot-data/so101/,hf://datasets/lerobot/`).
-
-A config from a pull request runs in CI: it must not make the runner fetch from a bucket, a host or a metadata
-address (`http://169.254.169.254/...`) that whoever runs the tool did not name. So only the two schemes are known,
-every other `SCHEME://` is refused (plain http included: the Hub and S3 are reached through their own clients, at the
-endpoints the environment sets), and a URL is allowed only when it lies under an allowed prefix, checked on its
-parsed parts before any request. A URL with a `.` or `..` segment, an empty segment, a query, a fragment, a
-percent sign, a backslash or a control character is refused outright: no reading of it could disagree with the
-check. The same rule as `confine.py` for local paths: a config cannot widen it, only the environment can.
+`hf://datasets/ORG/NAME[@REV][/PATH]`, each only under a prefix `URDF_PIPELINE_ALLOW_URLS` allows (security.md#fetching
+lists what is refused). A config from a pull request must not make the runner fetch what whoever runs the tool did not
+name, so the rule is checked on a URL's parsed parts before any request; as `confine.py` for local paths, a config
+cannot widen it, only the environment can.
 """
 
 from __future__ import annotations
@@ -49,11 +43,6 @@ class RemoteUrl:
             return f"s3://{self.bucket}/{self.key}" if self.key else f"s3://{self.bucket}"
         at = f"@{self.revision}" if self.revision else ""
         return f"hf://datasets/{self.repo}{at}" + (f"/{self.key}" if self.key else "")
-
-    def child(self, key: str) -> RemoteUrl:
-        """The location `key` under this one (a file inside a dataset folder, an object under a prefix)."""
-        joined = f"{self.key.rstrip('/')}/{key}" if self.key else key
-        return RemoteUrl(self.scheme, self.bucket, self.repo, self.revision, joined)
 
     def child_prefix(self, prefix: str) -> RemoteUrl:
         """The listing prefix `prefix/` in the same bucket or dataset ("" for all of it)."""
@@ -141,9 +130,9 @@ class AllowedPrefix:
         return url.key == prefix or url.key.startswith(prefix + "/")  # s3://b/data allows data/x, not data2/x
 
 
-def allowed_prefixes(environ: dict[str, str] | None = None) -> tuple[AllowedPrefix, ...]:
+def allowed_prefixes() -> tuple[AllowedPrefix, ...]:
     """The environment's allowed prefixes; an entry that is no valid location is a UserError naming the variable."""
-    text = (os.environ if environ is None else environ).get(ALLOW_URLS_ENV, "")
+    text = os.environ.get(ALLOW_URLS_ENV, "")
     entries = [entry.strip() for entry in text.split(",") if entry.strip()]
     prefixes = []
     for entry in entries:

@@ -1,12 +1,7 @@
-"""S3 objects through boto3, AWS's own SDK: what an object is (`head`: ETag and size), the objects under a prefix, a
-read-only seekable file over ranged GETs (a parquet footer, an MCAP summary: metadata without the data), whole
-downloads pinned to the ETag that was planned, and uploads.
-
-The endpoint, region and credentials are the standard chain's (`AWS_ENDPOINT_URL`, `AWS_PROFILE`, the environment,
-an instance role), never a config's; a message names the URL and the endpoint's host, never a key or a secret.
-Every call is bounded: connect and read timeouts, and botocore's standard retry mode (a few attempts with backoff on
-throttling, 5xx and dropped connections). A GET carries `If-Match: ETAG`, so an object that changed after it was
-planned is a clear error (412), never a file of the new version read as the old one.
+"""S3 objects through boto3: what an object is (`head`), the objects under a prefix, a read-only seekable file over
+ranged GETs (metadata without the data), whole downloads and uploads. Endpoint, region and credentials are the standard
+chain's, never a config's, and a message names the URL and the endpoint's host, never a key (docs/remote.md: the
+bounds). A GET carries `If-Match: ETAG`: an object changed after it was planned is an error (412), never read as the old.
 """
 
 from __future__ import annotations
@@ -133,12 +128,16 @@ def _etag(value: Any) -> str:
     return str(value or "").strip('"')
 
 
-def head(url: RemoteUrl, where: Where | None) -> RemoteObject:
-    """What the object at `url` is now: its ETag and size (one HEAD request)."""
+def _head(url: RemoteUrl, where: Where | None) -> dict[str, Any]:
     try:
-        answer = client().head_object(Bucket=url.bucket, Key=url.key)
+        return dict(client().head_object(Bucket=url.bucket, Key=url.key))
     except _errors() as exc:
         raise s3_error(exc, url.url, where) from None
+
+
+def head(url: RemoteUrl, where: Where | None) -> RemoteObject:
+    """What the object at `url` is now: its ETag and size (one HEAD request)."""
+    answer = _head(url, where)
     return RemoteObject(url.url, _etag(answer.get("ETag")), int(answer.get("ContentLength", 0)))
 
 
@@ -214,10 +213,7 @@ class RangeFile(io.RawIOBase):
             )
         self.requests += 1
         try:
-            answer = client().get_object(
-                Bucket=self._url.bucket, Key=self._url.key, Range=f"bytes={first}-{last}", IfMatch=f'"{self.remote.version}"'
-            )
-            data = bytes(answer["Body"].read())
+            data = bytes(_ranged(self._url, self.remote, first, last)["Body"].read())
         except _errors() as exc:
             raise s3_error(exc, self.remote.url, self.where) from None
         self.fetched += len(data)
@@ -254,11 +250,14 @@ def download(remote: RemoteObject, target: Path, where: Where | None) -> None:
         raise UserError(f"{shown(remote.url, 200)}: {target.stat().st_size} bytes arrived, {remote.size} were planned", where)
 
 
+def _ranged(url: RemoteUrl, remote: RemoteObject, first: int, last: int) -> Any:
+    """One ranged GET of bytes `first`..`last`, only if the object's ETag is still the planned one."""
+    return client().get_object(Bucket=url.bucket, Key=url.key, Range=f"bytes={first}-{last}", IfMatch=f'"{remote.version}"')
+
+
 def _part(url: RemoteUrl, remote: RemoteObject, part: tuple[int, int], descriptor: int) -> None:
-    first, last = part
-    answer = client().get_object(Bucket=url.bucket, Key=url.key, Range=f"bytes={first}-{last}", IfMatch=f'"{remote.version}"')
-    offset = first
-    for block in answer["Body"].iter_chunks(READ_BLOCK):
+    offset = part[0]
+    for block in _ranged(url, remote, *part)["Body"].iter_chunks(READ_BLOCK):
         os.pwrite(descriptor, block, offset)
         offset += len(block)
 
@@ -275,8 +274,4 @@ def upload(source: Path, url: RemoteUrl, where: Where | None, metadata: dict[str
 
 def metadata_of(url: RemoteUrl, where: Where | None) -> dict[str, str]:
     """The object's user metadata (`x-amz-meta-*`, lowercase keys): one HEAD."""
-    try:
-        answer = client().head_object(Bucket=url.bucket, Key=url.key)
-    except _errors() as exc:
-        raise s3_error(exc, url.url, where) from None
-    return {str(k).lower(): str(v) for k, v in answer.get("Metadata", {}).items()}
+    return {str(k).lower(): str(v) for k, v in _head(url, where).get("Metadata", {}).items()}

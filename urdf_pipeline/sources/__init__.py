@@ -1,9 +1,6 @@
-"""Joint-value sources. Each kind compiles its config (metadata only), opens a lazy Rerun stream and describes a
-source for `init`.
-
-A kind is one module that follows `base.SourceKind`, registered in KINDS under the config key that selects it (the
-one list of kinds: `init`'s `KIND:PATH` forms and file suffixes come from it too). Kinds import `base` and their
-siblings, never this package's __init__.
+"""Joint-value sources. A kind is one module that follows `base.SourceKind`, registered in KINDS under the config key
+that selects it (the one list of kinds: `init`'s `KIND:PATH` forms and file suffixes come from it too). Kinds import
+`base` and their siblings, never this package's __init__.
 """
 
 from __future__ import annotations

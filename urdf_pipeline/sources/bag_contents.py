@@ -1,12 +1,9 @@
 """What a ROS 2 bag (MCAP) says of itself: its robot description (`std_msgs/msg/String` on /robot_description) and
 its static transforms (`tf2_msgs/msg/TFMessage` on /tf_static), so a bag is self-contained.
 
-Both are metadata-sized and read at compile, so `validate` refuses what `run` would. The summary is checked here
-(topic, schema, the size of the chunks that hold the topic: a 2 GB description is refused before any of it is read);
-the messages are decoded by Rerun's MCAP reader (ros2_reflection) in a bounded child process (`mcap_probe.in_child`,
-after every chunk of the file was inflated within its bounds), as a joint-state topic's first message is, so a corrupt
-file or a decompression bomb cannot hang this process or take its memory. Strings from the bag are strangers'
-text: the child bounds them, messages show them through `errors.shown`.
+Both are read at compile, so `validate` refuses what `run` would: the summary here (topic, schema, the size of the
+chunks holding the topic), the messages by Rerun's MCAP reader in a bounded child (`mcap_probe.in_child`), so that a
+corrupt file or a decompression bomb cannot hang this process or take its memory.
 """
 
 from __future__ import annotations
@@ -19,7 +16,7 @@ import pyarrow as pa
 
 from ..errors import UserError, Where, listing, shown
 from .mcap_chunks import McapRefused, read_summary
-from .mcap_probe import child_main, in_child, summary_info, topic_entity, topic_messages
+from .mcap_probe import child_main, in_child, message_rows, summary_info, topic_entity, topic_messages
 
 if TYPE_CHECKING:
     from rerun.chunk import LazyChunkStream
@@ -149,9 +146,7 @@ def _last_text(path: Path, topic: str) -> dict[str, Any]:
     import pyarrow.compute as pc
 
     text: str | None = None
-    for chunk in topic_messages(path, topic, "std_msgs.msg.String:message"):
-        batch = chunk.to_record_batch()
-        messages = batch.column(batch.schema.get_field_index("std_msgs.msg.String:message")).flatten()
+    for messages in message_rows(path, topic, "std_msgs.msg.String:message"):
         if len(messages):
             text = pc.struct_field(messages, "data")[-1].as_py()
     if text is not None and len(text.encode("utf-8")) > DESCRIPTION_CAP:
@@ -164,9 +159,7 @@ def _transforms(path: Path, topic: str) -> dict[str, Any]:
     import pyarrow.compute as pc
 
     found: dict[str, tuple[str, list[float], list[float]]] = {}
-    for chunk in topic_messages(path, topic, TF_COMPONENT):
-        batch = chunk.to_record_batch()
-        messages = batch.column(batch.schema.get_field_index(TF_COMPONENT)).flatten()
+    for messages in message_rows(path, topic, TF_COMPONENT):
         transforms = pc.list_flatten(pc.struct_field(messages, "transforms"))
         if not len(transforms):
             continue
@@ -188,9 +181,8 @@ def _pairs(path: Path, topic: str) -> dict[str, Any]:
 
     pairs: dict[str, list[str]] = {}
     rows = 0
-    for chunk in topic_messages(path, topic, TF_COMPONENT):
-        batch = chunk.to_record_batch()
-        transforms = pc.list_flatten(pc.struct_field(batch.column(batch.schema.get_field_index(TF_COMPONENT)).flatten(), "transforms"))
+    for messages in message_rows(path, topic, TF_COMPONENT):
+        transforms = pc.list_flatten(pc.struct_field(messages, "transforms"))
         rows += len(transforms)
         table = pa.table({"child": pc.struct_field(transforms, "child_frame_id"), "parent": pc.struct_field(transforms, [0, 1])})
         for pair in table.group_by(["child", "parent"]).aggregate([]).to_pylist():  # distinct pairs only

@@ -78,6 +78,11 @@ class SourceKind(Protocol):
     def check_download(self, plan: Any) -> None: ...  # a remote file's data checks, once `run` downloaded it
 
 
+def rooted(path: str) -> str:
+    """An entity or a dataset path as Rerun's readers name it: one leading `/`, none trailing."""
+    return "/" + path.strip("/")
+
+
 def shown_file(plan: Any) -> str:
     """A file source as its messages name it: a remote file by its URL (not the download cache's path), else its path."""
     remote = getattr(plan, "remote", None)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any, TypeVar
 
 if TYPE_CHECKING:
@@ -35,12 +36,9 @@ class CallbackErrors:
 
     def wrap(self, function: Callable[..., T]) -> Callable[..., T]:
         def guarded(*args: Any) -> T:
-            try:
+            with self._remembering():
                 self._check()
                 return function(*args)
-            except BaseException as exc:
-                self._remember(exc)
-                raise
 
         return guarded
 
@@ -50,20 +48,22 @@ class CallbackErrors:
         from rerun.chunk import LazyChunkStream
 
         def chunks() -> Iterator[Chunk]:
-            try:
+            with self._remembering():
                 for chunk in stream:
                     self._check()
                     yield chunk
-            except BaseException as exc:
-                self._remember(exc)
-                raise
 
         return LazyChunkStream.from_iter(chunks())
 
-    def _remember(self, exc: BaseException) -> None:
-        with self._lock:
-            if self.first is None:
-                self.first = exc
+    @contextmanager
+    def _remembering(self) -> Iterator[None]:
+        try:
+            yield
+        except BaseException as exc:
+            with self._lock:
+                if self.first is None:
+                    self.first = exc
+            raise
 
     def reraise_original(self, wrapper: BaseException) -> None:
         """Raise the callback's own exception if there was one; otherwise let the caller re-raise `wrapper`."""

@@ -1,11 +1,7 @@
-"""A CSV file with a header, read as a wide table: one numeric column per name and an index column (see wide.py).
-
-Read with pyarrow's streaming CSV reader, CSV_BLOCK_BYTES at a time, never the whole file. pyarrow infers the
-columns' types from the first block; validation reads that block only (the header, the types, at least one row): of
-`csv: s3://BUCKET/KEY`, one ranged GET of that many bytes, the file itself downloaded by `run`.
-At run time the value columns are read as float64 whatever the first block suggested (an integer column may hold
-decimals further down); a cell that is not a number, or a row of the wrong width, further down stops the run with
-one error naming the file and the column or row.
+"""A CSV file with a header, read as a wide table (wide.py) with pyarrow's streaming reader, CSV_BLOCK_BYTES at a time,
+never the whole file. pyarrow infers the columns' types from the first block, so validation reads that block only (of
+a remote file, one ranged GET); at run time the value columns are read as float64 whatever it suggested, and a bad
+cell or row further down stops the run with one error naming the file and the column or row.
 """
 
 from __future__ import annotations
@@ -64,9 +60,8 @@ def _header(source: Path | pa.NativeFile, shown: str | Path, where: Where | None
 
 
 def _first_block(remote: RemoteObject, where: Where) -> pa.NativeFile:
-    """`csv: s3://BUCKET/KEY`: its first CSV_BLOCK_BYTES bytes (one ranged GET, what pyarrow parses first of a local
-    file: the header, the types, the first rows), cut after their last whole line; the rest is read once `run` has
-    downloaded the file."""
+    """`csv: s3://BUCKET/KEY`: its first CSV_BLOCK_BYTES bytes (one ranged GET: what pyarrow parses first of a local
+    file), cut after their last whole line."""
     from ..remote import open_range
 
     with open_range(remote, where, block=CSV_BLOCK_BYTES, max_requests=1) as reader:

@@ -1,10 +1,6 @@
-"""A 2-D HDF5 dataset [rows, values] (e.g. ALOHA's /observations/qpos, both arms in one vector), read with Rerun's Hdf5Reader.
-
-Validation opens the file with h5py and reads metadata only: the dataset's shape and type, the index dataset's; then
-(of a local file) their values decode and the index's times fit. Of `hdf5: s3://BUCKET/KEY`, h5py reads the structure
-through bounded ranged GETs (a file whose structure is spread wider is downloaded at validation instead) and the values
-are checked once `run` has downloaded it. At run time every other dataset of the file (camera images, ...) is ignored,
-so only these two are loaded.
+"""A 2-D HDF5 dataset [rows, values] (e.g. ALOHA's /observations/qpos), read with Rerun's Hdf5Reader. Validation reads
+metadata with h5py (of a remote file, through bounded ranged GETs: see `_compile_remote`), then of a local file the
+values; at run time every other dataset of the file (camera images, ...) is ignored, so only these two are loaded.
 """
 
 from __future__ import annotations
@@ -18,7 +14,7 @@ from ..config import Document
 from ..errors import UserError, Where, listing
 from ..plan import Hdf5SourcePlan, IndexPlan
 from ..remote import is_remote
-from .base import EntryField, SourceDescription, file_input, resolve_input, shown_file
+from .base import EntryField, SourceDescription, file_input, resolve_input, rooted, shown_file
 from .integrity import HDF5_BLOCK_ROWS, check_hdf5_datasets, hdf5_file_problem, hdf5_storage_problem
 from .ordering import in_blocks, in_time_order, with_duplicates
 from .stream import SourceStream, compile_index, index_column
@@ -29,16 +25,6 @@ SPEC_FORM = "hdf5:FILE#/DATASET"
 SUFFIXES = (".h5", ".hdf5")
 REMOTE_BLOCK = 256 << 10  # bytes a ranged GET fetches at least, reading an S3 file's structure ...
 REMOTE_REQUESTS = 32  # ... and how many it may take before the file is downloaded instead (see _compile_remote)
-
-
-def dataset_path(path: str) -> str:
-    return "/" + path.strip("/")
-
-
-def entity_and_component(dataset: str) -> tuple[str, str]:
-    """Rerun's Hdf5Reader: a group becomes an entity, each of its datasets a component named after the dataset."""
-    group, leaf = posixpath.split(dataset)
-    return group or "/", leaf
 
 
 def _datasets_of_rank(file: Any, rank: int) -> list[str]:
@@ -89,10 +75,8 @@ def _opened(source: Path | IO[bytes], named: _Named, where: Where) -> Any:
 
 
 def _compile_remote(name: str, spec: dict[str, Any], document: Document) -> Hdf5SourcePlan:
-    """`hdf5: s3://BUCKET/KEY`: h5py reads the file's structure through ranged GETs (REMOTE_BLOCK bytes at least each,
-    at most REMOTE_REQUESTS of them); a file whose structure is spread wider (many chunks or groups, their index nodes
-    among the data) is downloaded into the cache now, as `run` would, and read locally. The values are checked once
-    `run` has downloaded the file (`check_download`)."""
+    """`hdf5: s3://BUCKET/KEY`: h5py reads the structure through at most REMOTE_REQUESTS ranged GETs, else the file is
+    downloaded into the cache now, as `run` would, and read locally; the values are checked by `check_download`."""
     from ..remote import OverBudget, cached_path, fetched, open_range, remote_file
 
     where = document.where("sources", name, "hdf5")
@@ -119,12 +103,12 @@ def _compiled(file: Any, named: _Named, path: Path, name: str, spec: dict[str, A
     import h5py
 
     here = ("sources", name)
-    dataset = dataset_path(spec["dataset"])
+    dataset = rooted(spec["dataset"])
     names: tuple[str, ...] | None = tuple(spec["names"]) if "names" in spec else None
     index: IndexPlan | None = None
     if "index" in spec:
         parsed = compile_index(spec["index"])
-        index = IndexPlan(dataset_path(parsed.column), parsed.kind, parsed.unit)
+        index = IndexPlan(rooted(parsed.column), parsed.kind, parsed.unit)
     problem = hdf5_file_problem(file)
     if problem is not None:
         raise UserError(f"HDF5 file {named.shown} {problem}", document.where(*here, "hdf5"))
@@ -207,7 +191,7 @@ def describe(name: str, path: str, part: str | None, document: Document) -> Sour
     """For `init`: the width of the 2-D dataset PART names, as `validate` reads its shape. HDF5 has no names: the
     values are matched by position."""
     given = file_input(path)
-    dataset = dataset_path(part or "/")
+    dataset = rooted(part or "/")
     try:
         plan = compile_source(name, {"hdf5": str(given.file), "dataset": dataset}, document, given.file.parent)
     except UserError as exc:
@@ -225,7 +209,8 @@ def open_stream(plan: Hdf5SourcePlan) -> SourceStream:
     reader = Hdf5Reader(plan.path)
     keep = {plan.dataset} | ({plan.index.column} if plan.index is not None else set())
     ignored = [info.path for info in reader.datasets() if info.path not in keep]
-    entity, component = entity_and_component(plan.dataset)
+    group, component = posixpath.split(plan.dataset)  # Rerun's Hdf5Reader: a group is an entity, its datasets components
+    entity = group or "/"
     stream = reader.stream(
         index_column=index_column(plan.index) if plan.index is not None else None,
         ignore_datasets=ignored or None,

@@ -1,12 +1,7 @@
-"""Data files are checked with pyarrow and h5py before Rerun's native readers see them.
-
-Rerun's readers do not survive every corrupt file: a parquet data page that fails to decompress panics a reader
-thread (the process aborts, or waits forever), an HDF5 chunk that fails to inflate surfaces as a bare RuntimeError.
-pyarrow and h5py raise ordinary exceptions, which become one user error naming the file and the row group or
-dataset. (MCAP files are probed in a child process instead: see mcap_probe.py.)
-
-Corruption that decodes (flipped bits inside plain float values of a file written without page checksums) cannot
-be told from data; limits and NaN checks still apply to it.
+"""Data files are checked with pyarrow and h5py before Rerun's native readers see them: a parquet data page that fails
+to decompress panics a reader thread (the process aborts, or waits forever), an HDF5 chunk that fails to inflate
+surfaces as a bare RuntimeError; pyarrow and h5py raise ordinary exceptions, which become one user error naming the
+file and the row group or dataset. (MCAP files are probed in a child process instead: mcap_probe.py.)
 """
 
 from __future__ import annotations
@@ -26,19 +21,16 @@ def _reason(exc: BaseException) -> str:
     return text[0] if text else type(exc).__name__
 
 
-def parquet_rows(path: Path, where: Where | None) -> int:
-    """The row count from the footer alone (no data page is read)."""
+def refuse_empty_parquet(path: Path, where: Where | None) -> None:
+    """A file of zero rows is refused, from the footer alone (no data page is read)."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
     try:
-        return int(pq.read_metadata(path).num_rows)
+        rows = pq.read_metadata(path).num_rows
     except (pa.ArrowException, OSError, ValueError) as exc:
         raise UserError(f"cannot read the parquet footer of {path}: {_reason(exc)}", where) from None
-
-
-def refuse_empty_parquet(path: Path, where: Where | None) -> None:
-    if parquet_rows(path, where) == 0:
+    if rows == 0:
         raise UserError(f"parquet file {path} has zero rows (its footer says so); a source with zero rows moves nothing", where)
 
 
@@ -51,9 +43,8 @@ CHECK_BATCH_ROWS = 65_536
 def check_parquet_pages(
     path: Path, columns: Sequence[str], where: Where | None, index: IndexPlan | None = None, index_where: Where | None = None
 ) -> None:
-    """Every data page of `columns` decodes (page checksums verified when the writer stored them), in batches of
-    CHECK_BATCH_ROWS rows dropped as they come (a whole row group, 2^20 rows by pyarrow's default, took 600 MB for a
-    29-joint humanoid); a corrupt page names its row group. `index` (one of `columns`): its values are checked in the
+    """Every data page of `columns` decodes (page checksums verified when stored), CHECK_BATCH_ROWS rows at a time
+    dropped as they come; a corrupt page names its row group. `index` (one of `columns`): its values are checked in the
     same pass as times a timeline can hold (time_range.py), refused at `index_where` once every page has decoded."""
     import pyarrow as pa
     import pyarrow.parquet as pq
@@ -105,12 +96,10 @@ def check_hdf5_datasets(path: Path, datasets: Sequence[str], where: Where | None
                 ) from None
 
 
-# HDF5 declares a dataset's shape apart from what it stores: a file of a few KB can declare 2^34 rows whose chunks were
-# never written (read back as the fill value, zeros), which every check and the run would then read. A dataset is
-# read only when the file holds its bytes: every chunk allocated, a contiguous block inside the file, and, beyond
-# HDF5_FREE_BYTES declared, at most HDF5_MAX_RATIO times fewer bytes stored than declared. Logged joint values
-# compress a few times at most; a constant signal packs ~1000:1 with deflate (an idle recording: let through while
-# small), and scale-offset or plugin filters pack without bound. So the work a file can cause is bounded by its size.
+# HDF5 declares a dataset's shape apart from what it stores: a file of a few KB can declare 2^34 rows never written
+# (read back as zeros). A dataset is read only when the file holds its bytes: every chunk allocated, a contiguous block
+# inside the file, and beyond HDF5_FREE_BYTES declared at most HDF5_MAX_RATIO times fewer bytes stored than declared
+# (an idle recording packs ~1000:1 with deflate: let through while small). So a file's work is bounded by its size.
 HDF5_MAX_RATIO = 100
 HDF5_FREE_BYTES = 64 << 20
 

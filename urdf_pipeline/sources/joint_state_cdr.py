@@ -1,11 +1,7 @@
 """ROS 2 sensor_msgs/msg/JointState in CDR, read by one bounded reader of its fixed layout: the live feeds' messages
-(a Foxglove WebSocket server, an MCAP file being written) and a remote bag's first message (its names, at compile).
-
-Nothing a stranger's file or stream sends is compiled: the definition a channel advertises is only compared,
-normalised (comments, blank lines and spacing left out, `Header` and `pkg/msg/Type` spellings made one), with
-JointState's own, and every message is read by the fixed layout below, each count checked against the bytes left
-before anything is made, so a message's cost is bounded by its bytes (a count claiming 2^31 names in a 100-byte
-message is refused at once). Finished bags are decoded by Rerun's McapReader in a bounded child (`mcap_probe`).
+and a remote bag's first message. Nothing a stranger sends is compiled: a channel's advertised definition is only
+compared, normalised, with JointState's own, and each count is checked against the bytes left before anything is made,
+so a message's cost is bounded by its bytes.
 """
 
 from __future__ import annotations

@@ -68,11 +68,8 @@ def vector_matrix(source: NamedSource, vectors: pa.Array) -> np.ndarray:
 
 
 def raw_matrix(source: NamedSource, rows: pa.Array, required: np.ndarray | None = None, consumer: str = "") -> np.ndarray:
-    """Any source's rows as a (rows x names) matrix: vectors, or rows that name their values (mapped by name).
-
-    For named rows, `required` are the name positions the consumer reads (a row lacking one is an error);
-    names nobody reads may be absent and stay NaN.
-    """
+    """Any source's rows as a (rows x names) matrix: vectors, or rows that name their values (mapped by name: a row
+    lacking a `required` position is an error; names nobody reads may be absent and stay NaN)."""
     if is_named_rows(rows):
         needed = np.empty(0, dtype=np.intp) if required is None else required
         return named_matrix(rows, source, needed, consumer or f"source '{source.name}'")
@@ -109,10 +106,6 @@ class JointValueMapper:
         self.clamp_all = robot.on_violation == "clamp"
         self.stats = RobotStats(channels=[ChannelStats() for _ in channels])
         self._lock = threading.Lock()
-
-    def matrix(self, vectors: pa.Array) -> np.ndarray:
-        """One row per vector; every row must hold exactly one value per source name."""
-        return vector_matrix(self.source, vectors)
 
     def urdf_values(self, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         """(rows x width) raw values -> ((rows x joints) URDF values, mask of rows to leave out or None).

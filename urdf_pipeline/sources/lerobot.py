@@ -11,7 +11,6 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
 import pyarrow as pa
 
 from ..config import Document
@@ -35,7 +34,7 @@ from .lerobot_meta import (
     v3_data_files,
 )
 from .ordering import in_time_order
-from .stream import SourceStream
+from .stream import SourceStream, component_field, per_row
 
 if TYPE_CHECKING:
     from rerun.chunk import Chunk
@@ -218,18 +217,13 @@ def _reader(root: Path, metadata: tuple[FileStamp, ...]) -> tuple[LeRobotReader,
 
 
 def _one_vector_per_row(chunk: Chunk) -> list[Chunk]:
-    """Scalars:scalars holds a row's values as instances; repack them as one list instance per row.
-
-    Rerun's lenses hand a selector the row values flattened, so per-row FK needs one vector instance per row.
-    """
+    """Scalars:scalars holds a row's values as instances; repack them as one list instance per row (per-row FK)."""
     from rerun.chunk import Chunk
 
     batch = chunk.to_record_batch()
     index = batch.schema.get_field_index("Scalars:scalars")
-    values = batch.column(index)
-    wrapped = pa.ListArray.from_arrays(pa.array(np.arange(len(values) + 1, dtype=np.int32)), values)
-    field = pa.field(VECTOR_COMPONENT, wrapped.type, metadata={b"rerun:kind": b"data", b"rerun:component": VECTOR_COMPONENT.encode()})
-    return Chunk.from_record_batch(batch.set_column(index, field, wrapped))
+    wrapped = per_row(batch.column(index))
+    return Chunk.from_record_batch(batch.set_column(index, component_field(VECTOR_COMPONENT, wrapped.type), wrapped))
 
 
 def open_stream(plan: LeRobotSourcePlan) -> SourceStream:

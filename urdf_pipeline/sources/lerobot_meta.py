@@ -144,10 +144,8 @@ def checked_plan(name: str, spec: dict[str, Any], document: Document, root: Path
     return with_duplicates(LeRobotSourcePlan(name, root, feature_key, episode, names, document.where(*here)), spec)
 
 
-# A metadata file as last seen: (path, size, mtime_ns), the rule of the run's file hashes (dataset/fingerprint.py).
-# What is read from the dataset's metadata is kept per process while its files are unchanged: every segment of a run
-# asks for it, and reading it again each time made a run quadratic in the episodes (10,000 episodes: 57 ms a segment
-# parsing episodes.jsonl, 9 ms opening Rerun's reader).
+# A metadata file as last seen: (path, size, mtime_ns). What is read of it is kept per process while it is unchanged:
+# every segment of a run asks for it, and reading it each time made a run quadratic in the episodes.
 FileStamp = tuple[Path, int, int]
 
 

@@ -1,13 +1,9 @@
-"""Every number a LeRobot dataset's metadata declares, checked where it is read, before anything computes with it.
-
-A dataset is a stranger's data: `chunks_size: 0` makes Rerun's v2 reader divide by zero (the process aborts),
-`total_episodes: 1e30` would make a loop of 10^30 episodes, a NaN timestamp or a negative row range would reach the
-reader. info.json's counts, its fps and its features' shapes are checked as read_info parses it; the episodes' table
-(v2's episodes.jsonl, v3's meta/episodes/*.parquet) as it is read, over whole columns, naming the file, the column and
-the first row at fault. Each refusal is a user error naming the file and the key. The table is bounded before it is
-built: episodes.jsonl is read line by line within EPISODES_JSONL_BYTES and MAX_EPISODE_ROWS lines; a parquet file's
-rows (its footer: a file of 800 KB can declare 30 million rows of zeros) count towards MAX_EPISODE_ROWS and its columns
-read must be numbers, before a column is read."""
+"""Every number a LeRobot dataset's metadata declares, checked where it is read, before anything computes with it
+(the rules: security.md#templates-and-numbers): `chunks_size: 0` makes Rerun's v2 reader divide by zero, and
+`total_episodes: 1e30` would make a loop of 10^30 episodes. The episodes' table is bounded before it is built
+(EPISODES_JSONL_BYTES, MAX_EPISODE_ROWS: a parquet footer of 800 KB can declare 30 million rows of zeros) and checked
+over whole columns, naming the file, the column and the first row at fault.
+"""
 
 from __future__ import annotations
 

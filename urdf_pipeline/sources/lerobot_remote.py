@@ -1,14 +1,7 @@
-"""A LeRobot dataset where a team keeps it: `lerobot: s3://BUCKET/PREFIX/DATASET`, or on the Hugging Face Hub
-`lerobot: hf://datasets/ORG/NAME@REV` (or the revision in a `revision:` key), in the v2.x and v3 layouts the local
-reader takes.
-
-Compile reads metadata only: the files of `meta/` a reader needs (info.json, the episodes' and tasks' tables; not the
-statistics), downloaded as metadata (S3: into the download cache, pinned to their ETags; the Hub: into its client's
-cache, at the commit the revision resolves to now) and checked as a local dataset's are, through a local view of them.
-An S3 dataset's `data/` is listed once (no data file is read): each episode's data files are pinned to their ETags in
-its segment's plan. The Hub's commit pins every file. `run` fetches a segment's files (the metadata and its episode's
-data files, nothing else) and Rerun's LeRobotReader reads them from a temporary folder of links in the dataset's
-layout (`remote.fetched_folder`), removed after the segment.
+"""A LeRobot dataset where a team keeps it: `lerobot: s3://BUCKET/PREFIX/DATASET`, or `hf://datasets/ORG/NAME@REV`
+(or a `revision:` key), in the layouts the local reader takes (docs/remote.md: what each command reads). Compile checks
+the metadata a reader needs through a local view of it, as a local dataset's; an S3 dataset's `data/` is listed once,
+each episode's data files pinned to their ETags in its segment's plan (the Hub's commit pins every file).
 """
 
 from __future__ import annotations
@@ -111,9 +104,7 @@ def compile_remote(name: str, spec: dict[str, Any], document: Document) -> LeRob
         snapshot = hub_snapshot(url, [inside + pattern for pattern in META_PATTERNS], where)
         meta, objects, root = hub_files(url, snapshot, inside + "meta"), None, snapshot / url.key
     else:
-        meta = listing(url.child_prefix(f"{url.key}/meta" if url.key else "meta"), where)
-        objects = {o.url[len(url.url) + 1 :]: o for o in listing(url.child_prefix(f"{url.key}/data" if url.key else "data"), where)}
-        root = download_folder()
+        meta, objects, root = list(_listed(url, "meta", where).values()), _listed(url, "data", where), download_folder()
     dataset = RemoteDataset(url.url, tuple(o for o in meta if _needed(o.url[len(url.url) + 1 :])))
     if not any(dataset.relative(o) == "meta/info.json" for o in dataset.meta):
         raise UserError(f"{url.url} is not a LeRobot dataset: {url.url}/meta/info.json is missing", where)
@@ -122,6 +113,11 @@ def compile_remote(name: str, spec: dict[str, Any], document: Document) -> LeRob
         _remember(dataset, _learn(view, plan.where, url.url, objects))
     plan = replace(plan, root=root, remote=dataset)
     return plan if plan.per_segment else for_episode(plan, plan.episode)
+
+
+def _listed(url: RemoteUrl, folder: str, where: Where | None) -> dict[str, RemoteObject]:
+    """The S3 objects under the dataset's `folder`, by their paths in the dataset."""
+    return {o.url[len(url.url) + 1 :]: o for o in listing(url.child_prefix(f"{url.key}/{folder}" if url.key else folder), where)}
 
 
 def _learn(view: Path, where: Where | None, shown_url: str, objects: dict[str, RemoteObject] | None) -> _Dataset:
@@ -150,10 +146,7 @@ def _dataset(plan: LeRobotSourcePlan) -> _Dataset:
     known = _KNOWN.get(_key(plan.remote))
     if known is None:
         url = parse_url(plan.remote.url, plan.where)
-        objects = None
-        if url.scheme == "s3":
-            prefix = url.child_prefix(f"{url.key}/data" if url.key else "data")
-            objects = {o.url[len(url.url) + 1 :]: o for o in listing(prefix, plan.where)}
+        objects = _listed(url, "data", plan.where) if url.scheme == "s3" else None
         with fetched_folder({plan.remote.relative(o): o for o in plan.remote.meta}, plan.where) as view:
             known = _remember(plan.remote, _learn(view, plan.where, plan.remote.url, objects))
     return known
@@ -203,11 +196,9 @@ def episode_view(plan: LeRobotSourcePlan) -> Iterator[Path]:
 
 
 def _present_episodes_only(root: Path, plan: LeRobotSourcePlan) -> None:
-    """v3: the view's episode tables cut to the episodes whose data files it holds (those sharing the plan's episode's
-    files), written in place of their links (the cache's copies stay as they were): Rerun's reader would otherwise
-    try every data file the tables name, and say so for each one missing. v2: its episodes.jsonl cut to the episode's
-    own line (the lines parsed once per cached file): else every view's reader, and our metadata read, parsed the
-    whole dataset's table again, 10,000 episodes making a run quadratic."""
+    """The view's episode tables cut to what it holds, written in place of their links (the cache's copies stay as they
+    were). v3: the episodes sharing the plan's episode's data files (Rerun's reader would try every data file the tables
+    name); v2: the episode's own line of episodes.jsonl (else every segment parsed the whole table: a quadratic run)."""
     assert plan.remote is not None
     jsonl = root / "meta" / "episodes.jsonl"
     if jsonl.is_symlink():

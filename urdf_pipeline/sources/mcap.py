@@ -1,14 +1,14 @@
 """ROS 2 sensor_msgs/msg/JointState messages of one MCAP topic, decoded by Rerun's McapReader (ros2_reflection).
 
-Every message carries its own names, in an order that may change from message to message: values are mapped by
-name, row by row (`urdf_pipeline.sources.named_rows`), never by position. Validation reads the file's summary only (topic,
-schema, message count); when the config gives no `names`, the first message of the topic is read for them. Of
-`mcap: s3://BUCKET/KEY`, the same by ranged GETs (mcap_remote.py); `run` downloads the file.
+Every message carries its own names, in an order that may change from message to message: values are mapped by name,
+row by row (named_rows.py). Validation reads the file's summary only, and the topic's first message when the config
+gives no `names`; of a remote file, by ranged GETs (mcap_remote.py).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -27,11 +27,11 @@ from .mcap_probe import MESSAGE_COMPONENT, probe, summary_info, topic_entity, to
 from .mcap_remote import late_messages, remote_mcap
 from .named_rows import NAME_FIELD, NAMED_COMPONENT, VALUE_FIELD, named_rows_column
 from .ordering import in_time_order, with_duplicates
-from .stream import SourceStream
+from .stream import SourceStream, component_field
 from .time_range import INT64_MAX
 
 if TYPE_CHECKING:
-    from rerun.chunk import Chunk, McapChannelInfo
+    from rerun.chunk import Chunk
 
 PLAN_TYPE = McapSourcePlan
 SPEC_FORM = "mcap:FILE[#TOPIC]"
@@ -39,11 +39,6 @@ SUFFIXES = (".mcap",)
 JOINT_STATE = "sensor_msgs/msg/JointState"
 MCAP_TIMELINES = {"header": "ros2_timestamp", "log_time": "message_log_time", "publish_time": "message_publish_time"}
 ALL_TIMELINES = tuple(MCAP_TIMELINES.values())
-
-
-def _first_message_names(path: Path, topic: str, where: Where) -> tuple[str, ...]:
-    names = probe(path, topic, first_only=True, where=where)  # in a child: a corrupt file cannot hang this process
-    return checked_first_names(names, topic, str(path), where)
 
 
 def checked_first_names(names: tuple[str, ...] | None, topic: str, file: str, where: Where | None) -> tuple[str, ...]:
@@ -56,15 +51,6 @@ def checked_first_names(names: tuple[str, ...] | None, topic: str, file: str, wh
     if len(set(names)) != len(names):
         raise UserError(f"the first message on '{shown(topic)}' names a joint twice: {', '.join(map(shown, names))}", where)
     return names
-
-
-def _channels(path: Path, where: Where | None) -> list[McapChannelInfo]:
-    """The file's channels, from its summary."""
-    return list(_info(path, where).channels)
-
-
-def _info(path: Path, where: Where | None) -> Any:
-    return summary_info(path, where)
 
 
 def _check_log_times(late: Callable[[str, int], int], file_name: str, topic: str, info: Any, where: Where) -> None:
@@ -138,14 +124,13 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
     if is_remote(spec["mcap"]):
         return _compile_remote(name, spec, document)
     path = resolve_input(document, config_dir, spec["mcap"], *here, "mcap")
-    info = _info(path, document.where(*here, "mcap"))
-    _checked_topic(spec, info, str(path), document, here)
-    topic = topic_entity(spec["topic"])
-    timeline = MCAP_TIMELINES[spec.get("timeline", "header")]
-    if timeline == MCAP_TIMELINES["log_time"]:
-        _check_log_times(_local_late(path, document.where(*here, "mcap")), path.name, topic, info, document.where(*here, "timeline"))
-    names = tuple(spec["names"]) if "names" in spec else _first_message_names(path, topic, document.where(*here, "topic"))
-    return with_duplicates(McapSourcePlan(name, path, topic, timeline, names, document.where(*here)), spec)
+    topic_at = document.where(*here, "topic")  # in a child: a corrupt file cannot hang this process
+
+    def first_names(channels: list[Any]) -> tuple[str, ...] | None:
+        return probe(path, topic_entity(spec["topic"]), first_only=True, where=topic_at)
+
+    info = summary_info(path, document.where(*here, "mcap"))
+    return _plan(name, spec, document, info, str(path), path, _local_late(path, document.where(*here, "mcap")), first_names)
 
 
 def _compile_remote(name: str, spec: dict[str, Any], document: Document) -> McapSourcePlan:
@@ -153,23 +138,39 @@ def _compile_remote(name: str, spec: dict[str, Any], document: Document) -> Mcap
     (mcap_remote.py); the file is downloaded by `run`, whose stream probes the whole topic first, as for a local file."""
     from ..remote import cached_path, remote_file
 
+    remote = remote_file(spec["mcap"], document.where("sources", name, "mcap"), "mcap file")
+    with remote_mcap(remote, document.where("sources", name, "mcap")) as file:
+
+        def first_names(channels: list[Any]) -> tuple[str, ...] | None:
+            return file.first_names(sorted({c.topic for c in channels}))
+
+        plan = _plan(name, spec, document, file.info(), remote.url, cached_path(remote), file.late_messages, first_names)
+    return replace(plan, remote=remote)
+
+
+def _plan(
+    name: str,
+    spec: dict[str, Any],
+    document: Document,
+    info: Any,
+    shown: str,
+    path: Path,
+    late: Callable[[str, int], int],
+    first_names: Callable[[list[Any]], tuple[str, ...] | None],
+) -> McapSourcePlan:
+    """The plan from the file's summary (`info`), `late` counting late messages, `first_names` reading the first
+    message's names of the topic's channels (a local file's or a remote one's ways); `shown` names the file."""
     here = ("sources", name)
-    remote = remote_file(spec["mcap"], document.where(*here, "mcap"), "mcap file")
-    file_name = remote.url.rsplit("/", 1)[-1]
+    channels = _checked_topic(spec, info, shown, document, here)
     topic = topic_entity(spec["topic"])
     timeline = MCAP_TIMELINES[spec.get("timeline", "header")]
-    with remote_mcap(remote, document.where(*here, "mcap")) as file:
-        info = file.info()
-        channels = _checked_topic(spec, info, remote.url, document, here)
-        if timeline == MCAP_TIMELINES["log_time"]:
-            _check_log_times(file.late_messages, file_name, topic, info, document.where(*here, "timeline"))
-        if "names" in spec:
-            names = tuple(spec["names"])
-        else:
-            found = file.first_names(sorted({c.topic for c in channels}))
-            names = checked_first_names(found, topic, remote.url, document.where(*here, "topic"))
-    plan = McapSourcePlan(name, cached_path(remote), topic, timeline, names, document.where(*here), remote=remote)
-    return with_duplicates(plan, spec)
+    if timeline == MCAP_TIMELINES["log_time"]:
+        _check_log_times(late, shown.rsplit("/", 1)[-1], topic, info, document.where(*here, "timeline"))
+    if "names" in spec:
+        names = tuple(spec["names"])
+    else:
+        names = checked_first_names(first_names(channels), topic, shown, document.where(*here, "topic"))
+    return with_duplicates(McapSourcePlan(name, path, topic, timeline, names, document.where(*here)), spec)
 
 
 def check_download(plan: McapSourcePlan) -> None:
@@ -184,7 +185,7 @@ def describe(name: str, path: str, part: str | None, document: Document) -> Sour
     file = given.file
     topic = part
     if topic is None:
-        topics = _joint_state_topics(_channels(file, None))
+        topics = _joint_state_topics(summary_info(file, None).channels)
         if len(topics) != 1:
             raise UserError(f"name the topic with mcap:FILE#TOPIC; its {JOINT_STATE} topics: {listing(topics, empty='none')}")
         topic = topics[0]
@@ -204,8 +205,9 @@ def _named_rows(plan: McapSourcePlan, chunk: Chunk) -> list[Chunk]:
         return []
     if plan.timeline not in batch.schema.names:
         raise UserError(f"messages on '{plan.topic}' have no {plan.timeline} timeline", plan.where)
+    stamps = batch.column(batch.schema.get_field_index(plan.timeline)).cast(pa.int64()).to_numpy(zero_copy_only=False)
     if plan.timeline != "ros2_timestamp":  # uint64 log or publish times: Rerun clamps those beyond int64 to its largest
-        clamped = batch.column(batch.schema.get_field_index(plan.timeline)).cast(pa.int64()).to_numpy(zero_copy_only=False) == INT64_MAX
+        clamped = stamps == INT64_MAX
         if clamped.any():
             raise UserError(
                 f"{int(np.count_nonzero(clamped))} messages on '{plan.topic}' have a {plan.timeline} at or beyond 2^63 ns, beyond a "
@@ -214,7 +216,6 @@ def _named_rows(plan: McapSourcePlan, chunk: Chunk) -> list[Chunk]:
                 plan.where,
             )
     else:
-        stamps = batch.column(batch.schema.get_field_index(plan.timeline)).cast(pa.int64()).to_numpy(zero_copy_only=False)
         zero = int(np.count_nonzero(stamps == 0))
         if zero:
             raise UserError(
@@ -227,8 +228,7 @@ def _named_rows(plan: McapSourcePlan, chunk: Chunk) -> list[Chunk]:
         raise UserError(f"rows on '{plan.topic}' do not hold exactly one message each", plan.where)
     structs = messages.flatten()
     column = named_rows_column(pc.struct_field(structs, NAME_FIELD), pc.struct_field(structs, VALUE_FIELD))
-    field = pa.field(NAMED_COMPONENT, column.type, metadata={b"rerun:kind": b"data", b"rerun:component": NAMED_COMPONENT.encode()})
-    batch = batch.set_column(index, field, column)
+    batch = batch.set_column(index, component_field(NAMED_COMPONENT, column.type), column)
     batch = batch.drop_columns([name for name in ALL_TIMELINES if name != plan.timeline and name in batch.schema.names])
     return Chunk.from_record_batch(batch)
 

@@ -1,18 +1,12 @@
 """Every MCAP chunk the tool inflates is inflated here, bounded by the bytes it produces, never by what the chunk, its
-index or its zstd or lz4 frame states: a few KB of either can state anything, and be gigabytes of zeros.
+index or its zstd or lz4 frame states: a few KB of either can state anything, and be gigabytes of zeros (the bounds:
+security.md#mcap-files, MAX_CHUNK_BYTES and `InflationBudget` below).
 
-A chunk is inflated to at most min(its stated size, MAX_CHUNK_BYTES) + 1 bytes and refused unless it produced exactly
-its stated size (and its CRC, when it states one, matches). One reading of a file inflates at most FREE_BYTES plus
-RATIO times the compressed bytes of the chunks it read (`InflationBudget`): a real bag inflates 3 to 150 times, a few
-KB of zstd can be 64 MiB of zeros chunk after chunk, and the time a file costs stays in proportion to its bytes.
-
-The `mcap` library's readers (`make_reader`, `iter_messages`, `get_summary`, `StreamReader`) inflate a chunk whole, as
-big as it says; Rerun's reader inflates every chunk of a file whatever topic it is asked for, and spins for minutes on
-one in the summary section. So neither ever gets a chunk this module has not inflated first: the summary is read here
-(`read_summary`: a chunk in it is refused), a chunk's records too (`chunk_records`, `read_chunk_at`), and before
-Rerun's reader reads a file's messages every chunk of it is inflated here once and dropped (`check_chunks`), each
-chunk the summary's index points at included, which must be one a reader going record by record meets too (so the
-two kinds of reader cannot be shown two files).
+The `mcap` library's readers inflate a chunk whole, as big as it says; Rerun's reader inflates every chunk of a file
+whatever topic it is asked for, and spins for minutes on one in the summary section. So neither ever gets a chunk this
+module has not inflated first: the summary (`read_summary`: a chunk in it is refused), a chunk's records
+(`chunk_records`, `read_chunk_at`), and, before Rerun's reader reads a file, every chunk of it once (`check_chunks`),
+each one the summary's index points at included, so that the two kinds of reader cannot be shown two files.
 """
 
 from __future__ import annotations

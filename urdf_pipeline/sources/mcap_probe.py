@@ -1,15 +1,11 @@
-"""An MCAP topic is first read in a child process, bounded in memory, CPU and wall-clock time, and killed at Rerun's
-first read error.
+"""An MCAP topic is first read in a child process, bounded in memory, CPU and wall-clock time (security.md#mcap-files),
+and killed at Rerun's first read error.
 
 Rerun's MCAP reader (native code) logs "Failed to read message from MCAP file" for a chunk that does not decompress
 and then spins at 100% CPU forever, deaf to Ctrl-C; for a chunk whose CRC fails it logs the same line and decodes
-garbage. The file's summary does not show either. So, before any of it reaches Rerun's reader, every chunk of the file
-is inflated once within its bounds (`mcap_chunks.check_chunks`: Rerun's reader inflates every chunk, trusting the size
-it states); then the child decodes the topic exactly as a run does, under the limits every child reading a stranger's
-file sets on itself (`process.limit_this_process`: address space, CPU seconds, output size, no core), the parent
-watches the child's log and stops it at the first such line (or after BASE_SECONDS plus SECONDS_PER_BYTE per byte),
-and only a file the child read cleanly reaches Rerun in this process. The child dies with this process (SIGTERM when it
-ends, however it ends). Run as a module, this file is the child.
+garbage. The file's summary does not show either. So every chunk is first inflated here within its bounds
+(`mcap_chunks.check_chunks`), then a child decodes the topic exactly as a run does, the parent stops it at the first
+such line, and only a file the child read cleanly reaches Rerun in this process. Run as a module, this file is the child.
 """
 
 from __future__ import annotations
@@ -18,7 +14,7 @@ import json
 import os
 import re
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -27,6 +23,7 @@ from ..process import bound_from_environment, limit_this_process, run_bounded_ch
 from .mcap_chunks import McapRefused, check_chunks, read_summary, refusal, require_library
 
 if TYPE_CHECKING:
+    import pyarrow as pa
     from rerun.chunk import LazyChunkStream
 
 BASE_SECONDS = 60.0
@@ -81,6 +78,13 @@ def topic_messages(path: Path, topic: str, component: str = MESSAGE_COMPONENT) -
     return reader.stream().filter(content=entity, is_static=False, components=component)
 
 
+def message_rows(path: Path, topic: str, component: str = MESSAGE_COMPONENT) -> Iterator[pa.Array]:
+    """The topic's messages as struct arrays, a chunk's at a time (in the child)."""
+    for chunk in topic_messages(path, topic, component):
+        batch = chunk.to_record_batch()
+        yield batch.column(batch.schema.get_field_index(component)).flatten()
+
+
 def probe(path: Path, topic: str, first_only: bool, where: Where | None, shown_as: str | None = None) -> tuple[str, ...] | None:
     """Read `topic` in a child: the first message's names (`first_only`), else None once every message decoded.
     `shown_as` names the file in messages (a remote file's URL; its path by default)."""
@@ -100,7 +104,8 @@ def in_child(
         check_chunks(path)
     except McapRefused as error:
         raise refusal(name, error, where) from None
-    memory_mb, budget = _bounds(path, where)
+    memory_mb = int(bound_from_environment(MEMORY_ENV, DEFAULT_MEMORY_MB, where))  # the child's address space and seconds
+    budget = bound_from_environment(TIMEOUT_ENV, BASE_SECONDS + path.stat().st_size * SECONDS_PER_BYTE, where)
     limits = {"memory_bytes": memory_mb << 20, "cpu_seconds": int(budget) + 1, "output_bytes": OUTPUT_BYTES}
     command = [sys.executable, "-m", module, str(path), topic, mode, json.dumps(limits)]
     outcome = run_bounded_child(
@@ -122,12 +127,6 @@ def in_child(
     raise UserError(messages.get(outcome.kind, f"{cannot}: its reader gave no readable answer"), where)
 
 
-def _bounds(path: Path, where: Where | None) -> tuple[int, float]:
-    """The child's address space (MB) and seconds: the environment's, else the defaults (the seconds grow with the file)."""
-    memory_mb = int(bound_from_environment(MEMORY_ENV, DEFAULT_MEMORY_MB, where))
-    return memory_mb, bound_from_environment(TIMEOUT_ENV, BASE_SECONDS + path.stat().st_size * SECONDS_PER_BYTE, where)
-
-
 def child_main(read: Callable[[Path, str, str], dict[str, Any]]) -> None:
     """The child: bound this process (`limit_this_process`; Rerun's reader runs threads of its own), then print what
     `read(PATH, TOPIC, MODE)` answers, as one JSON line."""
@@ -143,9 +142,7 @@ def _names(path: Path, topic: str, mode: str) -> dict[str, Any]:
     from .named_rows import NAME_FIELD
 
     names: list[str] | None = None
-    for chunk in topic_messages(path, topic):
-        batch = chunk.to_record_batch()
-        rows = batch.column(batch.schema.get_field_index(MESSAGE_COMPONENT)).flatten()
+    for rows in message_rows(path, topic):
         if len(rows) and names is None:
             names = [str(n) for n in (pc.struct_field(rows, NAME_FIELD)[0].as_py() or [])]
             if mode == "first":

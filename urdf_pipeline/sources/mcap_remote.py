@@ -1,9 +1,6 @@
-"""An MCAP file on S3, read as `validate` reads a local one, but through ranged GETs and the `mcap` library (Rerun's
-reader takes local paths only): the summary at the file's end (its footer, then the summary section: two or three
-requests), and, when the config gives no `names`, the first message of the topic, from the one chunk that holds it,
-its names decoded from the CDR bytes. All of it within METADATA_BYTES; the data is read by `run`, once downloaded.
-The summary and every chunk are read by mcap_chunks.py (no chunk in the summary, each chunk inflated within its bounds,
-whatever it states), never by the `mcap` library's readers, which inflate a chunk whole as big as it says.
+"""An MCAP file on S3, read as `validate` reads a local one, through ranged GETs and the `mcap` library (Rerun's reader
+takes local paths only): the summary, and without `names` the topic's first message, within METADATA_BYTES. Every
+chunk is read by mcap_chunks.py, never by the `mcap` library's readers, which inflate a chunk as big as it says.
 """
 
 from __future__ import annotations

@@ -1,13 +1,7 @@
 """Rows that name their own values (ROS JointState messages, recordings with per-row names): map by name, columnar.
 
-A named row is a struct {name: list<string>, position: list<number>}: the i-th position belongs to the i-th name, and
-the order of the names may change from one row to the next. `named_matrix` turns a batch of such rows into the same
-(rows x source names) matrix a vector source gives, in the order of the source's `names`, without a Python loop over
-rows: the names are flattened, looked up with `pyarrow.compute.index_in`, and the values scattered with numpy.
-
-Refused, naming what is wrong: a row whose name and value counts differ, a name that is not among the source's names
-(neither mapped nor ignored), a name given twice in one row, and a row lacking a name its consumer maps.
-Names the consumer does not use (ignored names) may be absent; their cells stay NaN and are never read.
+A named row is a struct {name: list<string>, position: list<number>}, the order of its names free from row to row.
+`named_matrix` turns a batch of them into the matrix a vector source gives, without a Python loop over rows.
 """
 
 from __future__ import annotations
@@ -20,6 +14,7 @@ import pyarrow.compute as pc
 
 from ..errors import UserError, listing
 from ..plan import NamedSource
+from .stream import per_row
 
 NAMED_COMPONENT = "urdf_pipeline:named_joint_values"
 NAME_FIELD = "name"
@@ -34,15 +29,12 @@ def named_rows_column(names: pa.Array, values: pa.Array) -> pa.ListArray:
     """Per-row names (list<string>) and values (list<number>) -> a component column holding one struct per row."""
     value_type = pa.large_list(pa.float64()) if pa.types.is_large_list(values.type) else pa.list_(pa.float64())
     struct = pa.StructArray.from_arrays([names, values.cast(value_type)], [NAME_FIELD, VALUE_FIELD])
-    return pa.ListArray.from_arrays(pa.array(np.arange(len(struct) + 1, dtype=np.int32)), struct)
+    return per_row(struct)
 
 
 def named_matrix(rows: pa.Array, source: NamedSource, required: Sequence[int] | np.ndarray, consumer: str) -> np.ndarray:
-    """(rows x len(source.names)) float64 matrix; cells of names a row lacks are NaN.
-
-    `required` are the positions (in source.names) the consumer reads, `consumer` says who it is ("robot 'arm'").
-    Counts in messages are per batch: the run stops at the first batch that shows a problem.
-    """
+    """(rows x len(source.names)) float64 matrix, NaN where a row lacks a name; `required` are the positions the
+    `consumer` ("robot 'arm'") reads. Counts in messages are per batch: the run stops at the first batch with a problem."""
     count, width, label = len(rows), len(source.names), f"source '{source.name}'"
     if rows.null_count:
         raise UserError(f"{label} has {rows.null_count} rows without values", source.where)

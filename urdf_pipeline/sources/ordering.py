@@ -1,16 +1,11 @@
-"""One pose per time: a source's rows are checked on their timeline before the kinematics see them.
-
-Two rows with the same index value would be two poses at one time (which one the viewer shows is an accident of
-row ids), so they are an error naming the file, the value and its row numbers, unless the source says
-`duplicates: keep_last` (the later row in the file wins). Rows out of order are sorted, stably, with one note:
-hold_last and the row numbers in later messages then follow time order.
+"""One pose per time: a source's rows are checked on their timeline before the kinematics see them (the rule, and
+`duplicates: keep_last`: docs/sources.md).
 
 The check streams, so that memory does not grow with the recording: rows in time order (the common case) are passed
 on as they come, one chunk at a time; `keep_last` holds one chunk back (a run of equal values may cross into the
 next chunk), and a repeat under `error` stops the passing on and reads only the index values to the end, to count
 every repeat. Rows out of order cannot be sorted once earlier ones are gone: the stream raises `NeedsSorting`, and
-the caller runs again with that source read whole and sorted as before (`with_sorting_retry`, `sorted_in_memory`).
-Everything is done on whole columns, chunk by chunk.
+the caller runs again with that source read whole and sorted (`with_sorting_retry`, `sorted_in_memory`).
 """
 
 from __future__ import annotations
@@ -91,16 +86,6 @@ def needs_sorting(exc: BaseException) -> NeedsSorting | None:
         seen.add(id(current))
         current = current.__cause__ or current.__context__
     return None
-
-
-def _reads_whole(source: str) -> bool:
-    names = _READ_WHOLE.get()
-    return EVERY_SOURCE in names or source in names
-
-
-def duplicates_policy(plan: Any) -> str:
-    """The source's `duplicates:` setting (`error` unless the plan carries another)."""
-    return str(getattr(plan, "duplicates", "error"))
 
 
 def _index_values(batch: pa.RecordBatch, timeline: str) -> np.ndarray | None:
@@ -330,8 +315,8 @@ def in_time_order(stream: LazyChunkStream, timeline: str | None, plan: Any, path
     from rerun.chunk import LazyChunkStream
 
     label = f"source '{plan.name}'"
-    policy = duplicates_policy(plan)
-    whole = in_memory or _reads_whole(plan.name)
+    policy = str(getattr(plan, "duplicates", "error"))  # the source's `duplicates:`, `error` unless the plan has another
+    whole = in_memory or bool({EVERY_SOURCE, plan.name} & _READ_WHOLE.get())
 
     def checked() -> Iterator[Chunk]:
         if whole:

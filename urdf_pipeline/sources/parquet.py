@@ -18,7 +18,7 @@ from ..remote import is_remote
 from .base import EntryField, SourceDescription, file_input, resolve_input, shown_file
 from .integrity import check_parquet_pages, refuse_empty_parquet
 from .ordering import in_time_order, with_duplicates
-from .stream import SourceStream, compile_index
+from .stream import SourceStream, compile_index, index_column, is_list_type
 from .time_range import check_parquet_index
 from .wide import describe_wide, guess_index, index_type_problem, reading_error, wide_columns, wide_stream
 
@@ -30,7 +30,7 @@ PARQUET_BATCH_ROWS = 65_536  # rows decoded at a time from a wide table (a row g
 
 def _numeric_list_width(field_type: pa.DataType) -> int | None | bool:
     """None for a variable-length numeric list, the width of a fixed-size one, False if not a numeric list."""
-    if pa.types.is_fixed_size_list(field_type) or pa.types.is_list(field_type) or pa.types.is_large_list(field_type):
+    if is_list_type(field_type):
         value_type = field_type.value_type
         if not (pa.types.is_floating(value_type) or pa.types.is_integer(value_type)):
             return False
@@ -130,21 +130,13 @@ def _batches(plan: ParquetSourcePlan) -> Iterator[pa.RecordBatch]:
 
 
 def open_stream(plan: ParquetSourcePlan) -> SourceStream:
-    from rerun.chunk import IndexColumn
     from rerun.experimental import ParquetReader
 
     if plan.column is None:
         return wide_stream(plan, lambda: _batches(plan))
-    index = plan.index
-    if index.kind == "sequence":
-        index_column = IndexColumn.sequence(index.column)
-    elif index.kind == "timestamp":
-        index_column = IndexColumn.timestamp(index.column, input_unit=index.unit)  # type: ignore[arg-type]
-    else:
-        index_column = IndexColumn.duration(index.column, input_unit=index.unit)  # type: ignore[arg-type]
     entity = f"/{plan.column}"
-    stream = ParquetReader(plan.path).stream(index_columns=[index_column], column_grouping="individual").filter(content=entity)
-    stream = in_time_order(stream, index.column, plan, shown_file(plan))
+    stream = ParquetReader(plan.path).stream(index_columns=[index_column(plan.index)], column_grouping="individual").filter(content=entity)
+    stream = in_time_order(stream, plan.index.column, plan, shown_file(plan))
     return SourceStream(stream, entity, plan.column, len(plan.names))
 
 

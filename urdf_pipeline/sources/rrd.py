@@ -1,10 +1,8 @@
 """Joint values already in a Rerun recording (.rrd): one component of one entity, read with Rerun's RrdReader.
 
-Validation reads the recording's manifest (entities, components, types) and, for names, the entity's static
-`SeriesLines:names` (as Rerun's LeRobot importer writes it). When the names are per row instead (Rerun's MCAP
-importer writes `SeriesLines:names` with every message, in the message's order), values are mapped by name, row by row.
-Rerun's reader opens local files only: an `rrd: s3://BUCKET/KEY` recording is downloaded into the download cache by
-validation already, and `run` reads it from there.
+Validation reads the recording's manifest and, for names, the entity's static `SeriesLines:names` (as Rerun's LeRobot
+importer writes it), else per-row names (as its MCAP importer writes them), mapped row by row. Rerun's reader opens
+local files only: a remote recording is downloaded by validation already (`_compile_remote`).
 """
 
 from __future__ import annotations
@@ -22,11 +20,11 @@ from ..config import Document
 from ..errors import UserError, Where
 from ..plan import RrdSourcePlan
 from ..remote import is_remote
-from .base import EntryField, SourceDescription, file_input, resolve_input, shown_file
+from .base import EntryField, SourceDescription, file_input, resolve_input, rooted, shown_file
 from .lerobot import VECTOR_COMPONENT
 from .named_rows import NAMED_COMPONENT, named_rows_column
 from .ordering import in_time_order, read_all, with_duplicates
-from .stream import SourceStream
+from .stream import SourceStream, component_field, is_list_type, per_row
 
 if TYPE_CHECKING:
     from rerun.chunk import Chunk, LazyStore
@@ -38,26 +36,18 @@ NAMES_COMPONENT = "SeriesLines:names"
 DEFAULT_COMPONENT = "Scalars:scalars"
 
 
-def entity_path(entity: str) -> str:
-    return "/" + entity.strip("/")
-
-
 def _is_number(value_type: pa.DataType) -> bool:
     return pa.types.is_floating(value_type) or pa.types.is_integer(value_type)
 
 
-def _is_list(value_type: pa.DataType) -> bool:
-    return pa.types.is_list(value_type) or pa.types.is_large_list(value_type) or pa.types.is_fixed_size_list(value_type)
-
-
 def layout_of(column_type: pa.DataType) -> str | None:
     """'scalars': a row's instances are its values (Scalars); 'vector': one instance per row holding all values."""
-    if not _is_list(column_type):
+    if not is_list_type(column_type):
         return None
     instance = column_type.value_type
     if _is_number(instance):
         return "scalars"
-    if _is_list(instance) and _is_number(instance.value_type):
+    if is_list_type(instance) and _is_number(instance.value_type):
         return "vector"
     return None
 
@@ -105,9 +95,8 @@ def compile_source(name: str, spec: dict[str, Any], document: Document, config_d
 
 
 def _compile_remote(name: str, spec: dict[str, Any], document: Document) -> RrdSourcePlan:
-    """`rrd: s3://BUCKET/KEY`: Rerun's reader opens local files only, so the recording is downloaded into the cache now
-    (it is the run's input: `run` finds it there) and its manifest and names read as a local one's; its values are
-    checked once `run` has the file (`check_download`), as the other kinds' are."""
+    """`rrd: s3://BUCKET/KEY`: downloaded into the cache now (Rerun's reader opens local files only; `run` finds it
+    there) and read as a local one; its values are checked by `check_download`."""
     from ..remote import fetched, remote_file
 
     where = document.where("sources", name, "rrd")
@@ -130,7 +119,7 @@ def _compiled(store: LazyStore, path: Path, file_name: str, name: str, spec: dic
     """The plan from the recording's manifest and its names (static, or the first row's): no value is read."""
     here = ("sources", name)
     schema = store.schema()
-    entity = entity_path(spec["entity"])
+    entity = rooted(spec["entity"])
     component = spec.get("component", DEFAULT_COMPONENT)
     if entity not in schema.entity_paths():
         numeric = sorted({c.entity_path for c in schema.component_columns() if c.component == DEFAULT_COMPONENT})
@@ -181,12 +170,8 @@ def describe(name: str, path: str, part: str | None, document: Document) -> Sour
     if part is None:
         raise UserError(f"name the entity holding the values with rrd:FILE#ENTITY, e.g. rrd:{given.file.name}#/observation.state")
     plan = compile_source(name, {"rrd": str(given.file), "entity": part}, document, given.file.parent)
-    fields = (EntryField("entity", entity_path(part)),)
+    fields = (EntryField("entity", rooted(part)),)
     return SourceDescription("rrd", fields, plan.names, None, given.segment, pattern=given.pattern)
-
-
-def _component_field(name: str, column: pa.Array) -> pa.Field:
-    return pa.field(name, column.type, metadata={b"rerun:kind": b"data", b"rerun:component": name.encode()})
 
 
 def _one_instance_per_row(plan: RrdSourcePlan, chunk: Chunk) -> list[Chunk]:
@@ -213,10 +198,10 @@ def _one_instance_per_row(plan: RrdSourcePlan, chunk: Chunk) -> list[Chunk]:
                 plan.where,
             )
         column, component = named_rows_column(names, values), NAMED_COMPONENT
-        batch = batch.set_column(index, _component_field(component, column), column).remove_column(names_index)
+        batch = batch.set_column(index, component_field(component, column.type), column).remove_column(names_index)
     elif layout_of(values.type) == "scalars":
-        column = pa.ListArray.from_arrays(pa.array(np.arange(len(values) + 1, dtype=np.int32)), values)
-        batch = batch.set_column(index, _component_field(VECTOR_COMPONENT, column), column)
+        column = per_row(values)
+        batch = batch.set_column(index, component_field(VECTOR_COMPONENT, column.type), column)
     else:
         counts = values.value_lengths().to_numpy(zero_copy_only=False)
         if np.any(counts != 1):
@@ -224,7 +209,7 @@ def _one_instance_per_row(plan: RrdSourcePlan, chunk: Chunk) -> list[Chunk]:
                 f"'{plan.entity}' {plan.component} has rows of {int(counts[counts != 1][0])} lists; one list of values per row is needed",
                 plan.where,
             )
-        batch = batch.set_column(index, _component_field(VECTOR_COMPONENT, values), values)
+        batch = batch.set_column(index, component_field(VECTOR_COMPONENT, values.type), values)
     return Chunk.from_record_batch(batch)
 
 

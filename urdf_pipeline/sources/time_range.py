@@ -1,8 +1,6 @@
 """Index values a Rerun timeline can hold: int64 nanoseconds (a time) or int64 steps (a sequence), never i64::MIN
-(Rerun's static time). A uint64 at or above 2^63, or seconds or milliseconds whose nanoseconds overflow int64 (a
-float seconds column holding 1e12 or inf, a ms column holding 2^62), would be written as a wrapped, meaningless
-timeline; such a value is refused naming the column, the row and the value. Checked on whole columns with numpy,
-batch by batch, before (or as) the values reach a reader that would convert them silently.
+(Rerun's static time). A value beyond (a uint64 at or above 2^63, seconds whose nanoseconds overflow) would be written
+as a wrapped, meaningless timeline: it is refused naming the column, the row and the value, on whole columns with numpy.
 """
 
 from __future__ import annotations

@@ -1,10 +1,8 @@
 """Wide tables: one numeric column per name and one index column, the usual shape of exported logs (CSV, parquet).
 
-Compile: the header alone (a CSV's first block, a parquet footer) says which columns exist and what they hold, so
-the index and every value column are checked before any further row is read. Run: the file comes in bounded
-batches (pyarrow's streaming CSV reader, parquet batches by row group); each batch becomes, column by column with
-numpy, chunks of BLOCK_ROWS rows holding one joint vector per row: the stream every other kind gives, checked for
-time order by `in_time_order`. No row is ever looked at on its own in Python.
+Compile checks the header alone (a CSV's first block, a parquet footer). Run: the file comes in bounded batches, each
+made, column by column with numpy, into chunks of BLOCK_ROWS rows holding one joint vector per row, the stream every
+other kind gives; no row is ever looked at on its own in Python.
 """
 
 from __future__ import annotations
@@ -24,7 +22,7 @@ from ..plan import IndexPlan
 from .base import EntryField, SourceDescription, shown_file
 from .lerobot import VECTOR_COMPONENT
 from .ordering import BLOCK_ROWS, in_time_order
-from .stream import SourceStream, compile_index
+from .stream import SourceStream, compile_index, component_field, is_list_type, per_row
 from .time_range import index_problem
 
 if TYPE_CHECKING:
@@ -143,7 +141,7 @@ def _check_numbers(names: tuple[str, ...], schema: pa.Schema, file: Path, places
         value_type = schema.field(name).type
         if not _is_number(value_type):
             hint = "" if places.given else "; list the value columns in names: to leave it out"
-            if pa.types.is_list(value_type) or pa.types.is_fixed_size_list(value_type) or pa.types.is_large_list(value_type):
+            if is_list_type(value_type):
                 hint += f" (or give column: {name} if it holds all the values of a row)" if places.kind == "parquet" else ""
             raise UserError(
                 f"column '{name}' of {file.name} is {value_type}, not numbers: a wide table holds one number per cell{hint}",
@@ -184,7 +182,7 @@ def _chunk_fields(index: IndexPlan, index_type: pa.DataType, vectors: pa.DataTyp
     return pa.schema(
         [
             pa.field(index.column, index_type, metadata={b"rerun:kind": b"index", b"rerun:index_name": index.column.encode()}),
-            pa.field(VECTOR_COMPONENT, vectors, metadata={b"rerun:kind": b"data", b"rerun:component": VECTOR_COMPONENT.encode()}),
+            component_field(VECTOR_COMPONENT, vectors),
         ],
         metadata={b"rerun:entity_path": entity.encode()},
     )
@@ -203,7 +201,7 @@ def vector_chunks(batches: Iterator[pa.RecordBatch], plan: WidePlan, entity: str
             block = np.ascontiguousarray(matrix[start : start + BLOCK_ROWS])
             rows = len(block)
             inner = pa.ListArray.from_arrays(pa.array(np.arange(0, rows * width + 1, width, dtype=np.int32)), pa.array(block.reshape(-1)))
-            vectors = pa.ListArray.from_arrays(pa.array(np.arange(rows + 1, dtype=np.int32)), inner)
+            vectors = per_row(inner)
             times = index_array.slice(start, rows)
             schema = _chunk_fields(plan.index, times.type, vectors.type, entity)
             yield from Chunk.from_record_batch(pa.RecordBatch.from_arrays([pa.concat_arrays([times]), vectors], schema=schema))
