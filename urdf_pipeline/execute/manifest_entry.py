@@ -1,14 +1,9 @@
 """The record of a segment a dataset browser lists, and its JSON form in the run's manifest (ranges_and_preview.py
-gathers it during the run's pass).
+gathers it during the run's pass): time ranges, robots, notes and a uint8 preview of the driven joints, about 1.5 KB
+per segment, so a 10,000-segment manifest stays a few MB.
 
-Per segment: the time range of each timeline the joint values sit on (first and last index value, int64 as the
-timeline holds it; seconds and ISO dates for time timelines), the robots, the run's notes (bounded, as shown), and a
-preview of the driven joints: per robot up to `PREVIEW_JOINTS` joints, `BUCKETS` buckets of rows each, the min and
-max of every bucket as uint8 codes against the joint's scale. About 0.5 KB per robot, so a 10,000-segment manifest
-stays a few MB (about 1.5 KB per segment in all).
-
-`as_json` is written into the segment's manifest entry; `from_json` reads it back tolerating any hand edit: whatever
-has the wrong type or size is dropped, never raised, and names are shown bounded (`errors.shown`).
+`from_json` reads it back tolerating any hand edit: whatever has the wrong type or size is dropped, never raised, and
+names are shown bounded (`errors.shown`).
 """
 
 from __future__ import annotations
@@ -81,12 +76,6 @@ class JointPreview:
         """The (min codes, max codes) of the joint at position `joint`."""
         start = joint * 2 * self.buckets
         return self.codes[start : start + self.buckets], self.codes[start + self.buckets : start + 2 * self.buckets]
-
-    def bands(self, joint: int) -> list[tuple[float, float] | None]:
-        """The joint's (min, max) per bucket in URDF units (rad or m), within one code; None for an empty bucket."""
-        low, span = self.low[joint], self.high[joint] - self.low[joint]
-        minima, maxima = self.codes_of(joint)
-        return [None if a > b else (low + a / 255 * span, low + b / 255 * span) for a, b in zip(minima, maxima, strict=True)]
 
 
 @dataclass(frozen=True)

@@ -47,10 +47,6 @@ class RunResult:
     summary: SegmentSummary | None = None  # what the manifest lists of it (None for the split layout's model)
 
 
-def _silent(message: str) -> None:
-    """Progress lines of one segment among many are left out: the run's progress bar says it for all of them."""
-
-
 def execute(
     plan: RecordingPlan,
     parts: Parts = "all",
@@ -62,7 +58,7 @@ def execute(
     """Write one recording. `provenance` adds fields (the content hash) to the recording's properties; `on_note` and
     `quiet` (no progress lines) let a worker running many segments keep its output for the run's summary;
     `rows_expected` (from the source's metadata) gives the progress lines a share done and an ETA."""
-    log: Callable[[str], None] = _silent if quiet else say
+    log: Callable[[str], None] = (lambda _: None) if quiet else say  # one segment among many: the run's progress bar speaks
     started = time.perf_counter()
     # what it does, never "writing": a segment its checks refuse (after the pass) writes nothing, and says so
     if parts == "model":
