@@ -29,11 +29,6 @@ def series_entity(robot: RobotPlan) -> str:
     return f"{robot.entity_path_prefix}/{SERIES_NAME}"
 
 
-def series_joints(robot: RobotPlan) -> tuple[str, ...]:
-    """The plotted joints, in the order of the FK's value matrix: the mapped (driven) ones."""
-    return tuple(channel.joint for channel in robot.channels)
-
-
 def plotted_robots(robots: tuple[RobotPlan, ...]) -> tuple[RobotPlan, ...]:
     """The robots that get a series: those a source drives (a scene URDF without moving joints has none)."""
     return tuple(robot for robot in robots if robot.source is not None and robot.channels)
@@ -75,7 +70,7 @@ def series_names_stream(robots: tuple[RobotPlan, ...]) -> LazyChunkStream:
 
     chunks = []
     for robot in plotted_robots(robots):
-        names = series_joints(robot)
-        columns = rr.SeriesLines.columns(names=list(names)).partition([len(names)])
+        names = [channel.joint for channel in robot.channels]  # the driven joints, in the order of the FK's value matrix
+        columns = rr.SeriesLines.columns(names=names).partition([len(names)])
         chunks.append(Chunk.from_columns(series_entity(robot), indexes=[], columns=columns))
     return LazyChunkStream.from_iter(chunks)

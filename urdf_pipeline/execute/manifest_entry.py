@@ -11,7 +11,7 @@ from __future__ import annotations
 import base64
 import datetime
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any, Literal, TypeVar
 
 from ..errors import shown
@@ -106,18 +106,7 @@ class JointDifferences:
         return f"{value / FACTORS[unit]:.3g} {unit}" if unit in FACTORS else f"{value:.4g}"
 
     def as_json(self) -> dict[str, Any]:
-        return {
-            "copy": self.copy,
-            "measured": self.measured,
-            "threshold": self.threshold,
-            "rows": self.rows,
-            "rows_beyond": self.rows_beyond,
-            "unmatched": self.unmatched,
-            "joints": list(self.joints),
-            "largest": list(self.largest),
-            "beyond": list(self.beyond),
-            "units": list(self.units),
-        }
+        return _plain(self)
 
     @classmethod
     def from_json(cls, data: Any) -> JointDifferences | None:
@@ -168,7 +157,7 @@ class SegmentSummary:
             "timelines": [_time_json(t) for t in self.timelines],
             "notes": list(self.notes),
             "notes_left_out": self.notes_left_out,
-            "preview": [_preview_json(p) for p in self.previews],
+            "preview": [{**_plain(p), "codes": base64.b64encode(p.codes).decode("ascii")} for p in self.previews],
             **({"differences": [d.as_json() for d in self.differences]} if self.differences else {}),
         }
 
@@ -191,26 +180,18 @@ class SegmentSummary:
         )
 
 
+def _plain(record: Any) -> dict[str, Any]:
+    """A record's fields as JSON values, in their order (tuples as lists)."""
+    return {f.name: list(v) if isinstance(v := getattr(record, f.name), tuple) else v for f in fields(record)}
+
+
 def _time_json(time: TimeRange) -> dict[str, Any]:
-    entry: dict[str, Any] = {"timeline": time.timeline, "kind": time.kind, "first": time.first, "last": time.last}
+    entry = _plain(time)
     if time.kind != "sequence":
         entry["seconds"] = time.seconds
     if time.kind == "timestamp":
         entry["first_iso"], entry["last_iso"] = time.first_iso, time.last_iso
     return entry
-
-
-def _preview_json(preview: JointPreview) -> dict[str, Any]:
-    return {
-        "robot": preview.robot,
-        "rows": preview.rows,
-        "buckets": preview.buckets,
-        "joints": list(preview.joints),
-        "low": list(preview.low),
-        "high": list(preview.high),
-        "limited": list(preview.limited),
-        "codes": base64.b64encode(preview.codes).decode("ascii"),
-    }
 
 
 def _list(value: Any) -> list[Any]:

@@ -105,11 +105,6 @@ class _Pass:
     def rows(self) -> dict[str, int]:
         return {m.robot.key: m.stats.rows for m in self.mappers}
 
-    def summary(self, plan: RecordingPlan, parts: Parts, notes: tuple[str, ...]) -> SegmentSummary | None:
-        return (
-            None if parts == "model" else segment_summary(tuple(r.key for r in plan.robots), self.times, self.previews, notes, self.pairs)
-        )
-
 
 def _open(plan: RecordingPlan, parts: Parts, provenance: dict[str, str] | None, quiet: bool, rows_expected: int | None) -> _Pass:
     """Every stream of one attempt, opened anew (a retry after a source was found out of order reads it again).
@@ -167,7 +162,9 @@ def _write(
         notes.extend(opened.check(on_note))
 
     written = write_file_atomically(plan.output.path, write, "recording", plan.output.where)
-    return written, opened.rows(), tuple(notes), opened.summary(plan, parts, tuple(notes))
+    robots = tuple(r.key for r in plan.robots)
+    summary = None if parts == "model" else segment_summary(robots, opened.times, opened.previews, tuple(notes), opened.pairs)
+    return written, opened.rows(), tuple(notes), summary
 
 
 def log_segment(plan: RecordingPlan, recording: RecordingStream, on_note: Callable[[str], None] = log_note) -> dict[str, int]:

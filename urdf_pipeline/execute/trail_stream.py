@@ -170,12 +170,9 @@ def trail_statics_stream(trails: tuple[TrailPlan, ...]) -> LazyChunkStream:
 
     chunks = []
     for trail in trails:
+        archetype = rr.Points3D if trail.style == "points" else rr.LineStrips3D
         columns = [*rr.CoordinateFrame.columns(frame=[trail.frame])]
-        colors = None if trail.color is None else [trail.color]
-        if trail.style == "points":
-            columns += rr.Points3D.columns(radii=[TRAIL_RADIUS], colors=colors)
-        else:
-            columns += rr.LineStrips3D.columns(radii=[TRAIL_RADIUS], colors=colors)
+        columns += archetype.columns(radii=[TRAIL_RADIUS], colors=None if trail.color is None else [trail.color])
         chunks.append(Chunk.from_columns(trail.entity, indexes=[], columns=columns))
     return LazyChunkStream.from_iter(chunks)
 
