@@ -66,14 +66,9 @@ def _glob_folder(pattern: str) -> Path:
     return Path(*fixed) if fixed and len(fixed) < len(parts) else Path(pattern).parent if fixed else Path(".")
 
 
-def base_recordings(base: str) -> dict[str, str]:
-    """recording_id -> application_id (of the last file holding it, in path order)."""
-    return {recording: files[-1].application_id for recording, files in base_files(base).items()}
-
-
 def check_base(plan: Plan, base: str) -> int:
     """Every segment id must be a base recording's, with the same application id; returns how many were matched."""
-    found = base_recordings(base)
+    found = {recording: files[-1].application_id for recording, files in base_files(base).items()}  # the last file's, in path order
     segments = [s.id for s in plan.segments]
     missing = [s for s in segments if s not in found]
     if missing:

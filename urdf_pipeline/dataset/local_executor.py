@@ -1,12 +1,11 @@
 """Run jobs on this machine: in the main process for one worker, else in a pool of worker processes.
 
-Workers are forked from a fork server that imported Rerun and the pipeline once (a worker is up in milliseconds, not
-the second `spawn` takes to import them), and that never ran Rerun code, so no Rerun thread is forked. Workers ignore
-SIGINT and SIGTERM (a terminal's Ctrl-C and `timeout` signal the whole process group): on either, the main process
-cancels what has not started and kills the workers, and the caller removes their partial files, so only complete
-outputs remain. A worker exits as soon as the main process is gone, even killed with SIGKILL (it would otherwise wait
-forever for its next job, and keep the fork server alive: each worker holds the fork server's "alive" pipe). Workers make their temporary files in a folder of the run that the main process removes at
-the end whatever happened: a pool worker exits without running `atexit` handlers.
+Workers are forked from a fork server that imported Rerun and the pipeline once (a worker is up in milliseconds) and
+never ran Rerun code, so no Rerun thread is forked. Workers ignore SIGINT and SIGTERM (a terminal's signal reaches the
+whole process group): the main process cancels what has not started and kills the workers, and the caller removes
+their partial files. A worker exits as soon as the main process is gone, even killed with SIGKILL (it would otherwise
+wait forever, and keep the fork server alive). Workers make their temporary files in a folder of the run that the
+main process removes: a pool worker exits without running `atexit` handlers.
 """
 
 from __future__ import annotations
@@ -14,7 +13,6 @@ from __future__ import annotations
 import multiprocessing
 import os
 import select
-import shutil
 import sys
 import tempfile
 import threading
@@ -36,11 +34,9 @@ R = TypeVar("R")
 
 
 def _start_fork_server() -> None:
-    """The fork server imports Rerun (~0.7 s) before it ignores Ctrl-C itself, and a terminal's Ctrl-C reaches the
-    whole process group: it would print a traceback from the middle of an import. So it is started with SIGINT and
-    SIGTERM ignored, a disposition that survives exec (Python keeps an ignored SIGINT ignored; a blocked signal
-    mask did not survive the spawn: measured). Here they are blocked for the few milliseconds of the spawn, and a
-    Ctrl-C in that window is lost (ignored when it comes), not half-handled."""
+    """Started with SIGINT and SIGTERM ignored (a disposition that survives exec, unlike a blocked mask): the fork
+    server imports Rerun before it could ignore a terminal's Ctrl-C itself, and would print a traceback from the
+    middle of an import. A Ctrl-C in those few milliseconds is lost, not half-handled."""
     from multiprocessing import forkserver
 
     with held_off(ignored=True):
@@ -91,11 +87,8 @@ def run_locally(
         for job in jobs:
             _run_here(work, job, on_done, on_crash)
         return
-    scratch = tempfile.mkdtemp(prefix="urdf-pipeline-run-")
-    try:
+    with tempfile.TemporaryDirectory(prefix="urdf-pipeline-run-", ignore_cleanup_errors=True) as scratch:
         _run_in_pool(work, jobs, helpers, on_done, on_crash, initializer, initargs, scratch)
-    finally:
-        shutil.rmtree(scratch, ignore_errors=True)
 
 
 def _run_in_pool(

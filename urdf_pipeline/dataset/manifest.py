@@ -1,12 +1,10 @@
 """The run's JSON manifest: every output with its content hash, so a re-run skips what is up to date.
 
-It is rewritten atomically as segments finish, so after a crash or Ctrl-C it lists exactly the complete files.
-A written segment's entry also holds its `summary` (execute/ranges_and_preview.py: time ranges, robots, notes, a preview
-of the joint values), which `segment_summaries` reads back for a dataset browser without opening any recording; an
-entry without one (written before summaries, or adopted from its file) stays valid, and FORMAT is unchanged: only a
-key was added, which older versions ignore, and a new FORMAT would make every existing manifest be thrown away.
-An existing file at its path that lacks the manifest's `urdf_pipeline` key is not ours: it is refused, never replaced.
-Entries of segments not selected by this run (another `--episodes` range) are kept while their files exist.
+It is rewritten atomically as segments finish, so after a crash or Ctrl-C it lists exactly the complete files. A
+written segment's entry also holds its `summary` (execute/manifest_entry.py), which `segment_summaries` reads back for
+a dataset browser without opening any recording; an entry without one stays valid (a new FORMAT would throw every
+existing manifest away). Entries of segments not selected by this run (another `--episodes` range) are kept while
+their files exist.
 """
 
 from __future__ import annotations
@@ -127,8 +125,7 @@ class Manifest:
         return [(s, self.resolve(e["path"])) for s, e in sorted(self.segments.items()) if _exists(self, e)]
 
     def _line(self, label: str, entry: dict[str, Any]) -> str:
-        """A segment's entry as one line of JSON, made once per entry: a 10,000-segment manifest (summaries and all,
-        ~15 MB) is rewritten every second of a run, which json.dumps with indent would take ~0.4 s of the driver to do."""
+        """A segment's entry as one line of JSON, made once per entry: a large manifest is rewritten every second."""
         cached = self._lines.get(label)
         if cached is None or cached[0] is not entry:
             cached = self._lines[label] = (entry, json.dumps(entry, sort_keys=True))
@@ -136,8 +133,7 @@ class Manifest:
 
     def write(self, every_seconds: float = 0.0) -> None:
         """Atomically; `every_seconds` throttles the rewrites of a long run (the last one is always forced), and so does
-        the time a write takes: a throttled one comes at least 10 times its last duration after it, so rewriting a
-        large manifest takes at most a tenth of the driver (a 10,000-segment one took 0.3 s, every second)."""
+        the time a write takes (10 times its last duration): rewriting a large manifest takes at most a tenth of the driver."""
         if self.model is None and not self.segments and not self.path.exists():
             return  # nothing written, nothing to list: a failed first run leaves no file behind
         started = time.monotonic()
@@ -172,8 +168,6 @@ class SegmentEntry:
 
     segment: str
     path: Path  # resolved against the manifest's folder
-    content_sha256: str | None
-    bytes: int | None
     frames: int | None
     episode: int | None
     summary: SegmentSummary | None  # None for an entry written before summaries, or adopted from its file
@@ -275,12 +269,10 @@ def _segment_entry(label: str, path: Path, entry: dict[str, Any], where: Where) 
         value = entry.get(key)
         return value if isinstance(value, int) and not isinstance(value, bool) and value >= 0 else None
 
-    sha = entry.get("content_sha256")
     summary = SegmentSummary.from_json(entry.get("summary"))
     url, etag = entry.get("url"), entry.get("etag")
     url, etag = (url, etag) if isinstance(url, str) and isinstance(etag, str) else (None, None)
-    sha = sha if isinstance(sha, str) else None
-    return SegmentEntry(label, path, sha, number("bytes"), number("frames"), number("episode"), summary, url, etag, where)
+    return SegmentEntry(label, path, number("frames"), number("episode"), summary, url, etag, where)
 
 
 def _exists(manifest: Manifest, entry: dict[str, Any]) -> bool:

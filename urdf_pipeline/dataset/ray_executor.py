@@ -15,11 +15,10 @@ from __future__ import annotations
 import logging
 import os
 import re
-import shutil
 import socket
 import tempfile
 from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from ..errors import UserError
@@ -73,12 +72,9 @@ def run_on_ray(
         raise UserError("the ray executor needs Ray: pip install 'urdf-pipeline[ray]'", None) from None
     if not jobs:
         return
-    scratch = tempfile.mkdtemp(prefix="urdf-pipeline-run-") if address is None else None
-    try:
-        _run_tasks(ray, work, jobs, address, on_done, on_crash, num_cpus, scratch, (initializer, shared))
-    finally:
-        if scratch is not None:
-            shutil.rmtree(scratch, ignore_errors=True)
+    scratch = tempfile.TemporaryDirectory(prefix="urdf-pipeline-run-", ignore_cleanup_errors=True) if address is None else nullcontext()
+    with scratch as folder:
+        _run_tasks(ray, work, jobs, address, on_done, on_crash, num_cpus, folder, (initializer, shared))
 
 
 def _run_tasks(

@@ -12,6 +12,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import ExitStack, contextmanager
@@ -37,7 +38,8 @@ def bucket_state(plan: Plan, remote: RemoteOutputs) -> BucketState:
     """One listing of the deepest prefix every output of the plan shares: its recordings, model and manifest (and so
     the blueprint beside the manifest)."""
     paths = [s.output for s in plan.dataset.segments] + [p for p in (plan.dataset.model, plan.dataset.manifest) if p is not None]
-    prefix = _common_prefix([remote.url_of(path) for path in paths])
+    head = os.path.commonprefix([remote.url_of(path) for path in paths])
+    prefix = head[: head.rfind("/") + 1]
     return BucketState({o.url: o for o in listing(parse_url(prefix), plan.output_where)}, prefix)
 
 
@@ -50,15 +52,6 @@ def fetch_manifest(plan: Plan, remote: RemoteOutputs, state: BucketState) -> Non
         path.unlink(missing_ok=True)
         return
     download(found, path, plan.output_where)
-
-
-def _common_prefix(urls: list[str]) -> str:
-    first, last = min(urls), max(urls)
-    shared = 0
-    while shared < min(len(first), len(last)) and first[shared] == last[shared]:
-        shared += 1
-    head = first[:shared]
-    return head[: head.rfind("/") + 1]
 
 
 def fresh_in_bucket(jobs: list[SegmentJob], manifest: Manifest, state: BucketState, where: Where | None) -> set[str]:

@@ -12,6 +12,7 @@ import time
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -24,12 +25,11 @@ from ..execute import (
     remove_stale_partials,
     require_ours,
     require_writable,
-    run_segment,
 )
 from ..logs import LOGGER, SegmentProgress, process_identity
 from ..plan import Plan, RemoteOutputs
 from ..process import signal_name, stop_signal
-from .executors import ExecutorName, executor_for
+from .executors import ExecutorName, run_jobs
 from .fingerprint import file_hashes_used, model_hash, remember_file_hashes, segment_hashes
 from .manifest import Manifest
 from .remote_outputs import bucket_state, fetch_manifest, fresh_in_bucket, input_versions, upload_run_files
@@ -155,8 +155,8 @@ def _run(plan: Plan, options: RunOptions, progress: SegmentProgress | None, read
     try:
         here, elsewhere = _where_jobs_run(plan, options, to_run)
         if here:  # the split layout's model on a cluster without the config's disk: its meshes are read here
-            executor_for("local", 1, None, plan).run(run_segment, here, keeper.done, keeper.crashed)
-        executor_for(options.executor, options.jobs, options.ray_address, plan).run(run_segment, elsewhere, keeper.done, keeper.crashed)
+            run_jobs("local", 1, None, plan, here, keeper.done, keeper.crashed)
+        run_jobs(options.executor, options.jobs, options.ray_address, plan, elsewhere, keeper.done, keeper.crashed)
     except KeyboardInterrupt as stop:  # Ctrl-C, or SIGTERM (process.Stopped)
         interrupted = stop_signal(stop)
         _remove_partial_files([job.output for job in to_run])
@@ -196,10 +196,7 @@ def _up_to_date(
     results: dict[str, SegmentResult] = {}
     to_run: list[SegmentJob] = []
     for job in jobs:
-        if in_bucket is not None:
-            fresh = job.label in in_bucket
-        else:
-            fresh = manifest.up_to_date(job.label, job.output, job.content_hash)
+        fresh = job.label in in_bucket if in_bucket is not None else manifest.up_to_date(job.label, job.output, job.content_hash)
         if not fresh and in_bucket is None and manifest.entry(job.label) is None:  # no manifest (deleted, another machine)
             fresh = _adopt_if_written(job, manifest)
         if fresh and not force:
@@ -316,21 +313,17 @@ def _prepare_outputs(plan: Plan, jobs: list[SegmentJob], to_run: list[SegmentJob
     from ..execute import blueprint_key, blueprint_path
 
     where = plan.output_where
-    problems = Problems()
-    for job in to_run:
-        try:
-            require_ours(job.output, "recording", where)
-        except UserError as error:
-            problems.extend(error)
     blueprint = blueprint_path(plan)
-    try:
-        if not manifest.blueprint_up_to_date(blueprint, blueprint_key(plan)):  # recorded as ours: no Rerun needed
-            require_ours(blueprint, "blueprint", where)
-    except UserError as error:
-        problems.extend(error)
-    for directory in dict.fromkeys([*(job.output.parent for job in to_run), plan.dataset.manifest.parent]):
+    checks = [partial(require_ours, job.output, "recording", where) for job in to_run]
+    if not manifest.blueprint_up_to_date(blueprint, blueprint_key(plan)):  # recorded as ours: no Rerun needed
+        checks.append(partial(require_ours, blueprint, "blueprint", where))
+    checks += [
+        partial(require_writable, d, where) for d in dict.fromkeys([*(job.output.parent for job in to_run), plan.dataset.manifest.parent])
+    ]
+    problems = Problems()
+    for check in checks:
         try:
-            require_writable(directory, where)
+            check()
         except UserError as error:
             problems.extend(error)
     problems.raise_if_any()
@@ -350,8 +343,8 @@ def _adopt_if_written(job: SegmentJob, manifest: Manifest) -> bool:
 def _remove_partial_files(outputs: list[Path]) -> None:
     """A worker stopped mid-write leaves `.NAME.partial-PID` beside its target; only complete files may remain."""
     for output in outputs:
-        for partial in output.parent.glob(f".{output.name}.partial-*"):
-            partial.unlink(missing_ok=True)
+        for left in output.parent.glob(f".{output.name}.partial-*"):
+            left.unlink(missing_ok=True)
 
 
 def register_outputs(run: DatasetRun, url: str, dataset: str, layer: str) -> CatalogReport:

@@ -12,7 +12,7 @@ from ..package import lazy_surface
 
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
     from .blueprint import blueprint_key, blueprint_path, write_blueprint
-    from .edges_stream import CALIBRATION_ENTITY, calibration_stream
+    from .edges_stream import calibration_stream
     from .joint_fk import ClosedFormJointTransforms, Pose, compose, rotation_matrices
     from .kinematics import RobotKinematics, segment_kinematics
     from .limits_report import check_joint_statistics

@@ -1,19 +1,12 @@
 """Joint transforms in closed form, over whole columns: what Rerun's `UrdfTree.compute_joint_transform_batches`
-returns, 4-7x faster.
+returns, 4-7x faster (FK was over half the CPU time of a run).
 
-Each moving joint's transform is its origin composed with its motion: a revolute or continuous joint turns by q
-about its axis (translation = origin xyz, quaternion = origin ⊗ (axis·sin(q/2), cos(q/2))), a prismatic joint slides
-by q along it (translation = origin xyz + R(origin)·axis·q, quaternion = origin). With the per-joint constants
-precomputed, a block of rows is two numpy expressions and two repeated string columns, where Rerun's FK builds every
-row's strings and Euler conversion one at a time; FK was over half the CPU time of a run.
+A revolute or continuous joint turns by q about its axis (quaternion = origin ⊗ (axis·sin(q/2), cos(q/2))), a
+prismatic joint slides by q along it (translation = origin xyz + R(origin)·axis·q). Rerun stays the reference: the
+frames come from Rerun's own parse of the URDF, and every instance is checked against Rerun's FK on probe values at
+construction; a joint kind or convention this code does not know (off by more than `AGREEMENT`) uses Rerun's FK.
 
-Rerun stays the reference: the constants (parent and child frames, frame prefix included) come from Rerun's own
-parse of the URDF, and every instance is checked against Rerun's FK at construction on probe values; if any
-transform differs by more than `AGREEMENT` (a joint kind or convention this code does not know), Rerun's FK is
-used for that robot, never a different pose. The URDF sweep checks the poses against pinocchio as before.
-
-`compose` is the one composition of transforms down a tree of frames, in float64 over whole columns: the API's
-link poses (`link_poses`), the trails' reference and the pictures' frames read back from a recording all use it.
+`compose` is the one composition of transforms down a tree of frames, in float64 over whole columns.
 """
 
 from __future__ import annotations
@@ -37,6 +30,12 @@ Pose = tuple[np.ndarray, np.ndarray]  # rows x 3 translations (metres), rows x 4
 AGREEMENT = 1e-5  # m and quaternion components: Rerun computes in float32 (~1e-7), a wrong formula is off by far more
 PROBES = np.array([0.0, 0.37, -1.21, 2.53, -3.07, 0.0031])  # every joint at each value, and one row of mixed values
 _MOVING = ("revolute", "continuous", "prismatic")
+
+
+def probe_values(count: int) -> np.ndarray:
+    """`count` joints at each of `PROBES`, and one row of mixed values: what a fast path is checked on."""
+    mixed = np.resize(PROBES[1:], count)
+    return np.vstack([np.repeat(PROBES[:, None], count, axis=1), mixed[None, :]])
 
 
 class ClosedFormJointTransforms:
@@ -150,9 +149,7 @@ class ClosedFormJointTransforms:
         return self.tree.compute_joint_transform_batches(names, value_lists)
 
     def _agrees_with_rerun(self) -> bool:
-        count = len(self.names)
-        mixed = np.resize(PROBES[1:], count)
-        probes = np.vstack([np.repeat(PROBES[:, None], count, axis=1), mixed[None, :]])
+        probes = probe_values(len(self.names))
         ours, theirs = self(probes).values, self._rerun(probes).values
         if not (
             ours.field("parent_frame").equals(theirs.field("parent_frame"))

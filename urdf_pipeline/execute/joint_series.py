@@ -1,17 +1,10 @@
 """The driven joints' values as Rerun time series (`output.joint_series`), from the FK's own value matrix.
 
-The FK's compute lens already turns each block of source rows into a (rows x joints) matrix of URDF values (unit,
-scale, sign, offset, wrap, source_range and clamping applied: `JointValueMapper.urdf_values`). With the option set it
-returns that matrix's driven columns beside the transforms, as one struct per row; the second stage scatters the
-transforms as before and copies the values, as one row of K scalars, to `<entity_path_prefix>/joint_values`. So the
-series are exactly what the FK used, on the FK's timelines (a lens keeps its input's), block by block, with no value
-kept after its block: memory does not grow with the segment.
-
-One entity per robot with K scalars per row, not one entity per joint: one chunk per block and robot instead of K
-(a G1 drives 29 joints), a single list<float64> column built with numpy, and Rerun's TimeSeriesView plots each
-instance as its own series, named by the entity's static `SeriesLines:names` and shown or hidden from its legend; a
-robot's plot is then one view with that entity as its origin. Held joints (constant) and mimic joints (their
-driver's line, scaled) are not plotted: the series are the values the source gave.
+The FK's compute lens returns the matrix's driven columns beside the transforms; a second lens copies them, one row
+of K scalars per source row, to `<entity_path_prefix>/joint_values`. So the series are exactly what the FK used, on
+its timelines, block by block (memory does not grow with the segment). One entity per robot, not per joint: one chunk
+per block instead of K, and the TimeSeriesView plots each instance as its own series, named by `SeriesLines:names`.
+Held and mimic joints are not plotted: the series are the values the source gave.
 """
 
 from __future__ import annotations
@@ -34,11 +27,6 @@ SERIES_NAME = "joint_values"
 def series_entity(robot: RobotPlan) -> str:
     """Where a robot's series go: beside its FK entity (`<prefix>/joint_transforms`), under the robot's own prefix."""
     return f"{robot.entity_path_prefix}/{SERIES_NAME}"
-
-
-def series_joints(robot: RobotPlan) -> tuple[str, ...]:
-    """The plotted joints, in the order of the FK's value matrix: the mapped (driven) ones."""
-    return tuple(channel.joint for channel in robot.channels)
 
 
 def plotted_robots(robots: tuple[RobotPlan, ...]) -> tuple[RobotPlan, ...]:
@@ -82,7 +70,7 @@ def series_names_stream(robots: tuple[RobotPlan, ...]) -> LazyChunkStream:
 
     chunks = []
     for robot in plotted_robots(robots):
-        names = series_joints(robot)
-        columns = rr.SeriesLines.columns(names=list(names)).partition([len(names)])
+        names = [channel.joint for channel in robot.channels]  # the driven joints, in the order of the FK's value matrix
+        columns = rr.SeriesLines.columns(names=names).partition([len(names)])
         chunks.append(Chunk.from_columns(series_entity(robot), indexes=[], columns=columns))
     return LazyChunkStream.from_iter(chunks)

@@ -1,14 +1,9 @@
 """The record of a segment a dataset browser lists, and its JSON form in the run's manifest (ranges_and_preview.py
-gathers it during the run's pass).
+gathers it during the run's pass): time ranges, robots, notes and a uint8 preview of the driven joints, about 1.5 KB
+per segment, so a 10,000-segment manifest stays a few MB.
 
-Per segment: the time range of each timeline the joint values sit on (first and last index value, int64 as the
-timeline holds it; seconds and ISO dates for time timelines), the robots, the run's notes (bounded, as shown), and a
-preview of the driven joints: per robot up to `PREVIEW_JOINTS` joints, `BUCKETS` buckets of rows each, the min and
-max of every bucket as uint8 codes against the joint's scale. About 0.5 KB per robot, so a 10,000-segment manifest
-stays a few MB (about 1.5 KB per segment in all).
-
-`as_json` is written into the segment's manifest entry; `from_json` reads it back tolerating any hand edit: whatever
-has the wrong type or size is dropped, never raised, and names are shown bounded (`errors.shown`).
+`from_json` reads it back tolerating any hand edit: whatever has the wrong type or size is dropped, never raised, and
+names are shown bounded (`errors.shown`).
 """
 
 from __future__ import annotations
@@ -16,7 +11,7 @@ from __future__ import annotations
 import base64
 import datetime
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any, Literal, TypeVar
 
 from ..errors import shown
@@ -82,12 +77,6 @@ class JointPreview:
         start = joint * 2 * self.buckets
         return self.codes[start : start + self.buckets], self.codes[start + self.buckets : start + 2 * self.buckets]
 
-    def bands(self, joint: int) -> list[tuple[float, float] | None]:
-        """The joint's (min, max) per bucket in URDF units (rad or m), within one code; None for an empty bucket."""
-        low, span = self.low[joint], self.high[joint] - self.low[joint]
-        minima, maxima = self.codes_of(joint)
-        return [None if a > b else (low + a / 255 * span, low + b / 255 * span) for a, b in zip(minima, maxima, strict=True)]
-
 
 @dataclass(frozen=True)
 class JointDifferences:
@@ -117,18 +106,7 @@ class JointDifferences:
         return f"{value / FACTORS[unit]:.3g} {unit}" if unit in FACTORS else f"{value:.4g}"
 
     def as_json(self) -> dict[str, Any]:
-        return {
-            "copy": self.copy,
-            "measured": self.measured,
-            "threshold": self.threshold,
-            "rows": self.rows,
-            "rows_beyond": self.rows_beyond,
-            "unmatched": self.unmatched,
-            "joints": list(self.joints),
-            "largest": list(self.largest),
-            "beyond": list(self.beyond),
-            "units": list(self.units),
-        }
+        return _plain(self)
 
     @classmethod
     def from_json(cls, data: Any) -> JointDifferences | None:
@@ -179,7 +157,7 @@ class SegmentSummary:
             "timelines": [_time_json(t) for t in self.timelines],
             "notes": list(self.notes),
             "notes_left_out": self.notes_left_out,
-            "preview": [_preview_json(p) for p in self.previews],
+            "preview": [{**_plain(p), "codes": base64.b64encode(p.codes).decode("ascii")} for p in self.previews],
             **({"differences": [d.as_json() for d in self.differences]} if self.differences else {}),
         }
 
@@ -202,26 +180,18 @@ class SegmentSummary:
         )
 
 
+def _plain(record: Any) -> dict[str, Any]:
+    """A record's fields as JSON values, in their order (tuples as lists)."""
+    return {f.name: list(v) if isinstance(v := getattr(record, f.name), tuple) else v for f in fields(record)}
+
+
 def _time_json(time: TimeRange) -> dict[str, Any]:
-    entry: dict[str, Any] = {"timeline": time.timeline, "kind": time.kind, "first": time.first, "last": time.last}
+    entry = _plain(time)
     if time.kind != "sequence":
         entry["seconds"] = time.seconds
     if time.kind == "timestamp":
         entry["first_iso"], entry["last_iso"] = time.first_iso, time.last_iso
     return entry
-
-
-def _preview_json(preview: JointPreview) -> dict[str, Any]:
-    return {
-        "robot": preview.robot,
-        "rows": preview.rows,
-        "buckets": preview.buckets,
-        "joints": list(preview.joints),
-        "low": list(preview.low),
-        "high": list(preview.high),
-        "limited": list(preview.limited),
-        "codes": base64.b64encode(preview.codes).decode("ascii"),
-    }
 
 
 def _list(value: Any) -> list[Any]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import atexit
 import shutil
 import tempfile
+from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -17,39 +18,33 @@ if TYPE_CHECKING:
     from rerun.urdf import UrdfTree
 
 
-def load_tree(robot: RobotPlan, workdir: Path) -> UrdfTree:
-    """UrdfTree from the plan's URDF text, whose mesh URIs are already absolute paths."""
-    from rerun.urdf import UrdfTree
-
-    urdf_file = workdir / f"{robot.key}.urdf"
-    urdf_file.write_text(robot.urdf_text, encoding="utf-8")
-    return UrdfTree.from_file_path(
-        urdf_file,
-        entity_path_prefix=robot.entity_path_prefix.strip("/"),
-        frame_prefix=robot.frame_prefix or None,
-        static_transform_entity_path=robot.static_transform_entity,
-    )
-
-
 _TREES: dict[tuple[str, str, str, str], UrdfTree] = {}
-_TREE_DIRECTORY: Path | None = None
 
 
 def cached_tree(robot: RobotPlan) -> UrdfTree:
-    """A worker writing hundreds of segments of one robot parses its URDF once."""
+    """UrdfTree from the plan's URDF text (mesh URIs already absolute), parsed once per process: a worker writing
+    hundreds of segments of one robot parses its URDF once."""
+    from rerun.urdf import UrdfTree
+
     key = (robot.key, robot.urdf_text, robot.entity_path_prefix, robot.frame_prefix)
     if key not in _TREES:
-        _TREES[key] = load_tree(robot, _tree_directory())
+        urdf_file = _tree_directory() / f"{robot.key}.urdf"
+        urdf_file.write_text(robot.urdf_text, encoding="utf-8")
+        _TREES[key] = UrdfTree.from_file_path(
+            urdf_file,
+            entity_path_prefix=robot.entity_path_prefix.strip("/"),
+            frame_prefix=robot.frame_prefix or None,
+            static_transform_entity_path=robot.static_transform_entity,
+        )
     return _TREES[key]
 
 
+@cache
 def _tree_directory() -> Path:
     """URDF files of cached trees live as long as the process (the trees may read them again)."""
-    global _TREE_DIRECTORY
-    if _TREE_DIRECTORY is None:
-        _TREE_DIRECTORY = Path(tempfile.mkdtemp(prefix="urdf-pipeline-trees-"))
-        atexit.register(shutil.rmtree, _TREE_DIRECTORY, True)
-    return _TREE_DIRECTORY
+    directory = Path(tempfile.mkdtemp(prefix="urdf-pipeline-trees-"))
+    atexit.register(shutil.rmtree, directory, True)
+    return directory
 
 
 def robot_model_stream(robot: RobotPlan, tree: UrdfTree) -> LazyChunkStream:

@@ -1,13 +1,9 @@
 """A long segment's progress while it is written: rows through the forward kinematics, out of the rows the source's
-metadata announces (a parquet footer, a LeRobot episode's length, an HDF5 dataset's shape, an MCAP summary's
-message count; CSV and .rrd sources announce none: then no share and no time left), the rate and the time left.
+metadata announces (none for CSV and .rrd: then no share and no time left), the rate and the time left.
 
-On a terminal the line is redrawn in place (`\\r`, at most every `REDRAW_SECONDS`) and cleared when the segment is
-done; otherwise a plain line goes to the `urdf_pipeline` logger every `METER_SECONDS`, so a CI log shows a long run
-moving without a line per batch. Nothing under `-q` (the logger's level is above INFO). Only the run's one segment
-has a meter: in a many-segment run the run's own progress says how far it is (a redrawn bar from several parallel
-workers' meters would garble each other), see `segment_run.run_segment`. The pass that reads a source makes its
-meter and finishes it when the pass ends, written, failed or interrupted (segment.py).
+On a terminal the line is redrawn in place; otherwise a plain line goes to the `urdf_pipeline` logger every
+`METER_SECONDS`, so a CI log shows a long run moving. Only a run's one segment has a meter: parallel workers' redrawn
+lines would garble each other (the run's own progress speaks for many).
 """
 
 from __future__ import annotations

@@ -15,30 +15,27 @@ PROPERTY_NAME = "urdf_pipeline"
 MODEL_PROPERTY_NAME = "urdf_pipeline_model"  # the model asset's own: it never collides with a segment's properties
 
 
-def provenance_fields(plan: ScenePlan, extra: dict[str, str] | None = None) -> dict[str, str]:
-    fields = {"version": __version__, **(extra or {})}
-    for robot in plan.robots:
-        fields[f"{robot.key}_urdf_sha256"] = robot.urdf_sha256
-        fields[f"{robot.key}_urdf_origin"] = robot.urdf_origin
-    return fields
+def _property(parts: str) -> str:
+    return MODEL_PROPERTY_NAME if parts == "model" else PROPERTY_NAME
 
 
 def provenance_stream(plan: ScenePlan, parts: str = "all", extra: dict[str, str] | None = None) -> LazyChunkStream:
     import rerun as rr
     from rerun.chunk import Chunk, LazyChunkStream
 
-    values = rr.AnyValues(**provenance_fields(plan, extra))  # type: ignore[arg-type]
-    name = MODEL_PROPERTY_NAME if parts == "model" else PROPERTY_NAME
-    return LazyChunkStream.from_iter([Chunk.from_property(name, values)])
+    fields = {"version": __version__, **(extra or {})}
+    for robot in plan.robots:
+        fields[f"{robot.key}_urdf_sha256"] = robot.urdf_sha256
+        fields[f"{robot.key}_urdf_origin"] = robot.urdf_origin
+    return LazyChunkStream.from_iter([Chunk.from_property(_property(parts), rr.AnyValues(**fields))])  # type: ignore[arg-type]
 
 
 def stored_content_hash(path: Path, parts: str) -> str | None:
     """The content hash a recording was written with (None if unreadable or written without one)."""
     from rerun.chunk import RrdReader
 
-    name = MODEL_PROPERTY_NAME if parts == "model" else PROPERTY_NAME
     try:
-        chunks = RrdReader(path).stream().filter(content=f"/__properties/{name}").to_chunks()
+        chunks = RrdReader(path).stream().filter(content=f"/__properties/{_property(parts)}").to_chunks()
     except (OSError, ValueError, RuntimeError):
         return None
     for chunk in chunks:

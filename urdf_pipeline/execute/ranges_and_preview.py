@@ -1,13 +1,8 @@
 """The segment's summary for the manifest (manifest_entry.py), gathered during the run's one pass over the data.
 
-Time ranges: each source's stream passes through `observed`, which reads the first chunk's and the last chunk's index
-values (two chunks per source, not every chunk). The preview: the FK's values matrix, batch by batch
-(`JointTransformBatches` calls `ValuePreview.add`), folded with numpy into at most `FINE_BUCKETS` (min, max) buckets
-of `width` rows each; when the rows outgrow them, neighbouring buckets are merged in pairs and `width` doubles, so
-memory does not grow with the recording and the row count need not be known ahead. At the end the fine buckets are
-reduced to `BUCKETS`, and per robot the `PREVIEW_JOINTS` joints that moved most against their limits (all when there
-are that few) are quantised to uint8 against their limits (the range seen for a joint without limits). A bucket is a
-run of rows in time order (the sources' ordering check sorts them): for a steady sample rate, a run of time.
+Time ranges: the first and the last chunk of each source (`observed`), not every chunk. The preview: the FK's values
+folded into at most `FINE_BUCKETS` (min, max) buckets, merged in pairs as the rows outgrow them, so memory does not
+grow with the recording and the row count need not be known ahead; at the end reduced to `BUCKETS` and quantised.
 """
 
 from __future__ import annotations

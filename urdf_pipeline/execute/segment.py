@@ -47,10 +47,6 @@ class RunResult:
     summary: SegmentSummary | None = None  # what the manifest lists of it (None for the split layout's model)
 
 
-def _silent(message: str) -> None:
-    """Progress lines of one segment among many are left out: the run's progress bar says it for all of them."""
-
-
 def execute(
     plan: RecordingPlan,
     parts: Parts = "all",
@@ -62,7 +58,7 @@ def execute(
     """Write one recording. `provenance` adds fields (the content hash) to the recording's properties; `on_note` and
     `quiet` (no progress lines) let a worker running many segments keep its output for the run's summary;
     `rows_expected` (from the source's metadata) gives the progress lines a share done and an ETA."""
-    log: Callable[[str], None] = _silent if quiet else say
+    log: Callable[[str], None] = (lambda _: None) if quiet else say  # one segment among many: the run's progress bar speaks
     started = time.perf_counter()
     # what it does, never "writing": a segment its checks refuse (after the pass) writes nothing, and says so
     if parts == "model":
@@ -108,11 +104,6 @@ class _Pass:
 
     def rows(self) -> dict[str, int]:
         return {m.robot.key: m.stats.rows for m in self.mappers}
-
-    def summary(self, plan: RecordingPlan, parts: Parts, notes: tuple[str, ...]) -> SegmentSummary | None:
-        return (
-            None if parts == "model" else segment_summary(tuple(r.key for r in plan.robots), self.times, self.previews, notes, self.pairs)
-        )
 
 
 def _open(plan: RecordingPlan, parts: Parts, provenance: dict[str, str] | None, quiet: bool, rows_expected: int | None) -> _Pass:
@@ -171,7 +162,9 @@ def _write(
         notes.extend(opened.check(on_note))
 
     written = write_file_atomically(plan.output.path, write, "recording", plan.output.where)
-    return written, opened.rows(), tuple(notes), opened.summary(plan, parts, tuple(notes))
+    robots = tuple(r.key for r in plan.robots)
+    summary = None if parts == "model" else segment_summary(robots, opened.times, opened.previews, tuple(notes), opened.pairs)
+    return written, opened.rows(), tuple(notes), summary
 
 
 def log_segment(plan: RecordingPlan, recording: RecordingStream, on_note: Callable[[str], None] = log_note) -> dict[str, int]:

@@ -46,13 +46,9 @@ class SegmentJob:
         recording = run_plan.for_model() if self.segment is None else run_plan.for_segment(self.segment)
         if self.upload is None:
             return recording
-        return replace(recording, output=replace(recording.output, path=self.staged()))
-
-    def staged(self) -> Path:
-        """Where this machine writes the job's recording before its upload (the plan's path when not bound for S3)."""
         from ..remote import parse_url, staged_path
 
-        return self.output if self.upload is None else staged_path(parse_url(self.upload))
+        return replace(recording, output=replace(recording.output, path=staged_path(parse_url(self.upload))))
 
 
 _INSTALLED: list[Plan] = []

@@ -1,9 +1,6 @@
 """Write a recording while its streams are read: memory is bounded by the chunks in flight, never by the recording's
-length (a collected store held every chunk until the end).
-
-The merged streams go straight to Rerun's writer (or to a user's recording, `urdf_pipeline.log`), which runs the readers, lenses and writing on its own threads.
-The chunks come out as large as the collected store's because the sources are read in blocks of `BLOCK_ROWS` rows
-(`sources/ordering.py`): a robot's FK chunk holds one block's transforms.
+length. The sources are read in blocks of `BLOCK_ROWS` rows (`sources/ordering.py`): a robot's FK chunk holds one
+block's transforms.
 """
 
 from __future__ import annotations

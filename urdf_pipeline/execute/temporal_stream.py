@@ -19,8 +19,6 @@ from .transform_lenses import float_vectors, transform_lenses, transform_lists, 
 if TYPE_CHECKING:
     from rerun.chunk import LazyChunkStream
 
-    from ..sources import SourceStream
-
 
 @dataclass
 class TemporalEdgeStats:
@@ -28,6 +26,17 @@ class TemporalEdgeStats:
     nonfinite_rows: int = 0
     nonfinite_by_value: dict[str, int] = field(default_factory=dict)
     zero_quaternion_rows: int = 0
+
+    def add(self, finite: np.ndarray, names: Sequence[str], usable: np.ndarray) -> None:
+        """A batch's rows: `finite` (rows x values, named `names`) says which values are finite, `usable` which rows
+        `placed_poses` placed; a row of finite values that is not usable has an all-zero quaternion."""
+        whole = finite.all(axis=1)
+        self.rows += len(finite)
+        self.nonfinite_rows += int((~whole).sum())
+        self.zero_quaternion_rows += int((whole & ~usable).sum())
+        for name, count in zip(names, (~finite).sum(axis=0), strict=True):
+            if count:
+                self.nonfinite_by_value[name] = self.nonfinite_by_value.get(name, 0) + int(count)
 
 
 class EdgeRows(Protocol):
@@ -57,23 +66,12 @@ class TemporalEdgeValues:
         identity and are counted: a run refuses them after its pass, a live view leaves them out)."""
         picked = raw_matrix(self.source, vectors, self.columns, f"temporal edge {self.edge.parent} -> {self.edge.child}")[:, self.columns]
         rows = len(picked)
-        finite = np.isfinite(picked)
-        bad_rows = ~finite.all(axis=1)
         translation, quaternion, usable = placed_poses(picked[:, :3], picked[:, 3:])
-        self._record(rows, finite, bad_rows, ~bad_rows & ~usable)
+        with self._lock:
+            self.stats.add(np.isfinite(picked), self.value_names, usable)
         offsets = pa.array(np.arange(rows + 1, dtype=np.int32))
         frames = (pa.array([frame] * rows, pa.string()) for frame in (self.edge.parent, self.edge.child))
         return transform_lists(offsets, float_vectors(translation), float_vectors(quaternion), *frames), usable
-
-    def _record(self, rows: int, finite: np.ndarray, bad_rows: np.ndarray, zero: np.ndarray) -> None:
-        per_value = (~finite).sum(axis=0)
-        with self._lock:
-            self.stats.rows += rows
-            self.stats.nonfinite_rows += int(bad_rows.sum())
-            self.stats.zero_quaternion_rows += int(zero.sum())
-            for name, count in zip(self.value_names, per_value, strict=True):
-                if count:
-                    self.stats.nonfinite_by_value[name] = self.stats.nonfinite_by_value.get(name, 0) + int(count)
 
 
 def placed_poses(translation: np.ndarray, quaternion: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -88,22 +86,10 @@ def placed_poses(translation: np.ndarray, quaternion: np.ndarray) -> tuple[np.nd
     return placed_translation, placed_quaternion, usable
 
 
-def _component(edge: TemporalEdgePlan) -> str:
-    return f"urdf_pipeline:TemporalEdgeBatch:{edge.entity}"
-
-
-def temporal_edge_stream(source: SourceStream, values: list[TemporalEdgeValues], errors: CallbackErrors) -> LazyChunkStream:
-    """Every temporal edge of one source, from one read of it: compute lens -> scatter lens onto Transform3D."""
-    pairs = [
-        transform_lenses(source, f"/__urdf_pipeline/temporal_edge_batches{v.edge.entity}", _component(v.edge), v.edge.entity, v, errors)
-        for v in values
-    ]
-    return transform_stream(source, pairs, errors)
-
-
 def temporal_edge_streams(plan: RecordingPlan, errors: CallbackErrors) -> tuple[list[LazyChunkStream], list[TemporalEdgeValues]]:
-    """One stream per source that temporal edges read. The source is opened here on its own: a source that also
-    drives a robot is read twice (once for the FK, once here), which keeps the FK stream untouched."""
+    """One stream per source that temporal edges read, every edge from one read of it (compute lens -> scatter lens
+    onto Transform3D). The source is opened here on its own: a source that also drives a robot is read twice (once for
+    the FK, once here), which keeps the FK stream untouched."""
     from ..sources import module_for
 
     streams: list[LazyChunkStream] = []
@@ -113,7 +99,19 @@ def temporal_edge_streams(plan: RecordingPlan, errors: CallbackErrors) -> tuple[
         if not edges:
             continue
         values = [TemporalEdgeValues(edge, source) for edge in edges]
-        streams.append(temporal_edge_stream(module_for(source).open_stream(source), values, errors))
+        stream = module_for(source).open_stream(source)
+        pairs = [
+            transform_lenses(
+                stream,
+                f"/__urdf_pipeline/temporal_edge_batches{v.edge.entity}",
+                f"urdf_pipeline:TemporalEdgeBatch:{v.edge.entity}",
+                v.edge.entity,
+                v,
+                errors,
+            )
+            for v in values
+        ]
+        streams.append(transform_stream(stream, pairs, errors))
         all_values += values
     return streams, all_values
 

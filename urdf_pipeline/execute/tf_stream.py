@@ -84,13 +84,7 @@ def _edge_chunks(source: McapSourcePlan, values: list[TfEdgeValues], chunk: Chun
             )
         t, q, usable = placed_poses(translation[picked], quaternion[picked])
         finite = np.isfinite(translation[picked]).all(axis=1) & np.isfinite(quaternion[picked]).all(axis=1)
-        zero = finite & ~usable
-        stats = edge_values.stats
-        stats.rows += rows
-        stats.nonfinite_rows += int((~finite).sum())
-        stats.zero_quaternion_rows += int(zero.sum())
-        if not finite.all():
-            stats.nonfinite_by_value[edge.tf_topic or "/tf"] = stats.nonfinite_rows
+        edge_values.stats.add(finite[:, None], (edge.tf_topic or "/tf",), usable)  # counted per topic, not per value
         result.append(
             Chunk.from_columns(
                 edge.entity,
@@ -103,26 +97,18 @@ def _edge_chunks(source: McapSourcePlan, values: list[TfEdgeValues], chunk: Chun
     return result
 
 
-def tf_edge_streams(source: McapSourcePlan, edges: list[TemporalEdgePlan]) -> tuple[list[LazyChunkStream], list[TfEdgeValues]]:
-    """One read of each /tf topic the edges name, in the segment's bag (the source's file)."""
+def bag_edge_streams(plan: RecordingPlan) -> tuple[list[LazyChunkStream], list[TfEdgeValues]]:
+    """Every /tf edge of the segment (compile/bag_edges.py: always of an MCAP source): one read of each /tf topic the
+    edges name, in the segment's bag (the source's file)."""
     streams: list[LazyChunkStream] = []
     all_values: list[TfEdgeValues] = []
-    for topic in dict.fromkeys(edge.tf_topic or "/tf" for edge in edges):
-        values = [TfEdgeValues(edge) for edge in edges if (edge.tf_topic or "/tf") == topic]
-        messages = tf_messages(source.path, topic, source.where, str(source.path))
-        streams.append(messages.flat_map(partial(_edge_chunks, source, values)))
-        all_values += values
-    return streams, all_values
-
-
-def bag_edge_streams(plan: RecordingPlan) -> tuple[list[LazyChunkStream], list[TfEdgeValues]]:
-    """Every /tf edge of the segment, by source (compile/bag_edges.py: always an MCAP source)."""
-    streams: list[LazyChunkStream] = []
-    values: list[TfEdgeValues] = []
     for source in plan.sources:
         edges = [edge for edge in plan.temporal_edges if edge.source == source.name and edge.tf_topic is not None]
-        if edges and isinstance(source, McapSourcePlan):
-            more_streams, more_values = tf_edge_streams(source, edges)
-            streams += more_streams
-            values += more_values
-    return streams, values
+        if not edges or not isinstance(source, McapSourcePlan):
+            continue
+        for topic in dict.fromkeys(edge.tf_topic or "/tf" for edge in edges):
+            values = [TfEdgeValues(edge) for edge in edges if (edge.tf_topic or "/tf") == topic]
+            messages = tf_messages(source.path, topic, source.where, str(source.path))
+            streams.append(messages.flat_map(partial(_edge_chunks, source, values)))
+            all_values += values
+    return streams, all_values

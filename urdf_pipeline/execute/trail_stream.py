@@ -1,14 +1,10 @@
 """Trails (`trails:`): a link's position in a chosen frame at every row, from the FK pass's own joint values.
 
-The FK's compute lens already holds each block's URDF values (rows x joints, corrections applied). For each trail
-it moves the link's origin up, over the whole block with numpy in float64, through the URDF joints to the robot's
-root link (each joint's origin and its turn or slide in closed form) and the static calibration edges to the trail's
-frame; at construction this is checked against the FK's own joint transforms (themselves checked against Rerun's
-FK) composed top down by `ClosedFormJointTransforms.link_poses`, which are used instead should they ever differ. It
-returns the positions beside the transforms; the second stage writes them to the trail's entity, in the same pass,
-one small row per source row: `points` a Points3D of one position, `line` a LineStrips3D of one segment from the
-previous row's position to this one's. Nothing is kept beyond a block and one position per trail, so memory does not grow with the segment or the
-window: the blueprint's visible time range (blueprint.py) shows the window's rows.
+For each trail the FK's compute lens moves the link's origin up through the URDF joints and the static calibration
+edges to the trail's frame, over the whole block in float64 (checked at construction against `link_poses`, used
+instead should they differ), and returns the positions beside the transforms; a second lens writes them to the
+trail's entity: `points` one position per row, `line` one segment from the previous row's position. Nothing is kept
+beyond a block and one position per trail; the blueprint's visible time range (blueprint.py) shows the window.
 """
 
 from __future__ import annotations
@@ -21,7 +17,7 @@ import numpy as np
 import pyarrow as pa
 
 from ..plan import TrailPlan
-from .joint_fk import PROBES, ClosedFormJointTransforms, Pose, compose, quaternion_from_rpy, rotation_matrices
+from .joint_fk import ClosedFormJointTransforms, Pose, compose, probe_values, quaternion_from_rpy, rotation_matrices
 from .transform_lenses import float_type, float_vectors
 
 if TYPE_CHECKING:
@@ -80,9 +76,7 @@ class TrailPositions:
     def _agrees(self) -> bool:
         """The bottom-up composition against the FK's transforms on probe values (every joint at each probe, and a
         row of mixed ones): a joint kind this code does not know keeps the reference, never a different path."""
-        count = len(self.transforms.names)
-        mixed = np.resize(PROBES[1:], count)
-        probes = np.vstack([np.repeat(PROBES[:, None], count, axis=1), mixed[None, :]])
+        probes = probe_values(len(self.transforms.names))
         self.fast = True
         return bool(np.abs(self.positions(probes) - self.composed(probes)).max() <= 1e-9)
 
@@ -176,12 +170,9 @@ def trail_statics_stream(trails: tuple[TrailPlan, ...]) -> LazyChunkStream:
 
     chunks = []
     for trail in trails:
+        archetype = rr.Points3D if trail.style == "points" else rr.LineStrips3D
         columns = [*rr.CoordinateFrame.columns(frame=[trail.frame])]
-        colors = None if trail.color is None else [trail.color]
-        if trail.style == "points":
-            columns += rr.Points3D.columns(radii=[TRAIL_RADIUS], colors=colors)
-        else:
-            columns += rr.LineStrips3D.columns(radii=[TRAIL_RADIUS], colors=colors)
+        columns += archetype.columns(radii=[TRAIL_RADIUS], colors=None if trail.color is None else [trail.color])
         chunks.append(Chunk.from_columns(trail.entity, indexes=[], columns=columns))
     return LazyChunkStream.from_iter(chunks)
 

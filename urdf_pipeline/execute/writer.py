@@ -27,10 +27,6 @@ PARTIAL = re.compile(r"^\.(?P<name>.+)\.partial-(?P<pid>\d+)$")
 WRITTEN_SUFFIXES = (".rrd", ".json", ".rbl")  # what a run writes: recordings, the manifest, the blueprint
 
 
-def partial_path(target: Path) -> Path:
-    return target.with_name(f".{target.name}.partial-{os.getpid()}")
-
-
 def write_file_atomically(
     target: Path, write: Callable[[Path], object], kind: Kind | None = "blueprint", where: Where | None = None
 ) -> Path:
@@ -43,7 +39,7 @@ def write_file_atomically(
         raise UserError(f"cannot create output directory {target.parent}: {exc}", where) from None
     if kind is not None:
         require_ours(target, kind, where)
-    partial = partial_path(target)
+    partial = target.with_name(f".{target.name}.partial-{os.getpid()}")
     try:
         write(partial)
         os.replace(partial, target)
