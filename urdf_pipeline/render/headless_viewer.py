@@ -84,7 +84,7 @@ class _Shown:
 
 
 class HeadlessViewer:
-    """`with HeadlessViewer(size) as viewer: viewer.show(...); viewer.picture(...)`: one viewer process for all of it."""
+    """`with HeadlessViewer(size) as viewer: viewer.show(...); viewer.draw(...)`: one viewer process for all of it."""
 
     def __init__(self, size: Size) -> None:
         self.size = size
@@ -176,12 +176,8 @@ class HeadlessViewer:
                 raise RuntimeError(f"the viewer did not receive {store_id} within {ARRIVAL_SECONDS:.0f} s")
             time.sleep(0.05)
 
-    def picture(self, store_id: str, shot: Shot, path: Path) -> Path:
-        """Draw `shot` of a shown recording into the PNG at `path` (written whole or not at all)."""
-        write_png(path, self.draw(store_id, shot))
-        return path
-
     def draw(self, store_id: str, shot: Shot) -> bytes:
+        """`shot` of a shown recording, as PNG bytes at the viewer's size."""
         import rerun.blueprint as rrb
 
         shown = self._shown[store_id]
@@ -231,17 +227,10 @@ class HeadlessViewer:
             raise RuntimeError(f"the viewer's eye {eye} is not the camera sent {expected}")
 
     def _set_time(self, store_id: str, timeline: Timeline, value: int) -> None:
-        client = self.client
-        if timeline.kind == "sequence":
-            self._call(lambda: client.set_time(timeline.name, sequence=int(value), play_state="paused", recording=store_id))
-        elif timeline.kind == "duration":
-            self._call(
-                lambda: client.set_time(timeline.name, duration=np.timedelta64(int(value), "ns"), play_state="paused", recording=store_id)
-            )
-        else:
-            self._call(
-                lambda: client.set_time(timeline.name, timestamp=np.datetime64(int(value), "ns"), play_state="paused", recording=store_id)
-            )
+        at = {"sequence": int(value), "duration": np.timedelta64(int(value), "ns"), "timestamp": np.datetime64(int(value), "ns")}
+        self._call(
+            lambda: self.client.set_time(timeline.name, **{timeline.kind: at[timeline.kind]}, play_state="paused", recording=store_id)
+        )
 
     def transform_graph(self, store_id: str, timeline: Timeline | None = None, value: int | None = None) -> dict[str, Any]:
         """The viewer's own transform graph of a shown recording (at `value` on `timeline` when given)."""
@@ -309,6 +298,11 @@ def _cropped(png: bytes, size: Size) -> bytes:
         if (width, height) == (size.width, size.height) or width < size.width or height < size.height:
             return png
         left, top = (width - size.width) // 2, (height - size.height) // 2
-        out = io.BytesIO()
-        image.crop((left, top, left + size.width, top + size.height)).save(out, format="PNG")
-        return out.getvalue()
+        return png_bytes(image.crop((left, top, left + size.width, top + size.height)))
+
+
+def png_bytes(image: object) -> bytes:
+    """A Pillow image as PNG bytes."""
+    buffer = io.BytesIO()
+    image.save(buffer, format="PNG")  # type: ignore[attr-defined]
+    return buffer.getvalue()

@@ -210,7 +210,7 @@ def _corners(visual: _Visual) -> np.ndarray:
     low = np.min([low for low, _ in boxes], axis=0)
     high = np.max([high for _, high in boxes], axis=0)
     local = (low + high) / 2 + _UNIT_CUBE * (high - low) / 2  # 8 x 3
-    count = max(len(part) for part in (visual.translations, visual.quaternions, visual.scales) if part is not None) if _posed(visual) else 1
+    count = max((len(part) for part in (visual.translations, visual.quaternions, visual.scales) if part is not None), default=0) or 1
     translations = _rows(visual.translations, count, np.zeros(3))
     quaternions = _rows(visual.quaternions, count, np.array([0.0, 0.0, 0.0, 1.0]))
     quaternions[np.linalg.norm(quaternions, axis=1) < 1e-12] = (0.0, 0.0, 0.0, 1.0)
@@ -218,10 +218,6 @@ def _corners(visual: _Visual) -> np.ndarray:
     placed = np.einsum("nij,nkj->nki", rotation_matrices(quaternions), local[None] * scales[:, None, :]) + translations[:, None, :]
     flat = placed.reshape(-1, 3)
     return (flat.min(axis=0) + flat.max(axis=0)) / 2 + _UNIT_CUBE * (flat.max(axis=0) - flat.min(axis=0)) / 2
-
-
-def _posed(visual: _Visual) -> bool:
-    return any(part is not None and len(part) for part in (visual.translations, visual.quaternions, visual.scales))
 
 
 def _rows(values: np.ndarray | None, count: int, default: np.ndarray) -> np.ndarray:

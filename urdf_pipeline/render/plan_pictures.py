@@ -18,7 +18,7 @@ from ..plan import Plan, RobotPlan
 from .camera import LINK_PADDING, Camera, framing
 from .captions import band_height, burn_caption, changes_caption, ghost_over
 from .frames import RecordedTransforms, read_transforms
-from .headless_viewer import HeadlessViewer, Shot, Size, write_png
+from .headless_viewer import HeadlessViewer, Shot, Size, png_bytes, write_png
 from .mesh_bounds import GeometryBoxes, geometry_boxes
 from .scene import AXES_ENTITY, AXIS_LENGTH, REST_POSE, JointValues, rest_values, scene_chunks, shared_values
 
@@ -193,9 +193,7 @@ def side_by_side(labelled: Sequence[tuple[str, bytes]]) -> bytes:  # Pillow >= 1
         out.paste(image, (left, 0))
         ImageDraw.Draw(out).text((left + 10, 8), label, fill=(255, 210, 80), font=font)
         left += image.width + gap
-    buffer = io.BytesIO()
-    out.save(buffer, format="PNG")
-    return buffer.getvalue()
+    return png_bytes(out)
 
 
 def announce(pictures: Sequence[Picture], seconds: float) -> None:
