@@ -1,10 +1,6 @@
 """`urdf-pipeline snapshot`: pictures of a written recording at chosen times on its timeline.
 
-Each picture is framed on the pose it shows: the links of the robots in the view and their visuals' boxes
-(mesh_bounds.py) at that time, read from the recording (see frames.py), seen from the one fixed three-quarter direction
-(camera.py). A robot that sweeps a metre over a segment still fills its pictures; the caption band names the config,
-the segment and the time on its timeline. The split layout's model (meshes, static joints) is drawn with each
-layer, as `run --spawn` sends it.
+Each picture is framed on the pose it shows, so a robot that sweeps a metre over a segment still fills its pictures.
 """
 
 from __future__ import annotations

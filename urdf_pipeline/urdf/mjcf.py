@@ -1,9 +1,8 @@
 """`urdf: {mjcf: FILE}`: a MuJoCo model (MJCF XML) turned into URDF text, so every later stage works unchanged.
 
-MuJoCo itself compiles the model (defaults classes, every orientation form, angle units, includes, frames), in a child
-process bounded in memory, CPU and wall-clock time (mjcf_sandbox), after every file the model names passed the
-config's read rule, read as MuJoCo reads it (mjcf_files), and what it would build was counted (mjcf_counts); the child writes the URDF from the compiled model (mjcf_urdf). `mujoco` is an optional
-dependency: without it the form is refused, saying how to install it.
+MuJoCo itself compiles the model (defaults classes, every orientation form, angle units, includes, frames), in a bounded
+child process (mjcf_sandbox), once every file the model names passed the config's read rule and its size was counted
+(mjcf_files). `mujoco` is an optional dependency: without it the form is refused, saying how to install it.
 """
 
 from __future__ import annotations

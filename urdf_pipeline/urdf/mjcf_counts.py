@@ -159,9 +159,6 @@ class MjcfCounts:
                 where,
             )
 
-    def add_model(self, model: MjcfCounts) -> None:
-        self.models.append(model)
-
     def attach_models(self, where: Where) -> None:
         """Each `<attach>` adds the largest model this one names (which one it attaches is MuJoCo's to decide)."""
         if not self.models:

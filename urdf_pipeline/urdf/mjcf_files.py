@@ -20,6 +20,7 @@ from __future__ import annotations
 import codecs
 import os
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from xml.parsers.expat import ExpatError, ParserCreate
@@ -54,6 +55,10 @@ class MjcfFiles:
 
     def check(self, path: Path, what: str) -> Path:
         return self.confinement.check_read(Path(os.path.abspath(path)), what, self.where)
+
+    def candidates(self, folders: Iterable[Path], tag: str, name: str, at: str) -> list[Path]:
+        """The file `name` (named by a `<tag>` at FILE:LINE `at`) in each of `folders`, each checked."""
+        return [self.check(folder / name, f"MJCF <{shown(tag)}> file {quoted(name)} in {at}:") for folder in dict.fromkeys(folders)]
 
     def at(self, path: Path, line: int) -> str:
         """`FILE:LINE` for a message, the file relative to the main file's folder when inside it."""
@@ -182,10 +187,7 @@ def _scan(files: MjcfFiles, path: Path, depth: int, nesting: int = 1, multiplier
 
 def _include(files: MjcfFiles, includer: Path, name: str, at: str) -> Path:
     """The included file, checked at both places MuJoCo may read it from; the one that exists (the main folder's first)."""
-    candidates = [
-        files.check(folder / name, f"MJCF <include> file {quoted(name)} in {at}:")
-        for folder in dict.fromkeys((files.main.parent, includer.parent))
-    ]
+    candidates = files.candidates((files.main.parent, includer.parent), "include", name, at)
     found = next((candidate for candidate in candidates if candidate.is_file()), None)
     if found is None:
         raise UserError(f"MJCF <include> file {quoted(name)} in {at} not found (relative to {files.main.parent})", files.where)
@@ -209,14 +211,11 @@ def scan_mjcf(
     for includer, tag, name, at in files.named:
         if tag == "include":
             continue
-        candidates = [
-            files.check(folder / name, f"MJCF <{shown(tag)}> file {quoted(name)} in {at}:")
-            for folder in dict.fromkeys((*folders, includer.parent))
-        ]
+        candidates = files.candidates((*folders, includer.parent), tag, name, at)
         if tag == "model":
             for candidate in dict.fromkeys(c for c in candidates if c.is_file() and c not in files.xml_files):
                 model = scan_mjcf(candidate, confinement, where, files.xml_files, depth + 1, files.budget)
-                files.counts.add_model(model.counts)
+                files.counts.models.append(model.counts)
         elif tag in ("texture", "hfield"):
             found = [_png_size(candidate) for candidate in dict.fromkeys(candidates) if candidate.is_file()]
             files.counts.image(tag, name, max(found, default=(0, 0)), at, where)

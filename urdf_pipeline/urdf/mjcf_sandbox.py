@@ -1,7 +1,5 @@
-"""The child process that compiles one MJCF model with MuJoCo and answers its URDF text (see mjcf.py, which spawns it).
-
-MuJoCo parses a stranger's XML and meshes here, bounded by rlimits (address space, CPU seconds, output size, no
-children); mjcf.py kills it at the wall-clock bound and has checked every file the model names before it starts.
+"""The child process that compiles one MJCF model with MuJoCo, bounded by rlimits (mjcf.py spawns it, checks every
+file the model names first and kills it at the wall-clock bound), and answers its URDF text.
 
 Protocol: one JSON request on stdin ({"file", "shown", "name", "limits"}), one JSON answer on stdout: {"text": URDF,
 "notes": [geoms left undrawn]} or {"error": message}.

@@ -4,11 +4,8 @@ The child gets no environment but ROS_PACKAGE_PATH / AMENT_PREFIX_PATH (and the 
 `-I -S` (no user site, no .pth files, no PYTHON* variables), is limited in address space, CPU seconds and output size,
 and is killed when the wall clock runs out. Every way it can fail ends in a UserError naming the xacro file.
 
-The wall clock is a budget of one config (or one init command), `XacroBudget`: every expansion it makes takes its time
-from the same URDF_PIPELINE_XACRO_TIMEOUT seconds, so ten robots naming a slow xacro cannot take ten times the bound,
-and an expansion the budget cannot pay for is refused, naming the budget. The same file with the same arguments,
-packages and read roots is expanded once per process: the text is kept with the sha256 of every file xacro read (and
-what each include pattern matched), and reused while they are unchanged; an edited file is expanded again.
+The wall clock is one budget per config (`XacroBudget`), so ten robots naming a slow xacro cannot take ten times the
+bound. An expansion is reused while every file xacro read (and what each include pattern matched) is unchanged.
 """
 
 from __future__ import annotations
