@@ -1,11 +1,6 @@
-"""Every file an MJCF model names, checked against the config's read rule, and the model's size counted, before MuJoCo
-opens any of them.
-
-MuJoCo reads `<include file>`, mesh, texture, height field, skin, flexcomp and model files, named relative to the main
-file's folder or to `<compiler meshdir/texturedir/assetdir>` (themselves relative to the main file's folder, or
-absolute), folding `..` as written. Here the XML is read first and every `file*` attribute of any element is checked at
-every place MuJoCo could look for it: the main file's folder, the including file's folder and each of the asset
-folders. One place outside the config's roots refuses the model, naming the file, its line and the element.
+"""Every file an MJCF model names, checked against the config's read rule at every place MuJoCo could look for it
+(the main file's folder, the including file's and each `<compiler>` asset folder), and the model's size counted, before
+MuJoCo opens any of them (docs/urdf.md, MJCF).
 
 The scan reads XML as MuJoCo's reader (TinyXML2) does, or refuses what the two would read differently: the bytes as
 UTF-8 whatever the XML declaration says, no namespaces (`<mujoco xmlns="...">` is still a `<mujoco>`), no DOCTYPE at

@@ -22,6 +22,8 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
+from .geometry import quaternion_multiply
+
 FREE, BALL, SLIDE, HINGE = 0, 1, 2, 3
 _PLANE, _HFIELD, _SPHERE, _CAPSULE, _ELLIPSOID, _CYLINDER, _BOX, _MESH = range(8)
 _DRAWN_MESH = (".stl", ".obj", ".dae", ".glb", ".gltf")
@@ -69,16 +71,9 @@ def _quat_from_rpy(rpy: np.ndarray) -> np.ndarray:
 
 
 def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
-    return np.array(
-        [
-            aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-        ]
-    )
+    """The Hamilton product of MuJoCo's (w, x, y, z) quaternions."""
+    x, y, z, w = quaternion_multiply((a[1], a[2], a[3], a[0]), (b[1], b[2], b[3], b[0]))
+    return np.array([w, x, y, z])
 
 
 def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
