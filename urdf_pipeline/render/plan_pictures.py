@@ -51,6 +51,17 @@ def view_contents(robots: Sequence[RobotPlan], whole_scene: bool) -> tuple[str, 
     return (*(f"{robot.entity_path_prefix}/**" for robot in robots), f"{AXES_ENTITY}/**")
 
 
+def scene_camera(scenes: Sequence[tuple[Plan, Sequence[Chunk]]], width: int, height: int) -> Camera:
+    """One camera at which every robot link of every (plan, its scene_chunks) at the rest pose fits a `width` x
+    `height` view: the pictures' camera for the web viewer's blueprint of `plan --html` and `diff --html`, so old and
+    new are seen from the same eye."""
+    points = [
+        read_transforms(chunks, REST_POSE).positions(plan.root_frame, robot_frames(plan.robots), REST).reshape(-1, 3)
+        for plan, chunks in scenes
+    ]
+    return framing(np.concatenate(points), width, height)
+
+
 def require_picture_path(path: Path) -> None:
     """A picture may replace an earlier picture, never another file."""
     if path.is_dir() or (path.exists() and _head(path) != PNG_MAGIC):

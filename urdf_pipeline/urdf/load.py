@@ -100,16 +100,10 @@ def _xacro(
     """Expanded in a bounded child process that refuses code, the environment and files outside the config's roots."""
     refuse_url(str(spec["xacro"]), "xacro file", where)
     path = _config_file(str(spec["xacro"]), "xacro file", config_dir, confinement, where)
-    args = {name: _xacro_value(value) for name, value in spec.get("args", {}).items()}
+    args = {name: str(value).lower() if isinstance(value, bool) else str(value) for name, value in spec.get("args", {}).items()}
     text = expand_xacro(XacroRequest(path, str(spec["xacro"]), args, package_paths, confinement), where, budget)
     shown = " ".join(f"{k}:={v}" for k, v in sorted(args.items()))
     return LoadedUrdf(text, path, f"xacro {spec['xacro']}" + (f" {shown}" if shown else ""))
-
-
-def _xacro_value(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    return str(value)
 
 
 def _robot_descriptions(name: str, where: Where) -> LoadedUrdf:

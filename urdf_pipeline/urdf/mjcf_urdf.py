@@ -173,29 +173,21 @@ class _Writer:
         for joint in range(first, first + count):
             kind = int(self.m.jnt_type[joint])
             joint_name = self.name(self.mj.mjtObj.mjOBJ_JOINT, joint, f"{name}_joint{joint - first}")
-            self.check(kind, joint_name, parent)
+            if kind == FREE and parent != "world":
+                raise NotRepresentable(
+                    f"free joint {joint_name!r} is in a body below {parent!r}: a URDF floating joint hangs from its parent, MuJoCo's free joint from the world"
+                )
             new_anchor = self.m.jnt_pos[joint] if kind in (HINGE, BALL) else np.zeros(3)
-            step = f'<origin xyz="{" ".join(map(_num, new_anchor - anchor))}" rpy="0 0 0"/>'
+            step = _origin(new_anchor - anchor)
             if joint == first:
-                step = origin if not new_anchor.any() else self.first_step(pos, quat, new_anchor)
+                step = origin if not new_anchor.any() else _origin(pos + _rotate(quat, new_anchor), quat)
             step = self.with_ref(joint, kind, step)
             frame = f"{name}__{joint_name}"
             self.joint(joint_name, *self.kind(joint, kind), parent, frame, step, self.limits(joint, kind))
             self.link(frame, None)
             parent, anchor = frame, new_anchor
-        self.joint(f"{name}__anchor", "fixed", parent, name, f'<origin xyz="{" ".join(map(_num, -anchor))}" rpy="0 0 0"/>')
+        self.joint(f"{name}__anchor", "fixed", parent, name, _origin(-anchor))
         self.link(name, body)
-
-    @staticmethod
-    def first_step(pos: np.ndarray, quat: np.ndarray, anchor: np.ndarray) -> str:
-        return _origin(pos + _rotate(quat, anchor), quat)
-
-    @staticmethod
-    def check(kind: int, joint_name: str, parent: str) -> None:
-        if kind == FREE and parent != "world":
-            raise NotRepresentable(
-                f"free joint {joint_name!r} is in a body below {parent!r}: a URDF floating joint hangs from its parent, MuJoCo's free joint from the world"
-            )
 
     def with_ref(self, joint: int, kind: int, step: str) -> str:
         """A hinge or slide with `ref` moves by (value - ref): the joint's origin takes the -ref turn or shift (about or

@@ -83,6 +83,10 @@ class UrdfModel:
         """Joints by name, made once: callers look up every mapped joint (linear, not quadratic, in a large robot)."""
         return {joint.name: joint for joint in self.joints}
 
+    def below(self, link: str) -> set[str]:
+        """`link` and every link under it."""
+        return {found for found, _ in _walk(link, self.joints)}
+
     def depth(self) -> tuple[int, str]:
         """How many joints the deepest link is below the root link, and that link; linear in the joints."""
         return max(((level, link) for link, level in _walk(self.root_link, self.joints)), key=lambda deepest: deepest[0])

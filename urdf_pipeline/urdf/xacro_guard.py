@@ -1,8 +1,6 @@
-"""Expand a xacro file from an untrusted config in a bounded child process (the sandbox is xacro_sandbox).
-
-The child gets no environment but ROS_PACKAGE_PATH / AMENT_PREFIX_PATH (and the loader's library path), runs with
-`-I -S` (no user site, no .pth files, no PYTHON* variables), is limited in address space, CPU seconds and output size,
-and is killed when the wall clock runs out. Every way it can fail ends in a UserError naming the xacro file.
+"""Expand a xacro file from an untrusted config in a bounded child process (the sandbox is xacro_sandbox; what the child
+may do: docs/security.md, Code), killed when the wall clock runs out. Every way it can fail ends in a UserError naming
+the xacro file.
 
 The wall clock is one budget per config (`XacroBudget`), so ten robots naming a slow xacro cannot take ten times the
 bound. An expansion is reused while every file xacro read (and what each include pattern matched) is unchanged.
