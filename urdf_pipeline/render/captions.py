@@ -1,10 +1,8 @@
 """What is burned into a picture after the viewer drew it: the caption band at its bottom, and for `diff --render` the
 old robot as a tinted ghost over the new one.
 
-The band is part of the picture's size: camera.framing keeps the robot above it, so the caption never covers the
-robot. Its text comes from input (file names, segment ids, robot keys, timeline, joint and frame names): each line goes
-through `errors.shown` (one line, control characters escaped, bounded) and is then cut to the picture's width with
-`…`, so no name breaks the layout. The font is Pillow's own (ImageFont.load_default, FreeType, no download).
+The band is part of the picture's size (camera.framing keeps the robot above it). Its text comes from input (file
+names, segment ids, robot keys, joint and frame names): each line is made safe and cut to the picture's width (`fitted`).
 """
 
 from __future__ import annotations

@@ -52,9 +52,8 @@ def view_contents(robots: Sequence[RobotPlan], whole_scene: bool) -> tuple[str, 
 
 
 def scene_camera(scenes: Sequence[tuple[Plan, Sequence[Chunk]]], width: int, height: int) -> Camera:
-    """One camera at which every robot link of every (plan, its scene_chunks) at the rest pose fits a `width` x
-    `height` view: the pictures' camera for the web viewer's blueprint of `plan --html` and `diff --html`, so old and
-    new are seen from the same eye."""
+    """The pictures' camera for the web viewer of `plan --html` and `diff --html`: every robot link of every (plan, its
+    scene_chunks) at rest fits a `width` x `height` view, so old and new are seen from the same eye."""
     points = [
         read_transforms(chunks, REST_POSE).positions(plan.root_frame, robot_frames(plan.robots), REST).reshape(-1, 3)
         for plan, chunks in scenes

@@ -206,25 +206,19 @@ def _run(command: list[str], payload: dict[str, Any], limits: Limits) -> ChildOu
     )
 
 
-def _too_slow(request: XacroRequest, limits: Limits, budget: XacroBudget) -> str:
-    """Why an expansion was stopped at the time bound: its own slowness, or a budget the expansions before it used."""
-    if budget.spent > 0 and budget.spenders:
+def _failure(request: XacroRequest, limits: Limits, budget: XacroBudget, outcome: ChildOutcome) -> str:
+    """Why the child gave no answer (`run_bounded_child`'s kind), in xacro's words: stopped at the time bound, its own
+    slowness or a budget the expansions before it used."""
+    expansion, raise_it = f"xacro expansion of {request.shown}", "the person running the tool can raise the bound with"
+    shared = budget.spent > 0 and budget.spenders
+    if shared and outcome.kind in ("time", "cpu"):
         return (
-            f"xacro expansion of {request.shown} did not end within the {limits.timeout_s:.3g} s left of {budget.owner} xacro time "
+            f"{expansion} did not end within the {limits.timeout_s:.3g} s left of {budget.owner} xacro time "
             f"budget of {budget.seconds:g} s and was stopped (the expansions before it took the rest: {listing(budget.spenders)}); "
             f"the person running the tool can raise the budget with {TIMEOUT_ENV}"
         )
-    return (
-        f"xacro expansion of {request.shown} did not end within {limits.timeout_s:g} s and was stopped (a macro or "
-        f"expression that never ends?); the person running the tool can raise the bound with {TIMEOUT_ENV}"
-    )
-
-
-def _failure(request: XacroRequest, limits: Limits, budget: XacroBudget, outcome: ChildOutcome) -> str:
-    """Why the child gave no answer (`run_bounded_child`'s kind), in xacro's words."""
-    if outcome.kind == "time" or (outcome.kind == "cpu" and budget.spent > 0 and budget.spenders):
-        return _too_slow(request, limits, budget)
-    expansion, raise_it = f"xacro expansion of {request.shown}", "the person running the tool can raise the bound with"
+    if outcome.kind == "time":
+        return f"{expansion} did not end within {limits.timeout_s:g} s and was stopped (a macro or expression that never ends?); {raise_it} {TIMEOUT_ENV}"
     return {
         "cpu": f"{expansion} used more than {limits.timeout_s:g} s of CPU time and was stopped (a macro or expression that never ends?); {raise_it} {TIMEOUT_ENV}",
         "memory": f"{expansion} needs more than {limits.memory_mb} MB of memory (a property or macro that grows without end?); {raise_it} {MEMORY_ENV}",
