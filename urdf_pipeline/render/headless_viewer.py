@@ -2,15 +2,12 @@
 
 Why it is started here and not with `ViewerClient.spawn`: spawn cannot pass `--window-size` (the picture's size),
 `--bind 127.0.0.1` (spawn listens on every interface) or `--renderer vulkan` (the GL fallback panics on a software
-rasterizer), and it sends the viewer's log lines to our stderr. So the viewer binary that ships in rerun-sdk runs
-as a child in a session of its own (Ctrl-C in the terminal reaches us, not it), its output in a log file, asked on
-Linux to die with us; `close` (also at exit) ends it, whatever way the command ends.
+rasterizer), and it sends the viewer's log lines to our stderr. So rerun-sdk's viewer binary runs as a child in a
+session of its own, its output in a log file; `close` (also at exit) ends it, whatever way the command ends.
 
 Why the recordings are sent through a RecordingStream and not opened with `ViewerClient.open`: opened files arrive
 as a catalog dataset whose application id is a hash, and a blueprint sent for the config's application id does not
-apply to them. Sent through a stream, they keep their application id, and each picture's blueprint (one 3D view,
-its camera, every panel hidden) is sent on that stream. The blueprint is read back before the picture is taken:
-the view must be the one on screen and its eye the one asked for.
+apply to them. Sent through a stream, they keep their application id, and each picture's blueprint is sent on it.
 """
 
 from __future__ import annotations
@@ -78,7 +75,6 @@ class Shot:
 
 @dataclass(frozen=True)
 class _Shown:
-    store_id: str
     location: str
     stream: rr.RecordingStream
 
@@ -170,7 +166,7 @@ class HeadlessViewer:
                 schema = self._call(lambda: self.client.get_recording_schema(store_id, paths_only=True, max_entities=100_000))
                 held = {entity.entity_path for entity in schema.entities}
                 if entities <= held or len(held) >= len(entities):  # the count too, should a path be spelled otherwise
-                    self._shown[store_id] = _Shown(store_id, recording.location, stream)
+                    self._shown[store_id] = _Shown(recording.location, stream)
                     return store_id
             if time.monotonic() > deadline:
                 raise RuntimeError(f"the viewer did not receive {store_id} within {ARRIVAL_SECONDS:.0f} s")

@@ -1,11 +1,9 @@
 """What a robot's visuals occupy around the frames they hang on: one box per visual, in its frame.
 
-Link origins alone frame a robot badly: a gripper or a foot reaches well beyond the last frame, and a small robot's
-meshes are a few centimetres across. So the camera also frames the corners of each visual's box: read from the
-recording's own geometry (the chunks the viewer draws), a mesh's vertices (STL, OBJ, COLLADA; glTF's accessor bounds)
-or a primitive's size, placed by its instance pose (scale, rotation, translation) in its CoordinateFrame. A mesh that
-cannot be read counts as a cube of FALLBACK_HALF_SIZE around its pose: the picture may then be a little loose, never
-cut. Meshes are read once per content (a bimanual scene holds each mesh twice).
+Link origins alone frame a robot badly: a gripper or a foot reaches well beyond the last frame. So the camera also
+frames the corners of each visual's box, read from the recording's own geometry (the chunks the viewer draws). A mesh
+that cannot be read counts as a cube of FALLBACK_HALF_SIZE around its pose: the picture may then be a little loose,
+never cut.
 """
 
 from __future__ import annotations
@@ -51,8 +49,6 @@ class GeometryBoxes:
         """The corners in the root frame, given the frames' poses (rotations T x G x 3 x 3, positions T x G x 3, one
         per box, as RecordedTransforms.poses gives for `frames`): (T * G * 8) x 3, NaN where a frame is not placed."""
         rotations, positions = poses
-        if not len(self.frames):
-            return np.zeros((0, 3))
         placed = np.einsum("tgij,gkj->tgki", rotations, self.corners) + positions[:, :, None, :]
         return placed.reshape(-1, 3)
 
