@@ -183,7 +183,10 @@ class _Writer:
                 step = origin if not new_anchor.any() else _origin(pos + _rotate(quat, new_anchor), quat)
             step = self.with_ref(joint, kind, step)
             frame = f"{name}__{joint_name}"
-            self.joint(joint_name, *self.kind(joint, kind), parent, frame, step, self.limits(joint, kind))
+            urdf_type = {FREE: "floating", BALL: "floating", SLIDE: "prismatic"}.get(kind) or (
+                "revolute" if self.m.jnt_limited[joint] else "continuous"
+            )
+            self.joint(joint_name, urdf_type, parent, frame, step, self.limits(joint, kind))
             self.link(frame, None)
             parent, anchor = frame, new_anchor
         self.joint(f"{name}__anchor", "fixed", parent, name, _origin(-anchor))
@@ -202,13 +205,6 @@ class _Writer:
             return _origin(xyz + _rotate(frame, -ref * axis), frame)
         turn = np.array([math.cos(-ref / 2), *(math.sin(-ref / 2) * axis)])
         return _origin(xyz, _quat_mul(frame, turn))
-
-    def kind(self, joint: int, kind: int) -> tuple[str]:
-        if kind in (FREE, BALL):
-            return ("floating",)
-        if kind == SLIDE:
-            return ("prismatic",)
-        return ("revolute",) if self.m.jnt_limited[joint] else ("continuous",)
 
     def limits(self, joint: int, kind: int) -> str:
         if kind not in (HINGE, SLIDE):
