@@ -64,7 +64,8 @@ def scene_chunks(plan: Plan, values: JointValues) -> list[Chunk]:
     for robot in plan.robots:
         tree = cached_tree(robot)  # as a run loads it
         chunks += robot_model_stream(robot, tree).to_chunks()  # meshes and every joint's static edge
-        own = {joint: value for joint, value in values.get(robot.key, {}).items() if _moves(robot, joint)}
+        moving = {*(c.joint for c in robot.channels), *(h.joint for h in robot.holds), *(m.joint for m in robot.mimics)}
+        own = {joint: value for joint, value in values.get(robot.key, {}).items() if joint in moving}
         if own:
             chunks.append(_pose_chunk(robot, tree, own))
     chunks += calibration_stream(plan.edges).to_chunks()
@@ -78,10 +79,6 @@ def scene_chunks(plan: Plan, values: JointValues) -> list[Chunk]:
         axes = [*rr.CoordinateFrame.columns(frame=[frame]), *rr.TransformAxes3D.columns(axis_length=[AXIS_LENGTH])]
         chunks.append(Chunk.from_columns(f"{AXES_ENTITY}/{index}", indexes=[], columns=axes))
     return chunks
-
-
-def _moves(robot: RobotPlan, joint: str) -> bool:
-    return joint in {c.joint for c in robot.channels} | {h.joint for h in robot.holds} | {m.joint for m in robot.mimics}
 
 
 def _pose_chunk(robot: RobotPlan, tree: UrdfTree, values: Mapping[str, float]) -> Chunk:
