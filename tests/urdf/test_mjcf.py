@@ -25,7 +25,7 @@ FRAMES = 20
 
 def _load(path: Path) -> str:
     with collect_warnings():
-        return load_mjcf({"mjcf": path.name}, path.parent, confinement_for(path), Where(path, 0))[0]
+        return load_mjcf(path, path.name, confinement_for(path), Where(path, 0))
 
 
 def _body_poses(model: object, qpos: np.ndarray) -> dict[str, np.ndarray]:

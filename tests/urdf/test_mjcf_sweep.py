@@ -97,7 +97,7 @@ def worst_error(relative: str) -> float:
     """The largest position or rotation difference over every body and FRAMES random joint vectors."""
     path = ROOT / relative
     with collect_warnings():
-        text, _ = load_mjcf({"mjcf": path.name}, path.parent, confinement_for(path), Where(path, 0))
+        text = load_mjcf(path, path.name, confinement_for(path), Where(path, 0))
     model = mujoco.MjModel.from_xml_path(str(path))
     with tempfile.TemporaryDirectory() as folder:
         urdf = Path(folder) / "robot.urdf"
@@ -121,6 +121,6 @@ def test_mjcf_model_matches_mujoco(relative: str, tmp_path: Path, monkeypatch: p
     if relative in REFUSED:
         path = ROOT / relative
         with pytest.raises(UserError, match=REFUSED[relative]), collect_warnings():
-            load_mjcf({"mjcf": path.name}, path.parent, confinement_for(path), Where(path, 0))
+            load_mjcf(path, path.name, confinement_for(path), Where(path, 0))
         return
     assert worst_error(relative) <= TOLERANCE

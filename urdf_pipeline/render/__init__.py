@@ -13,9 +13,8 @@ from ..package import lazy_surface
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
     from .camera import Camera
     from .headless_viewer import NO_RENDERER, Size
-    from .plan_pictures import DEFAULT_SIZE, DiffNames, Picture, announce, render_diff, render_plan
+    from .plan_pictures import DEFAULT_SIZE, DiffNames, Picture, announce, render_diff, render_plan, scene_camera
     from .scene import rest_values, scene_chunks, shared_values
-    from .scene_view import scene_camera
     from .segment_pictures import SCENE, SnapshotRequest, snapshot
 
 if not TYPE_CHECKING:  # the names above, imported when first used

@@ -1,15 +1,10 @@
 """Where the picture's camera goes: a fixed three-quarter view, as close as it can be with all of the robot in the picture.
 
 The view direction is fixed (in front of and to the right of a robot facing +x, from above, z up), so pictures of
-one robot are comparable. What must be in the picture is a set of points: the link origins and the corners of each
-visual's box (mesh_bounds.py), over every time pictured (the whole segment for `snapshot`), each with a radius (0 for
-a corner; a padding where no geometry is known). The camera is the closest one along that fixed direction with every
-point's ball inside the picture's frame: the picture less a margin of (1 - FILL) of its half-size on each side, and
-less the caption band at its bottom. In the view's own axes that is a linear program with a closed-form answer: per
-axis, the two extreme points bound how close the camera may come, and the camera sits midway between them sideways.
-So the robot touches the frame on both sides of its tighter axis: it fills FILL of the picture's width or of its height
-above the band, whatever its size. The viewer's 3D eye has a fixed vertical field of view of 55 degrees (measured with
-rerun-sdk 0.41: a square of known size at a known distance); the horizontal one follows the picture's aspect.
+one robot are comparable. What must be in the picture is a set of balls (link origins, the corners of each visual's
+box), to fit inside the picture less a margin of (1 - FILL) and less the caption band. In the view's own axes that is
+a linear program with a closed-form answer: per axis, the two extreme points bound how close the camera may come, and
+it sits midway between them sideways, so the robot fills FILL of the picture's width or height, whatever its size.
 """
 
 from __future__ import annotations
@@ -19,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-FIELD_OF_VIEW_Y = math.radians(55.0)
+FIELD_OF_VIEW_Y = math.radians(55.0)  # the viewer's 3D eye, fixed; the horizontal one follows the picture's aspect
 FILL = 0.88  # share of the half picture (from its middle to an edge) the robot may reach: the rest is the margin
 AZIMUTH = math.radians(-50.0)  # from +x towards -y
 ELEVATION = math.radians(28.0)

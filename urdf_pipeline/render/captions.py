@@ -1,10 +1,8 @@
 """What is burned into a picture after the viewer drew it: the caption band at its bottom, and for `diff --render` the
 old robot as a tinted ghost over the new one.
 
-The band is part of the picture's size: camera.framing keeps the robot above it, so the caption never covers the
-robot. Its text comes from input (file names, segment ids, robot keys, timeline, joint and frame names): each line goes
-through `errors.shown` (one line, control characters escaped, bounded) and is then cut to the picture's width with
-`…`, so no name breaks the layout. The font is Pillow's own (ImageFont.load_default, FreeType, no download).
+The band is part of the picture's size (camera.framing keeps the robot above it). Its text comes from input (file
+names, segment ids, robot keys, joint and frame names): each line is made safe and cut to the picture's width (`fitted`).
 """
 
 from __future__ import annotations
@@ -17,7 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import LINE_LIMIT, shown
-from .headless_viewer import Size
+from .headless_viewer import Size, png_bytes
 
 if TYPE_CHECKING:
     from PIL import ImageFont
@@ -119,7 +117,7 @@ def burn_caption(png: bytes, lines: Sequence[str], band: int) -> bytes:
     for index, line in enumerate(list(lines)[:room]):
         text = fitted(line, image.width - 2 * pad, font, font_size(size))
         draw.text((pad, top + pad + index * step), text, fill=TITLE_COLOUR if index == 0 else TEXT_COLOUR, font=font)
-    return _png(image)
+    return png_bytes(image)
 
 
 def changes_caption(title: str, changes: Sequence[str], size: Size) -> list[str]:
@@ -148,10 +146,4 @@ def ghost_over(new: bytes, old: bytes, background: bytes) -> bytes:
     light = before.mean(axis=2, keepdims=True) / 255.0
     tinted = GHOST_TINT * (0.45 + 0.55 * light)
     out = np.where(moved[..., None], (1 - GHOST_ALPHA) * now + GHOST_ALPHA * tinted, now)
-    return _png(Image.fromarray(np.clip(out.round(), 0, 255).astype(np.uint8), "RGB"))
-
-
-def _png(image: object) -> bytes:
-    buffer = io.BytesIO()
-    image.save(buffer, format="PNG")  # type: ignore[attr-defined]
-    return buffer.getvalue()
+    return png_bytes(Image.fromarray(np.clip(out.round(), 0, 255).astype(np.uint8), "RGB"))

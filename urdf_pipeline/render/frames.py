@@ -1,10 +1,7 @@
 """Link poses over a recording, from the transforms it holds: what the viewer composes, done with numpy.
 
-The camera of a picture frames the robots' links and the visuals hanging on them at the time it shows (`snapshot`;
-`plan` and `diff` at rest), so it must know where every link is, and how it is turned, at any time. That is read
-from the recording itself (static edges, the forward kinematics and temporal edges as
-written: Rerun's own FK results), not computed again: column by column, one array per child frame, composed down the
-tree from the root by the run's own `execute.compose`, one step per frame over all the times asked for.
+A picture's camera frames every link and visual at the time it shows, so the poses are read from the recording itself
+(Rerun's own FK results, not computed again) and composed by the run's own `execute.compose`.
 """
 
 from __future__ import annotations

@@ -2,15 +2,12 @@
 
 Why it is started here and not with `ViewerClient.spawn`: spawn cannot pass `--window-size` (the picture's size),
 `--bind 127.0.0.1` (spawn listens on every interface) or `--renderer vulkan` (the GL fallback panics on a software
-rasterizer), and it sends the viewer's log lines to our stderr. So the viewer binary that ships in rerun-sdk runs
-as a child in a session of its own (Ctrl-C in the terminal reaches us, not it), its output in a log file, asked on
-Linux to die with us; `close` (also at exit) ends it, whatever way the command ends.
+rasterizer), and it sends the viewer's log lines to our stderr. So rerun-sdk's viewer binary runs as a child in a
+session of its own, its output in a log file; `close` (also at exit) ends it, whatever way the command ends.
 
 Why the recordings are sent through a RecordingStream and not opened with `ViewerClient.open`: opened files arrive
 as a catalog dataset whose application id is a hash, and a blueprint sent for the config's application id does not
-apply to them. Sent through a stream, they keep their application id, and each picture's blueprint (one 3D view,
-its camera, every panel hidden) is sent on that stream. The blueprint is read back before the picture is taken:
-the view must be the one on screen and its eye the one asked for.
+apply to them. Sent through a stream, they keep their application id, and each picture's blueprint is sent on it.
 """
 
 from __future__ import annotations
@@ -78,13 +75,12 @@ class Shot:
 
 @dataclass(frozen=True)
 class _Shown:
-    store_id: str
     location: str
     stream: rr.RecordingStream
 
 
 class HeadlessViewer:
-    """`with HeadlessViewer(size) as viewer: viewer.show(...); viewer.picture(...)`: one viewer process for all of it."""
+    """`with HeadlessViewer(size) as viewer: viewer.show(...); viewer.draw(...)`: one viewer process for all of it."""
 
     def __init__(self, size: Size) -> None:
         self.size = size
@@ -170,18 +166,14 @@ class HeadlessViewer:
                 schema = self._call(lambda: self.client.get_recording_schema(store_id, paths_only=True, max_entities=100_000))
                 held = {entity.entity_path for entity in schema.entities}
                 if entities <= held or len(held) >= len(entities):  # the count too, should a path be spelled otherwise
-                    self._shown[store_id] = _Shown(store_id, recording.location, stream)
+                    self._shown[store_id] = _Shown(recording.location, stream)
                     return store_id
             if time.monotonic() > deadline:
                 raise RuntimeError(f"the viewer did not receive {store_id} within {ARRIVAL_SECONDS:.0f} s")
             time.sleep(0.05)
 
-    def picture(self, store_id: str, shot: Shot, path: Path) -> Path:
-        """Draw `shot` of a shown recording into the PNG at `path` (written whole or not at all)."""
-        write_png(path, self.draw(store_id, shot))
-        return path
-
     def draw(self, store_id: str, shot: Shot) -> bytes:
+        """`shot` of a shown recording, as PNG bytes at the viewer's size."""
         import rerun.blueprint as rrb
 
         shown = self._shown[store_id]
@@ -231,17 +223,10 @@ class HeadlessViewer:
             raise RuntimeError(f"the viewer's eye {eye} is not the camera sent {expected}")
 
     def _set_time(self, store_id: str, timeline: Timeline, value: int) -> None:
-        client = self.client
-        if timeline.kind == "sequence":
-            self._call(lambda: client.set_time(timeline.name, sequence=int(value), play_state="paused", recording=store_id))
-        elif timeline.kind == "duration":
-            self._call(
-                lambda: client.set_time(timeline.name, duration=np.timedelta64(int(value), "ns"), play_state="paused", recording=store_id)
-            )
-        else:
-            self._call(
-                lambda: client.set_time(timeline.name, timestamp=np.datetime64(int(value), "ns"), play_state="paused", recording=store_id)
-            )
+        at = {"sequence": int(value), "duration": np.timedelta64(int(value), "ns"), "timestamp": np.datetime64(int(value), "ns")}
+        self._call(
+            lambda: self.client.set_time(timeline.name, **{timeline.kind: at[timeline.kind]}, play_state="paused", recording=store_id)
+        )
 
     def transform_graph(self, store_id: str, timeline: Timeline | None = None, value: int | None = None) -> dict[str, Any]:
         """The viewer's own transform graph of a shown recording (at `value` on `timeline` when given)."""
@@ -309,6 +294,11 @@ def _cropped(png: bytes, size: Size) -> bytes:
         if (width, height) == (size.width, size.height) or width < size.width or height < size.height:
             return png
         left, top = (width - size.width) // 2, (height - size.height) // 2
-        out = io.BytesIO()
-        image.crop((left, top, left + size.width, top + size.height)).save(out, format="PNG")
-        return out.getvalue()
+        return png_bytes(image.crop((left, top, left + size.width, top + size.height)))
+
+
+def png_bytes(image: object) -> bytes:
+    """A Pillow image as PNG bytes."""
+    buffer = io.BytesIO()
+    image.save(buffer, format="PNG")  # type: ignore[attr-defined]
+    return buffer.getvalue()

@@ -1,11 +1,9 @@
 """What a robot's visuals occupy around the frames they hang on: one box per visual, in its frame.
 
-Link origins alone frame a robot badly: a gripper or a foot reaches well beyond the last frame, and a small robot's
-meshes are a few centimetres across. So the camera also frames the corners of each visual's box: read from the
-recording's own geometry (the chunks the viewer draws), a mesh's vertices (STL, OBJ, COLLADA; glTF's accessor bounds)
-or a primitive's size, placed by its instance pose (scale, rotation, translation) in its CoordinateFrame. A mesh that
-cannot be read counts as a cube of FALLBACK_HALF_SIZE around its pose: the picture may then be a little loose, never
-cut. Meshes are read once per content (a bimanual scene holds each mesh twice).
+Link origins alone frame a robot badly: a gripper or a foot reaches well beyond the last frame. So the camera also
+frames the corners of each visual's box, read from the recording's own geometry (the chunks the viewer draws). A mesh
+that cannot be read counts as a cube of FALLBACK_HALF_SIZE around its pose: the picture may then be a little loose,
+never cut.
 """
 
 from __future__ import annotations
@@ -51,8 +49,6 @@ class GeometryBoxes:
         """The corners in the root frame, given the frames' poses (rotations T x G x 3 x 3, positions T x G x 3, one
         per box, as RecordedTransforms.poses gives for `frames`): (T * G * 8) x 3, NaN where a frame is not placed."""
         rotations, positions = poses
-        if not len(self.frames):
-            return np.zeros((0, 3))
         placed = np.einsum("tgij,gkj->tgki", rotations, self.corners) + positions[:, :, None, :]
         return placed.reshape(-1, 3)
 
@@ -210,7 +206,7 @@ def _corners(visual: _Visual) -> np.ndarray:
     low = np.min([low for low, _ in boxes], axis=0)
     high = np.max([high for _, high in boxes], axis=0)
     local = (low + high) / 2 + _UNIT_CUBE * (high - low) / 2  # 8 x 3
-    count = max(len(part) for part in (visual.translations, visual.quaternions, visual.scales) if part is not None) if _posed(visual) else 1
+    count = max((len(part) for part in (visual.translations, visual.quaternions, visual.scales) if part is not None), default=0) or 1
     translations = _rows(visual.translations, count, np.zeros(3))
     quaternions = _rows(visual.quaternions, count, np.array([0.0, 0.0, 0.0, 1.0]))
     quaternions[np.linalg.norm(quaternions, axis=1) < 1e-12] = (0.0, 0.0, 0.0, 1.0)
@@ -218,10 +214,6 @@ def _corners(visual: _Visual) -> np.ndarray:
     placed = np.einsum("nij,nkj->nki", rotation_matrices(quaternions), local[None] * scales[:, None, :]) + translations[:, None, :]
     flat = placed.reshape(-1, 3)
     return (flat.min(axis=0) + flat.max(axis=0)) / 2 + _UNIT_CUBE * (flat.max(axis=0) - flat.min(axis=0)) / 2
-
-
-def _posed(visual: _Visual) -> bool:
-    return any(part is not None and len(part) for part in (visual.translations, visual.quaternions, visual.scales))
 
 
 def _rows(values: np.ndarray | None, count: int, default: np.ndarray) -> np.ndarray:

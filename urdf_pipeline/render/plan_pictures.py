@@ -18,7 +18,7 @@ from ..plan import Plan, RobotPlan
 from .camera import LINK_PADDING, Camera, framing
 from .captions import band_height, burn_caption, changes_caption, ghost_over
 from .frames import RecordedTransforms, read_transforms
-from .headless_viewer import HeadlessViewer, Shot, Size, write_png
+from .headless_viewer import HeadlessViewer, Shot, Size, png_bytes, write_png
 from .mesh_bounds import GeometryBoxes, geometry_boxes
 from .scene import AXES_ENTITY, AXIS_LENGTH, REST_POSE, JointValues, rest_values, scene_chunks, shared_values
 
@@ -49,6 +49,16 @@ def view_contents(robots: Sequence[RobotPlan], whole_scene: bool) -> tuple[str, 
     if whole_scene:
         return ("/**",)
     return (*(f"{robot.entity_path_prefix}/**" for robot in robots), f"{AXES_ENTITY}/**")
+
+
+def scene_camera(scenes: Sequence[tuple[Plan, Sequence[Chunk]]], width: int, height: int) -> Camera:
+    """The pictures' camera for the web viewer of `plan --html` and `diff --html`: every robot link of every (plan, its
+    scene_chunks) at rest fits a `width` x `height` view, so old and new are seen from the same eye."""
+    points = [
+        read_transforms(chunks, REST_POSE).positions(plan.root_frame, robot_frames(plan.robots), REST).reshape(-1, 3)
+        for plan, chunks in scenes
+    ]
+    return framing(np.concatenate(points), width, height)
 
 
 def require_picture_path(path: Path) -> None:
@@ -193,9 +203,7 @@ def side_by_side(labelled: Sequence[tuple[str, bytes]]) -> bytes:  # Pillow >= 1
         out.paste(image, (left, 0))
         ImageDraw.Draw(out).text((left + 10, 8), label, fill=(255, 210, 80), font=font)
         left += image.width + gap
-    buffer = io.BytesIO()
-    out.save(buffer, format="PNG")
-    return buffer.getvalue()
+    return png_bytes(out)
 
 
 def announce(pictures: Sequence[Picture], seconds: float) -> None:

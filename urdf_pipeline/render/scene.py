@@ -1,11 +1,8 @@
-"""A plan drawn without joint values: each robot at its rest pose, with its calibration frames, as chunks.
+"""A plan drawn without joint values: each robot at its rest pose (`rest_values`), with its calibration frames, as chunks.
 
-The rest pose: held joints at their hold value, every other mapped joint at zero clamped into its URDF limits
-(a Panda's fourth joint has no zero), `<mimic>` joints from their driver. It is written as the recordings write the
-forward kinematics, one temporal Transform3D per moving joint (on the `rest_pose` timeline, at 0) overriding the
-model's static rest pose, so what the viewer draws is a recording like the ones `run` writes, minus the data.
-Temporal edges (a moving base) have no value without data: they are drawn as the identity. The frames of the
-calibration edges (and the root) carry small axes, so a moved mount or camera shows.
+The pose is written as the recordings write the FK (one temporal Transform3D per moving joint, on the `rest_pose`
+timeline), so the viewer draws a recording like the ones `run` writes, minus the data. Temporal edges (a moving base)
+are drawn as the identity; the calibration edges' frames (and the root) carry small axes, so a moved mount shows.
 """
 
 from __future__ import annotations
@@ -31,7 +28,8 @@ JointValues = Mapping[str, Mapping[str, float]]  # robot key -> URDF joint -> va
 
 
 def rest_values(plan: Plan) -> dict[str, dict[str, float]]:
-    """Each robot's rest pose: holds, zeros clamped into the limits, mimics from their drivers."""
+    """Each robot's rest pose: holds, zeros clamped into the limits (a Panda's fourth joint has no zero), mimics from
+    their drivers."""
     poses: dict[str, dict[str, float]] = {}
     for robot in plan.robots:
         values: dict[str, float] = {}
@@ -66,7 +64,8 @@ def scene_chunks(plan: Plan, values: JointValues) -> list[Chunk]:
     for robot in plan.robots:
         tree = cached_tree(robot)  # as a run loads it
         chunks += robot_model_stream(robot, tree).to_chunks()  # meshes and every joint's static edge
-        own = {joint: value for joint, value in values.get(robot.key, {}).items() if _moves(robot, joint)}
+        moving = {*(c.joint for c in robot.channels), *(h.joint for h in robot.holds), *(m.joint for m in robot.mimics)}
+        own = {joint: value for joint, value in values.get(robot.key, {}).items() if joint in moving}
         if own:
             chunks.append(_pose_chunk(robot, tree, own))
     chunks += calibration_stream(plan.edges).to_chunks()
@@ -80,10 +79,6 @@ def scene_chunks(plan: Plan, values: JointValues) -> list[Chunk]:
         axes = [*rr.CoordinateFrame.columns(frame=[frame]), *rr.TransformAxes3D.columns(axis_length=[AXIS_LENGTH])]
         chunks.append(Chunk.from_columns(f"{AXES_ENTITY}/{index}", indexes=[], columns=axes))
     return chunks
-
-
-def _moves(robot: RobotPlan, joint: str) -> bool:
-    return joint in {c.joint for c in robot.channels} | {h.joint for h in robot.holds} | {m.joint for m in robot.mimics}
 
 
 def _pose_chunk(robot: RobotPlan, tree: UrdfTree, values: Mapping[str, float]) -> Chunk:

@@ -1,10 +1,6 @@
 """`urdf-pipeline snapshot`: pictures of a written recording at chosen times on its timeline.
 
-Each picture is framed on the pose it shows: the links of the robots in the view and their visuals' boxes
-(mesh_bounds.py) at that time, read from the recording (see frames.py), seen from the one fixed three-quarter direction
-(camera.py). A robot that sweeps a metre over a segment still fills its pictures; the caption band names the config,
-the segment and the time on its timeline. The split layout's model (meshes, static joints) is drawn with each
-layer, as `run --spawn` sends it.
+Each picture is framed on the pose it shows, so a robot that sweeps a metre over a segment still fills its pictures.
 """
 
 from __future__ import annotations
@@ -120,18 +116,14 @@ def picture_times(text: str | None, timeline: Timeline | None, times: np.ndarray
         raise UserError("--at: give one or more times, comma-separated (e.g. first,last or 0,450)")
     chosen: list[int | None] = []
     for token in tokens:
-        value = _keyword(token, times) if token in KEYWORDS else _value(token, timeline)
+        keyword = {"first": 0, "middle": (len(times) - 1) // 2, "last": len(times) - 1}.get(token)
+        value = int(times[keyword]) if keyword is not None else _value(token, timeline)
         if not times[0] <= value <= times[-1]:
             shown = f"{_shown(timeline, int(times[0]))} .. {_shown(timeline, int(times[-1]))}"
             raise UserError(f"--at {token}: outside the segment's {timeline.name} range {shown}")
         if value not in chosen:
             chosen.append(value)
     return chosen
-
-
-def _keyword(token: str, times: np.ndarray) -> int:
-    index = {"first": 0, "middle": (len(times) - 1) // 2, "last": len(times) - 1}[token]
-    return int(times[index])
 
 
 def _value(token: str, timeline: Timeline) -> int:

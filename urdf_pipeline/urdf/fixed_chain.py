@@ -53,17 +53,7 @@ def find_fixed_chain(model: UrdfModel, start: str, end: str) -> tuple[Joint, ...
         if joint.parent in reached:
             raise NoFixedChain(joint.parent, joint, end_is_above=False)
         link = joint.parent
-    raise NoFixedChain(start, None, end_is_above=_is_ancestor(end, start, parent_joint))
-
-
-def _is_ancestor(candidate: str, link: str, parent_joint: dict[str, Joint]) -> bool:
-    seen: set[str] = set()
-    while link in parent_joint and link not in seen:
-        seen.add(link)
-        link = parent_joint[link].parent
-        if link == candidate:
-            return True
-    return False
+    raise NoFixedChain(start, None, end_is_above=start in model.below(end))
 
 
 def compose_chain(joints: tuple[Joint, ...]) -> tuple[Vector, Quaternion]:

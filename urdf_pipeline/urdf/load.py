@@ -53,8 +53,10 @@ def load_urdf_source(
     if "xacro" in spec:
         return _xacro(spec, package_paths, config_dir, confinement, where, budget)
     if "mjcf" in spec:
-        text, path = load_mjcf(spec, config_dir, confinement, where)
-        return LoadedUrdf(text, path, f"mjcf {spec['mjcf']}")
+        written = str(spec["mjcf"])
+        refuse_url(written, "MJCF file", where)
+        path = _config_file(written, "MJCF file", config_dir, confinement, where)
+        return LoadedUrdf(load_mjcf(path, written, confinement, where), path, f"mjcf {written}")
     return _robot_descriptions(spec["robot_descriptions"], where)
 
 
@@ -70,15 +72,20 @@ def _read(path: Path, where: Where) -> str:
         raise UserError(f"cannot read {path}: {exc}", where) from None
 
 
+def _config_file(written: str, what: str, config_dir: Path, confinement: Confinement, where: Where) -> Path:
+    """The file a config names (relative to its folder), allowed by the read rule before its existence is checked:
+    no probing outside the roots."""
+    path = confinement.check_read(Path(os.path.abspath(config_dir / written)), what, where)
+    if not path.is_file():
+        raise UserError(f"{what} not found: {path} (paths are relative to the config file)", where)
+    return path
+
+
 def _plain(urdf: str, config_dir: Path, confinement: Confinement, where: Where) -> LoadedUrdf:
     refuse_url(urdf, "URDF", where)
     if Path(urdf).name.endswith(".xacro"):
         raise UserError(f"'{urdf}' is a xacro file, not a URDF; use the xacro form: urdf: {{xacro: {urdf}, args: {{...}}}}", where)
-    path = confinement.check_read(
-        Path(os.path.abspath(config_dir / urdf)), "URDF file", where
-    )  # before its existence is checked: no probing
-    if not path.is_file():
-        raise UserError(f"URDF file not found: {path} (paths are relative to the config file)", where)
+    path = _config_file(urdf, "URDF file", config_dir, confinement, where)
     return LoadedUrdf(_read(path, where), path, f"file {urdf}")
 
 
@@ -92,21 +99,11 @@ def _xacro(
 ) -> LoadedUrdf:
     """Expanded in a bounded child process that refuses code, the environment and files outside the config's roots."""
     refuse_url(str(spec["xacro"]), "xacro file", where)
-    path = confinement.check_read(
-        Path(os.path.abspath(config_dir / spec["xacro"])), "xacro file", where
-    )  # resolved; OS errors are user errors
-    if not path.is_file():
-        raise UserError(f"xacro file not found: {path} (paths are relative to the config file)", where)
-    args = {name: _xacro_value(value) for name, value in spec.get("args", {}).items()}
+    path = _config_file(str(spec["xacro"]), "xacro file", config_dir, confinement, where)
+    args = {name: str(value).lower() if isinstance(value, bool) else str(value) for name, value in spec.get("args", {}).items()}
     text = expand_xacro(XacroRequest(path, str(spec["xacro"]), args, package_paths, confinement), where, budget)
     shown = " ".join(f"{k}:={v}" for k, v in sorted(args.items()))
     return LoadedUrdf(text, path, f"xacro {spec['xacro']}" + (f" {shown}" if shown else ""))
-
-
-def _xacro_value(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    return str(value)
 
 
 def _robot_descriptions(name: str, where: Where) -> LoadedUrdf:

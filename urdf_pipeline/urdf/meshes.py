@@ -1,12 +1,6 @@
-"""Resolve mesh URIs the way a user expects, so an unresolved mesh is an error and not an invisible robot.
+"""Resolve mesh URIs as ROS, pinocchio and Gazebo do (the forms and their order: docs/urdf.md, Meshes), read only from
+local files, so an unresolved mesh is an error and not an invisible robot.
 
-URI forms (what ROS, pinocchio and Gazebo resolve, read only from local files):
-- `package://NAME/path` and `model://NAME/path` (Gazebo's form, resolved like a package, as pinocchio does): under the
-  package's root; a path that leaves the root (`package://NAME/../../x`) is refused.
-- `package:///NAME/path` (an empty package name, as in example-robot-data's talos_data): ROS's resource_retriever
-  refuses it, pinocchio reads it as `package://NAME/path`; so do we.
-- `file:///abs/path` and plain paths (relative to the URDF's folder): as written.
-- Any other scheme (`http://`, `https://`, ...) is not read: a run has no network. It counts as unresolved.
 Every file found must also be one the config may read (`confine.py`) and hold a mesh Rerun draws (a cheap header check:
 Rerun copies whatever bytes the file holds into the recording, and the viewer then fails on them).
 """
@@ -62,7 +56,7 @@ def package_roots(package: str) -> list[Path]:
 
 
 def candidates(uri: str, package_paths: Mapping[str, Path], urdf_dir: Path) -> list[Path]:
-    """Where a mesh URI may live, in the documented order. Raises MeshUriRefused or MeshUriUnread (see the module)."""
+    """Where a mesh URI may live, in the documented order. Raises MeshUriRefused or MeshUriUnread."""
     scheme, separator, body = uri.partition("://")
     if not separator:
         plain = Path(uri)

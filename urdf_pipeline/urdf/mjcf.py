@@ -1,19 +1,16 @@
 """`urdf: {mjcf: FILE}`: a MuJoCo model (MJCF XML) turned into URDF text, so every later stage works unchanged.
 
-MuJoCo itself compiles the model (defaults classes, every orientation form, angle units, includes, frames), in a child
-process bounded in memory, CPU and wall-clock time (mjcf_sandbox), after every file the model names passed the
-config's read rule, read as MuJoCo reads it (mjcf_files), and what it would build was counted (mjcf_counts); the child writes the URDF from the compiled model (mjcf_urdf). `mujoco` is an optional
-dependency: without it the form is refused, saying how to install it.
+MuJoCo itself compiles the model (defaults classes, every orientation form, angle units, includes, frames), in a bounded
+child process (mjcf_sandbox), once every file the model names passed the config's read rule and its size was counted
+(mjcf_files). `mujoco` is an optional dependency: without it the form is refused, saying how to install it.
 """
 
 from __future__ import annotations
 
-import os
 import tempfile
 from pathlib import Path
-from typing import Any
 
-from ..confine import Confinement, refuse_url
+from ..confine import Confinement
 from ..errors import UserError, Where, listing, shown, warn
 from ..process import ChildOutcome, bound_from_environment, passed_environment, run_bounded_child, sandboxed_python
 from .mjcf_files import scan_mjcf
@@ -27,13 +24,8 @@ INSTALL = "pip install 'urdf-pipeline[mjcf]'"
 _PASSED_ENV = ("LD_LIBRARY_PATH", "DYLD_LIBRARY_PATH", "SYSTEMROOT")
 
 
-def load_mjcf(spec: dict[str, Any], config_dir: Path, confinement: Confinement, where: Where) -> tuple[str, Path]:
-    """The URDF text of the robot's MJCF file (relative to `config_dir`) and the file, or a UserError at `where`."""
-    written = str(spec["mjcf"])
-    refuse_url(written, "MJCF file", where)
-    path = confinement.check_read(Path(os.path.abspath(config_dir / written)), "MJCF file", where)
-    if not path.is_file():
-        raise UserError(f"MJCF file not found: {path} (paths are relative to the config file)", where)
+def load_mjcf(path: Path, written: str, confinement: Confinement, where: Where) -> str:
+    """The URDF text of the MJCF file at `path` (allowed, `written` as the config names it), or a UserError at `where`."""
     scan_mjcf(path, confinement, where)
     try:
         command = sandboxed_python("urdf_pipeline.urdf.mjcf_sandbox", "mujoco", "numpy")
@@ -65,7 +57,7 @@ def load_mjcf(spec: dict[str, Any], config_dir: Path, confinement: Confinement, 
     notes = [str(note) for note in answer.get("notes", [])]
     if notes:
         warn(f"{written}: {len(notes)} geom(s) a URDF cannot draw are left out: {listing(notes, limit=5)}", where)
-    return str(answer["text"]), path
+    return str(answer["text"])
 
 
 def _failure(model: str, memory_mb: int, timeout: float, outcome: ChildOutcome) -> str:

@@ -1,10 +1,6 @@
 """What an MJCF model asks MuJoCo to build, counted while mjcf_files reads its XML, so a size bomb (a 1 KB file whose
-nested `<replicate count="100">` make 10^8 bodies, a 30000x30000 builtin texture) is refused before MuJoCo compiles.
-
-Every element counts once per copy MuJoCo makes of it: the replicates around it multiply (includes are read where they
-stand, an attached model counts at each `<attach>`), and a `<composite>` or `<flexcomp>` adds what its `count` generates.
-The bounds are far above any robot's (dm_control's largest model, the dog, has about 900 elements, 41 levels, an
-800x800 skybox) and low enough that MuJoCo compiles what passes in a few seconds and a few hundred MB.
+nested `<replicate count="100">` make 10^8 bodies) is refused before MuJoCo compiles. The bounds (docs/urdf.md, MJCF)
+are far above any robot's and low enough that MuJoCo compiles what passes in a few seconds and a few hundred MB.
 """
 
 from __future__ import annotations
@@ -158,9 +154,6 @@ class MjcfCounts:
                 f"model's {what} to more than {bound:,}; {TOO_LARGE}",
                 where,
             )
-
-    def add_model(self, model: MjcfCounts) -> None:
-        self.models.append(model)
 
     def attach_models(self, where: Where) -> None:
         """Each `<attach>` adds the largest model this one names (which one it attaches is MuJoCo's to decide)."""

@@ -1,11 +1,6 @@
-"""Every file an MJCF model names, checked against the config's read rule, and the model's size counted, before MuJoCo
-opens any of them.
-
-MuJoCo reads `<include file>`, mesh, texture, height field, skin, flexcomp and model files, named relative to the main
-file's folder or to `<compiler meshdir/texturedir/assetdir>` (themselves relative to the main file's folder, or
-absolute), folding `..` as written. Here the XML is read first and every `file*` attribute of any element is checked at
-every place MuJoCo could look for it: the main file's folder, the including file's folder and each of the asset
-folders. One place outside the config's roots refuses the model, naming the file, its line and the element.
+"""Every file an MJCF model names, checked against the config's read rule at every place MuJoCo could look for it
+(the main file's folder, the including file's and each `<compiler>` asset folder), and the model's size counted, before
+MuJoCo opens any of them (docs/urdf.md, MJCF).
 
 The scan reads XML as MuJoCo's reader (TinyXML2) does, or refuses what the two would read differently: the bytes as
 UTF-8 whatever the XML declaration says, no namespaces (`<mujoco xmlns="...">` is still a `<mujoco>`), no DOCTYPE at
@@ -20,6 +15,7 @@ from __future__ import annotations
 import codecs
 import os
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from xml.parsers.expat import ExpatError, ParserCreate
@@ -54,6 +50,10 @@ class MjcfFiles:
 
     def check(self, path: Path, what: str) -> Path:
         return self.confinement.check_read(Path(os.path.abspath(path)), what, self.where)
+
+    def candidates(self, folders: Iterable[Path], tag: str, name: str, at: str) -> list[Path]:
+        """The file `name` (named by a `<tag>` at FILE:LINE `at`) in each of `folders`, each checked."""
+        return [self.check(folder / name, f"MJCF <{shown(tag)}> file {quoted(name)} in {at}:") for folder in dict.fromkeys(folders)]
 
     def at(self, path: Path, line: int) -> str:
         """`FILE:LINE` for a message, the file relative to the main file's folder when inside it."""
@@ -182,10 +182,7 @@ def _scan(files: MjcfFiles, path: Path, depth: int, nesting: int = 1, multiplier
 
 def _include(files: MjcfFiles, includer: Path, name: str, at: str) -> Path:
     """The included file, checked at both places MuJoCo may read it from; the one that exists (the main folder's first)."""
-    candidates = [
-        files.check(folder / name, f"MJCF <include> file {quoted(name)} in {at}:")
-        for folder in dict.fromkeys((files.main.parent, includer.parent))
-    ]
+    candidates = files.candidates((files.main.parent, includer.parent), "include", name, at)
     found = next((candidate for candidate in candidates if candidate.is_file()), None)
     if found is None:
         raise UserError(f"MJCF <include> file {quoted(name)} in {at} not found (relative to {files.main.parent})", files.where)
@@ -209,14 +206,11 @@ def scan_mjcf(
     for includer, tag, name, at in files.named:
         if tag == "include":
             continue
-        candidates = [
-            files.check(folder / name, f"MJCF <{shown(tag)}> file {quoted(name)} in {at}:")
-            for folder in dict.fromkeys((*folders, includer.parent))
-        ]
+        candidates = files.candidates((*folders, includer.parent), tag, name, at)
         if tag == "model":
             for candidate in dict.fromkeys(c for c in candidates if c.is_file() and c not in files.xml_files):
                 model = scan_mjcf(candidate, confinement, where, files.xml_files, depth + 1, files.budget)
-                files.counts.add_model(model.counts)
+                files.counts.models.append(model.counts)
         elif tag in ("texture", "hfield"):
             found = [_png_size(candidate) for candidate in dict.fromkeys(candidates) if candidate.is_file()]
             files.counts.image(tag, name, max(found, default=(0, 0)), at, where)

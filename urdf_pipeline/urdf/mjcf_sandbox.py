@@ -1,7 +1,5 @@
-"""The child process that compiles one MJCF model with MuJoCo and answers its URDF text (see mjcf.py, which spawns it).
-
-MuJoCo parses a stranger's XML and meshes here, bounded by rlimits (address space, CPU seconds, output size, no
-children); mjcf.py kills it at the wall-clock bound and has checked every file the model names before it starts.
+"""The child process that compiles one MJCF model with MuJoCo, bounded by rlimits (mjcf.py spawns it, checks every
+file the model names first and kills it at the wall-clock bound), and answers its URDF text.
 
 Protocol: one JSON request on stdin ({"file", "shown", "name", "limits"}), one JSON answer on stdout: {"text": URDF,
 "notes": [geoms left undrawn]} or {"error": message}.
@@ -20,25 +18,24 @@ from ..process import limit_this_process
 
 
 def compile_answer(request: Mapping[str, Any]) -> dict[str, Any]:
-    """The answer for one request (also called in-process by tests)."""
+    """The answer for one request."""
     try:
         import mujoco
     except ImportError:
         return {"error": "MJCF robots need the mujoco package: pip install 'urdf-pipeline[mjcf]'"}
     from .mjcf_urdf import NotRepresentable, urdf_from_model
 
+    megabytes = request["limits"]["memory_bytes"] >> 20
     try:
         model = mujoco.MjModel.from_xml_path(request["file"])
     except ValueError as exc:  # MuJoCo's compile errors: the message names the element and the line
         text = " ".join(str(exc).split())
         if "Could not allocate memory" in text:
-            megabytes = request["limits"]["memory_bytes"] >> 20
             return {
                 "error": f"compiling {request['shown']} with MuJoCo needs more than {megabytes} MB of memory ({text[:300]}); the person running the tool can raise the bound with URDF_PIPELINE_MJCF_MEMORY_MB"
             }
         return {"error": f"MuJoCo cannot compile {request['shown']}: {text[:2000]}"}
     except RuntimeError as exc:  # a C++ exception MuJoCo's binding does not name: std::bad_alloc under the memory bound
-        megabytes = request["limits"]["memory_bytes"] >> 20
         return {
             "error": f"compiling {request['shown']} with MuJoCo failed ({exc}): it may need more than {megabytes} MB of memory; the person running the tool can raise the bound with URDF_PIPELINE_MJCF_MEMORY_MB"
         }

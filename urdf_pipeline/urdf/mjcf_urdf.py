@@ -22,6 +22,8 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
+from .geometry import quaternion_multiply
+
 FREE, BALL, SLIDE, HINGE = 0, 1, 2, 3
 _PLANE, _HFIELD, _SPHERE, _CAPSULE, _ELLIPSOID, _CYLINDER, _BOX, _MESH = range(8)
 _DRAWN_MESH = (".stl", ".obj", ".dae", ".glb", ".gltf")
@@ -69,16 +71,9 @@ def _quat_from_rpy(rpy: np.ndarray) -> np.ndarray:
 
 
 def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
-    return np.array(
-        [
-            aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-        ]
-    )
+    """The Hamilton product of MuJoCo's (w, x, y, z) quaternions."""
+    x, y, z, w = quaternion_multiply((a[1], a[2], a[3], a[0]), (b[1], b[2], b[3], b[0]))
+    return np.array([w, x, y, z])
 
 
 def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -178,29 +173,24 @@ class _Writer:
         for joint in range(first, first + count):
             kind = int(self.m.jnt_type[joint])
             joint_name = self.name(self.mj.mjtObj.mjOBJ_JOINT, joint, f"{name}_joint{joint - first}")
-            self.check(kind, joint_name, parent)
+            if kind == FREE and parent != "world":
+                raise NotRepresentable(
+                    f"free joint {joint_name!r} is in a body below {parent!r}: a URDF floating joint hangs from its parent, MuJoCo's free joint from the world"
+                )
             new_anchor = self.m.jnt_pos[joint] if kind in (HINGE, BALL) else np.zeros(3)
-            step = f'<origin xyz="{" ".join(map(_num, new_anchor - anchor))}" rpy="0 0 0"/>'
+            step = _origin(new_anchor - anchor)
             if joint == first:
-                step = origin if not new_anchor.any() else self.first_step(pos, quat, new_anchor)
+                step = origin if not new_anchor.any() else _origin(pos + _rotate(quat, new_anchor), quat)
             step = self.with_ref(joint, kind, step)
             frame = f"{name}__{joint_name}"
-            self.joint(joint_name, *self.kind(joint, kind), parent, frame, step, self.limits(joint, kind))
+            urdf_type = {FREE: "floating", BALL: "floating", SLIDE: "prismatic"}.get(kind) or (
+                "revolute" if self.m.jnt_limited[joint] else "continuous"
+            )
+            self.joint(joint_name, urdf_type, parent, frame, step, self.limits(joint, kind))
             self.link(frame, None)
             parent, anchor = frame, new_anchor
-        self.joint(f"{name}__anchor", "fixed", parent, name, f'<origin xyz="{" ".join(map(_num, -anchor))}" rpy="0 0 0"/>')
+        self.joint(f"{name}__anchor", "fixed", parent, name, _origin(-anchor))
         self.link(name, body)
-
-    @staticmethod
-    def first_step(pos: np.ndarray, quat: np.ndarray, anchor: np.ndarray) -> str:
-        return _origin(pos + _rotate(quat, anchor), quat)
-
-    @staticmethod
-    def check(kind: int, joint_name: str, parent: str) -> None:
-        if kind == FREE and parent != "world":
-            raise NotRepresentable(
-                f"free joint {joint_name!r} is in a body below {parent!r}: a URDF floating joint hangs from its parent, MuJoCo's free joint from the world"
-            )
 
     def with_ref(self, joint: int, kind: int, step: str) -> str:
         """A hinge or slide with `ref` moves by (value - ref): the joint's origin takes the -ref turn or shift (about or
@@ -215,13 +205,6 @@ class _Writer:
             return _origin(xyz + _rotate(frame, -ref * axis), frame)
         turn = np.array([math.cos(-ref / 2), *(math.sin(-ref / 2) * axis)])
         return _origin(xyz, _quat_mul(frame, turn))
-
-    def kind(self, joint: int, kind: int) -> tuple[str]:
-        if kind in (FREE, BALL):
-            return ("floating",)
-        if kind == SLIDE:
-            return ("prismatic",)
-        return ("revolute",) if self.m.jnt_limited[joint] else ("continuous",)
 
     def limits(self, joint: int, kind: int) -> str:
         if kind not in (HINGE, SLIDE):

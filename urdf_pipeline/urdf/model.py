@@ -3,8 +3,7 @@
 It reads a URDF as ROS does (urdfdom): the first of a repeated element counts, joint axes are normalised, and a
 structure ROS refuses (a joint naming a link that does not exist, two parents for a link, duplicate names, a mimic
 cycle) is refused here too, naming the joint or link, before it could surface later as a confusing frame-graph error.
-The XML itself is read by `xml_text.parse_root`. Every check is linear in links and joints (a 20,000-link chain is read
-in about a second).
+Every check is linear in links and joints.
 """
 
 from __future__ import annotations
@@ -12,6 +11,7 @@ from __future__ import annotations
 import math
 import re
 import xml.etree.ElementTree as ET
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -83,19 +83,13 @@ class UrdfModel:
         """Joints by name, made once: callers look up every mapped joint (linear, not quadratic, in a large robot)."""
         return {joint.name: joint for joint in self.joints}
 
+    def below(self, link: str) -> set[str]:
+        """`link` and every link under it."""
+        return {found for found, _ in _walk(link, self.joints)}
+
     def depth(self) -> tuple[int, str]:
         """How many joints the deepest link is below the root link, and that link; linear in the joints."""
-        children: dict[str, list[str]] = {}
-        for joint in self.joints:
-            children.setdefault(joint.parent, []).append(joint.child)
-        deepest = (0, self.root_link)
-        frontier = [(self.root_link, 0)]
-        while frontier:  # a tree (parse_urdf refuses cycles and second parents): each link is met once
-            link, level = frontier.pop()
-            if level > deepest[0]:
-                deepest = (level, link)
-            frontier += [(child, level + 1) for child in children.get(link, ())]
-        return deepest
+        return max(((level, link) for link, level in _walk(self.root_link, self.joints)), key=lambda deepest: deepest[0])
 
     def mimic_order(self) -> tuple[Joint, ...]:
         """The mimic joints, each after the joint it mimics when that is a mimic too; linear in the joints.
@@ -111,6 +105,21 @@ class UrdfModel:
                 current = self._by_name.get(current.mimic.joint)
             ordered += reversed(path)
         return tuple(ordered)
+
+
+def _walk(root: str, joints: Iterable[Joint]) -> Iterator[tuple[str, int]]:
+    """Each link below `root` (itself first) once, with how many joints below it is: depth first, linear in the joints."""
+    children: dict[str, list[str]] = {}
+    for joint in joints:
+        children.setdefault(joint.parent, []).append(joint.child)
+    seen, frontier = {root}, [(root, 0)]
+    while frontier:
+        link, level = frontier.pop()
+        yield link, level
+        for child in children.get(link, ()):
+            if child not in seen:
+                seen.add(child)
+                frontier.append((child, level + 1))
 
 
 class InvalidNumber(ValueError):
@@ -266,16 +275,7 @@ def _root(joints: list[Joint], links: tuple[str, ...], origin: str) -> str:
     children = {j.child for j in joints}
     roots = [link for link in links if link not in children]
     if len(roots) == 1:
-        below = {roots[0]}
-        frontier = [roots[0]]
-        children_of: dict[str, list[str]] = {}
-        for joint in joints:
-            children_of.setdefault(joint.parent, []).append(joint.child)
-        while frontier:
-            for child in children_of.get(frontier.pop(), ()):
-                if child not in below:
-                    below.add(child)
-                    frontier.append(child)
+        below = {link for link, _ in _walk(roots[0], joints)}
         cut_off = [link for link in links if link not in below]
         if cut_off:
             raise UrdfParseError(f"{origin}: links {listing(cut_off)} form a cycle of joints, cut off from root link '{roots[0]}'")

@@ -4,8 +4,8 @@ Rerun's loader (urdf-rs) uses a non-unit axis as given (wrong poses) and refuses
 (urdfdom) tolerates: an empty <texture/>, a material without a name, an <inertial> or a <visual> that urdfdom drops.
 Here each such detail is made what ROS makes of it (the first of a repeated element, the element dropped) and said
 in a note; a URDF that needs no repair is handed over byte for byte. Whatever Rerun's loader still refuses is a user
-error found by `validate` (`rerun_loader_error`), not a crash in `run`; so is a tree deeper than the loader can walk
-(`rerun_depth_limit`: it recurses once per level on a thread of Rust's default stack, and a 2,000-link chain crashes it).
+error found by `validate` (`rerun_loader_error`), not a crash in `run`; so is a tree deeper than it can walk
+(`rerun_depth_problem`: it recurses once per level on a thread of Rust's default stack).
 """
 
 from __future__ import annotations

@@ -1,14 +1,9 @@
-"""Expand a xacro file from an untrusted config in a bounded child process (the sandbox is xacro_sandbox).
+"""Expand a xacro file from an untrusted config in a bounded child process (the sandbox is xacro_sandbox; what the child
+may do: docs/security.md, Code), killed when the wall clock runs out. Every way it can fail ends in a UserError naming
+the xacro file.
 
-The child gets no environment but ROS_PACKAGE_PATH / AMENT_PREFIX_PATH (and the loader's library path), runs with
-`-I -S` (no user site, no .pth files, no PYTHON* variables), is limited in address space, CPU seconds and output size,
-and is killed when the wall clock runs out. Every way it can fail ends in a UserError naming the xacro file.
-
-The wall clock is a budget of one config (or one init command), `XacroBudget`: every expansion it makes takes its time
-from the same URDF_PIPELINE_XACRO_TIMEOUT seconds, so ten robots naming a slow xacro cannot take ten times the bound,
-and an expansion the budget cannot pay for is refused, naming the budget. The same file with the same arguments,
-packages and read roots is expanded once per process: the text is kept with the sha256 of every file xacro read (and
-what each include pattern matched), and reused while they are unchanged; an edited file is expanded again.
+The wall clock is one budget per config (`XacroBudget`), so ten robots naming a slow xacro cannot take ten times the
+bound. An expansion is reused while every file xacro read (and what each include pattern matched) is unchanged.
 """
 
 from __future__ import annotations
@@ -211,25 +206,19 @@ def _run(command: list[str], payload: dict[str, Any], limits: Limits) -> ChildOu
     )
 
 
-def _too_slow(request: XacroRequest, limits: Limits, budget: XacroBudget) -> str:
-    """Why an expansion was stopped at the time bound: its own slowness, or a budget the expansions before it used."""
-    if budget.spent > 0 and budget.spenders:
+def _failure(request: XacroRequest, limits: Limits, budget: XacroBudget, outcome: ChildOutcome) -> str:
+    """Why the child gave no answer (`run_bounded_child`'s kind), in xacro's words: stopped at the time bound, its own
+    slowness or a budget the expansions before it used."""
+    expansion, raise_it = f"xacro expansion of {request.shown}", "the person running the tool can raise the bound with"
+    shared = budget.spent > 0 and budget.spenders
+    if shared and outcome.kind in ("time", "cpu"):
         return (
-            f"xacro expansion of {request.shown} did not end within the {limits.timeout_s:.3g} s left of {budget.owner} xacro time "
+            f"{expansion} did not end within the {limits.timeout_s:.3g} s left of {budget.owner} xacro time "
             f"budget of {budget.seconds:g} s and was stopped (the expansions before it took the rest: {listing(budget.spenders)}); "
             f"the person running the tool can raise the budget with {TIMEOUT_ENV}"
         )
-    return (
-        f"xacro expansion of {request.shown} did not end within {limits.timeout_s:g} s and was stopped (a macro or "
-        f"expression that never ends?); the person running the tool can raise the bound with {TIMEOUT_ENV}"
-    )
-
-
-def _failure(request: XacroRequest, limits: Limits, budget: XacroBudget, outcome: ChildOutcome) -> str:
-    """Why the child gave no answer (`run_bounded_child`'s kind), in xacro's words."""
-    if outcome.kind == "time" or (outcome.kind == "cpu" and budget.spent > 0 and budget.spenders):
-        return _too_slow(request, limits, budget)
-    expansion, raise_it = f"xacro expansion of {request.shown}", "the person running the tool can raise the bound with"
+    if outcome.kind == "time":
+        return f"{expansion} did not end within {limits.timeout_s:g} s and was stopped (a macro or expression that never ends?); {raise_it} {TIMEOUT_ENV}"
     return {
         "cpu": f"{expansion} used more than {limits.timeout_s:g} s of CPU time and was stopped (a macro or expression that never ends?); {raise_it} {TIMEOUT_ENV}",
         "memory": f"{expansion} needs more than {limits.memory_mb} MB of memory (a property or macro that grows without end?); {raise_it} {MEMORY_ENV}",

@@ -1,12 +1,9 @@
 """The child process that expands one xacro file, with xacro patched so a file from a pull request runs no code.
 
 xacro 2.x evaluates `${...}` and `$(eval ...)` with Python's eval and checks only the outer names, so a name inside a
-comprehension reaches any Python object. Here every expression xacro evaluates (after property and `$(arg)`
-substitution, at the point xacro calls eval) is parsed first and refused if it names anything that leads to Python's
-internals; `**`, `*` and `<<` are checked against a size before they run. Every file xacro opens (the xacro file,
-`xacro:include`, `xacro.load_yaml`) and every `$(find)` folder must pass the config's confinement; `$(env)` is refused
-and `$(optenv NAME DEFAULT)` gives its default, so no value of the runner's environment reaches the URDF text.
-Memory, CPU time and output size are bounded by rlimits set here; the wall clock by xacro_guard, which spawns this.
+comprehension reaches any Python object: here every expression is parsed first, at the point xacro calls eval, and
+`**`, `*` and `<<` are checked against a size before they run (what is refused: docs/security.md, Code). Memory, CPU
+time and output size are bounded by rlimits set here; the wall clock by xacro_guard, which spawns this.
 
 Protocol: one JSON request on stdin, one JSON answer on stdout: {"text": URDF, "files": [...], "globs": [...]} (every
 file xacro read, every include pattern and what it matched: xacro_guard reuses the text while they are unchanged) or

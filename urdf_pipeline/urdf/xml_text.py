@@ -1,16 +1,9 @@
-"""A URDF text as XML, read as ROS reads it, with every element's line; what no URDF reader would read is refused here.
+"""A URDF text as XML, read as ROS reads it, with every element's line; what no URDF reader would read is refused here
+(docs/urdf.md says what and why: xacro content, a `<link>` or `<joint>` not directly in `<robot>`, a DOCTYPE that
+declares entities or names a DTD, which ROS's parser would not expand, so the robot would differ from ROS's).
 
-- Leading blank lines or spaces before `<?xml ...?>` are accepted (ROS, pinocchio and pybullet accept them; expat alone
-  would not): they and the declaration are blanked, so every line and column stays the file's.
-- xacro content (an element in the xacro namespace, `${...}` or `$(arg ...)` in an attribute) is refused: a URDF
-  reader keeps only what lies outside the xacro elements, often just the root link, and says nothing.
-- A `<link>` or `<joint>` that is not a direct child of `<robot>` is refused: URDF readers drop it silently. Only the
-  extensions that hold their own `<joint>` elements (`<transmission>`, `<gazebo>`, `<ros2_control>`) may nest them.
-- A DOCTYPE that declares entities (an internal subset) or names an external DTD is refused, not expanded: ROS's
-  parser (urdfdom on TinyXML2) reads no DTD and skips a DOCTYPE to its first `>`, so an entity expat expands, or an
-  element hidden in the subset, would make the robot differ from ROS's. A bare `<!DOCTYPE robot>` means the same to
-  both and is read. The xacro sandbox applies the same rule to every xacro file (`doctype_refusal`); MJCF and COLLADA
-  files, read by other tools again, refuse any DOCTYPE from their bytes (`doctype_line`).
+The xacro sandbox applies the same DOCTYPE rule to every xacro file (`doctype_refusal`); MJCF and COLLADA files, read
+by other tools again, refuse any DOCTYPE from their bytes (`doctype_line`).
 """
 
 from __future__ import annotations
