@@ -33,13 +33,11 @@ def output_paths(ctx: CompileContext, template: str, ids: list[str]) -> list[Pat
     if len(ids) > 1 and "segment" not in checked.fields:
         problems.add(f"{len(ids)} segments would all be written to {quoted(template)}; put {{segment}} in output.path", where)
         return None
-    if is_remote(template):
-        try:
-            return [staged_path(remote_location(checked.format(segment=i), where, "output.path")) for i in ids]
-        except UserError as error:
-            problems.extend(error)
-            return None
-    return [resolved_or_written(ctx.config_dir / checked.format(segment=i)) for i in ids]
+    try:
+        return [_place(ctx, checked.format(segment=i), "path") for i in ids]
+    except UserError as error:
+        problems.extend(error)
+        return None
 
 
 def dataset_plan(ctx: CompileContext, segments: tuple[Segment, ...]) -> DatasetPlan | None:

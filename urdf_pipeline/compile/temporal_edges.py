@@ -22,9 +22,6 @@ def describe_temporal_edge(edge: TemporalEdgePlan) -> str:
     return f"temporal edge {edge.parent} -> {edge.child} ({edge.label}, source '{edge.source}'{topic})"
 
 
-# --- compile ---------------------------------------------------------------------------------------------------
-
-
 class TemporalEntities:
     """What the temporal edges of one config share, so that each edge costs the same however many there are: the
     entity paths taken (and the next free suffix of each), and each source's value names by position."""
@@ -97,6 +94,3 @@ def compile_temporal_edge(ctx: CompileContext, edge: EdgeSpec, sources: SourceNa
         label=edge.label,
         where=edge.where(),
     )
-
-
-# --- data pass -------------------------------------------------------------------------------------------------

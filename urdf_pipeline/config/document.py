@@ -33,7 +33,7 @@ def format_path(path: PathKey) -> str:
 
 
 class Lines(dict[PathKey, int]):
-    """The 1-based line of every YAML path (a plain dict of lines, as before) with, in `columns`, its 1-based column.
+    """The 1-based line of every YAML path with, in `columns`, its 1-based column.
 
     Both are where the path's entry starts: its key for a mapping entry (so a problem with the key or with its value
     points at the key), the item itself for a sequence item (after `- `), the root node for `()`. Columns ride along
@@ -64,15 +64,6 @@ class Document:
             probe = probe[:-1]
         column = self.lines.columns.get(probe, 0) if isinstance(self.lines, Lines) else 0
         return Where(self.file, self.lines.get(probe, 1), format_path(tuple(path)), column)
-
-    def get(self, *path: str | int, default: Any = None) -> Any:
-        node = self.data
-        for part in path:
-            try:
-                node = node[part]
-            except (KeyError, IndexError, TypeError):
-                return default
-        return node
 
 
 _STANDARD = "tag:yaml.org,2002:"

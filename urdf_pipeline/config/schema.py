@@ -14,7 +14,7 @@ import jsonschema
 from jsonschema.exceptions import ValidationError, best_match
 
 from ..errors import Problems, UserError, shown
-from .document import Document, PathKey, format_path
+from .document import Document, PathKey
 
 SCHEMA_RESOURCE = "urdf-pipeline.schema.json"
 
@@ -156,6 +156,3 @@ def require_schema_valid(document: Document) -> None:
     if not isinstance(document.data, dict):
         raise UserError("the config must be a YAML mapping", document.where())
     validate_document(document)
-
-
-__all__ = ["schema", "schema_text", "validate_document", "require_schema_valid", "format_path"]
