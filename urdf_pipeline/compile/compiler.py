@@ -109,7 +109,11 @@ def check_document(document: Document, names: NameSource[P]) -> Compiled[P]:
     else:
         all_compiled = compiled is None or len(compiled.plans) == len(data["sources"])
         dataset = expand_segments(ctx, compiled, names.episodes) if all_compiled else None
-        timelines = _timelines(ctx, compiled)
+        timelines = (  # each source's (timeline, kind), for the trails' windows: from its plan, else its config entry
+            {name: source_timelines(source) for name, source in compiled.plans.items()}
+            if compiled is not None
+            else {name: spec_timelines(spec) for name, spec in data["sources"].items()}
+        )
         trails = compile_trails(ctx, model.robots, model.edges, model.temporal, model.root, timelines) if model.root is not None else ()
     plan: ScenePlan | None = None
     if not ctx.problems.errors and not notes and names.origin != "config":
@@ -140,13 +144,6 @@ def _source_names(
         elif found[name] is None:
             notes.append(DataNote(_names_unknown(names, name, kind_of(ctx.data["sources"][name])), ctx.where("sources", name)))
     return found, notes
-
-
-def _timelines(ctx: CompileContext, compiled: CompiledSources | None) -> dict[str, tuple[tuple[str, str], ...]]:
-    """Each source's (timeline, kind), for the trails' windows: from its plan, or without data from its config entry."""
-    if compiled is not None:
-        return {name: source_timelines(source) for name, source in compiled.plans.items()}
-    return {name: spec_timelines(spec) for name, spec in ctx.data["sources"].items()}
 
 
 NAMES_HELD_BY = {  # where a source without `names:` gets them

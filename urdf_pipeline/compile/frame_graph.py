@@ -1,9 +1,5 @@
-"""The frame graph every stream will log, checked before writing: one root, every frame reaches it.
-
-Without this check a frame with no edge to the root silently collapses onto the origin in the viewer. The check is
-linear in frames and edges (each frame is walked once, its answer remembered), so a 20,000-link chain costs no more
-than its sort; "did you mean" hints, which compare a name with every frame, are given for the first few frames only.
-"""
+"""The frame graph every stream will log, checked before writing: one root, every frame reaches it (else a frame
+silently collapses onto the origin in the viewer). Linear in frames and edges; "did you mean" only for the first few."""
 
 from __future__ import annotations
 

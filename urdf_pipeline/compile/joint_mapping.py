@@ -1,11 +1,6 @@
-"""Decide, before reading any value, which source value drives which URDF joint and how.
-
-Every moving URDF joint is covered exactly once (map, hold or <mimic>); every source name is mapped or ignored.
-Names None (`validate --no-data`, a source whose names only its data holds): the map's keys and `ignore` are not
-checked against the source, everything about the URDF side is.
-Conversion order: unit conversion, then sign, then offset: urdf = (raw * factor) * sign + offset. The unit of a
-value is its entry's `unit`, else the robot's `joints.unit` for the joint's kind (units.robot_units).
-"""
+"""Decide, before reading any value, which source value drives which URDF joint and how (`JointChannel` says the
+order of the corrections). Every moving URDF joint is covered exactly once (map, hold or <mimic>); every source name
+is mapped or ignored, unless only the data knows the names (`validate --no-data`)."""
 
 from __future__ import annotations
 

@@ -1,9 +1,5 @@
-"""Temporal edges: a pose read from a source row by row (a mobile base, a floating pelvis).
-
-`{parent: world, child: base_link, source: base_pose, translation: [x, y, z], quaternion_xyzw: [qx, qy, qz, qw]}`
-names values of the source. Here the edge is compiled (its values found by name, its entity chosen); the lazy stream
-that places it, row by row, is `execute/temporal_stream.py`.
-"""
+"""Temporal edges (a pose read from a source row by row: a mobile base, a floating pelvis) compiled: their values
+found by name, their entity chosen; `execute/temporal_stream.py` places them row by row."""
 
 from __future__ import annotations
 

@@ -1,9 +1,5 @@
-"""Source units and their factor to URDF units (rad for angular joints, m for prismatic ones).
-
-A robot's `joints.unit` says the unit by joint kind: an angular unit (rad, deg) applies to revolute and continuous
-joints only, a length unit (m, cm, mm) to prismatic joints only, `{angle: deg, length: mm}` gives both; a kind the
-config does not name keeps the URDF's own unit. A map entry's own `unit` must fit its joint.
-"""
+"""Source units and their factor to URDF units (rad for angular joints, m for prismatic ones), `joints.unit` and
+`limits.slack` as docs/config-reference.md describes them, and the one unit advisor."""
 
 from __future__ import annotations
 

@@ -1,9 +1,8 @@
 """Parse YAML while keeping the line and column of every key, so every later error can point at them.
 
-Configs and edges files come from pull requests, so reading them is bounded before anything is built: at most
-MAX_BYTES of UTF-8 text without NUL or control characters; safe loading only, no tag beyond YAML's plain-data ones;
-at most MAX_NODES nodes and MAX_DEPTH levels once aliases are expanded, counted while composing, so an alias bomb is
-refused after a few thousand nodes instead of being expanded. Each refusal is a UserError at a line and column."""
+Configs and edges files come from pull requests, so reading them is bounded before anything is built (docs/security.md:
+size, characters, plain-data tags only, nodes and depth counted with aliases expanded while composing, so an alias bomb
+is refused before it is expanded). Each refusal is a UserError at a line and column."""
 
 from __future__ import annotations
 
