@@ -149,10 +149,6 @@ def _environment_roots() -> tuple[Path, ...]:
     return _roots(entries)
 
 
-def _allowed_by_user() -> tuple[Path, ...]:
-    return _roots(os.environ.get(ALLOW_ENV, "").split(os.pathsep))
-
-
 def _roots(entries: list[str]) -> tuple[Path, ...]:
     """The entries resolved, in order, once each; an entry the OS cannot follow allows nothing."""
     roots: list[Path] = []
@@ -277,4 +273,4 @@ def _confinement(config_dir: Path, environment: tuple[Path, ...], allowed: tuple
 def confinement_for(config_file: Path) -> Confinement:
     """The roots of the config at `config_file` under the current environment."""
     folder = resolved_or_written(config_file).parent  # the config was read: as named only if a link changed meanwhile
-    return _confinement(folder, _environment_roots(), _allowed_by_user())
+    return _confinement(folder, _environment_roots(), _roots(os.environ.get(ALLOW_ENV, "").split(os.pathsep)))

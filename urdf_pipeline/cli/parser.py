@@ -75,10 +75,8 @@ def _verbosity(parser: argparse.ArgumentParser, default: object) -> None:
 
 
 class _Commands:
-    """Subparsers that all take -q / -v (their defaults suppressed, so the main parser's value stays when not given) and
-    name their handler, so `main` finds the function and the parser (for `parser.error`) of the command it was given.
-    Each has one summary (the command list's line and its --help's description), the CONFIG argument when it reads
-    one (`configs`: one or more), and ends its --help with one example that runs as typed (tests/cli/test_help.py)."""
+    """Subparsers that all take -q / -v (defaults suppressed, so the main parser's value stays) and name their handler
+    and parser for `main`; each has one summary, the CONFIG argument when it reads one, and one example that runs as typed."""
 
     def __init__(self, parser: argparse.ArgumentParser) -> None:
         self.actions = parser.add_subparsers(dest="command", required=True)

@@ -183,10 +183,8 @@ def _span(indices: list[int]) -> str:
 
 def expand_segments(ctx: CompileContext, sources: CompiledSources | None, episodes_override: str | None) -> DatasetPlan | None:
     """The run's segments, each with its sources, id and output path; None (with problems added) when they cannot be
-    named. Without the data (`sources` None: `validate --no-data`) which episodes or files there are is unknown, so
-    one stand-in segment is named (episode 0, file stem `stem`): the templates, the layout and where the outputs go
-    are checked; what depends on the segments' number or names (ids that collide, output.path without {segment} for
-    several segments, the episodes selected) is left to the checks that read the data."""
+    named. Without the data (`sources` None: `validate --no-data`) one stand-in segment (episode 0, file stem `stem`)
+    checks the templates, the layout and where the outputs go; what depends on the segments' number or names waits."""
     problems, output, specs = ctx.problems, ctx.data["output"], ctx.data["sources"]
     where_segment = ctx.where("output", "segment")
     episodic = [name for name, spec in specs.items() if kind_of(spec) == "lerobot" and "episode" not in spec]

@@ -73,12 +73,8 @@ def checked_template(text: str, placeholders: Mapping[str, Placeholder], what: s
         raise UserError(f"{what} {quoted(text)} {exc}", where) from None
 
 
-def known_fields(placeholders: Mapping[str, Placeholder]) -> str:
-    return ", ".join(placeholder.written(name) for name, placeholder in placeholders.items())
-
-
 def _checked_field(name: str, spec: str, conversion: str | None, placeholders: Mapping[str, Placeholder]) -> str:
-    known = known_fields(placeholders)
+    known = ", ".join(placeholder.written(name) for name, placeholder in placeholders.items())
     if name == "" or name.isdigit():
         raise TemplateError(f"has a positional placeholder {quoted('{' + name + '}')}; name it: {known}")
     if any(mark in name for mark in ".["):
