@@ -84,9 +84,8 @@ class _Flow:
 
 
 class _Loader(yaml.SafeLoader):
-    """YAML 1.1 as PyYAML reads it (safely), except that 1e-3 is a number (as in YAML 1.2 and JSON), not the string
-    '1e-3'; and bounded while composing, before anything is expanded: at most MAX_NODES nodes counting every alias as
-    the nodes it stands for, at most MAX_DEPTH levels (an alias adds its anchor's), no tag but YAML's plain-data ones."""
+    """YAML 1.1 as PyYAML reads it (safely), except that 1e-3 is a number (as in YAML 1.2 and JSON), bounded while
+    composing (the module's docstring): an alias counts as the nodes and levels of its anchor, never expanded."""
 
     def __init__(self, text: str, file: Path) -> None:
         self.file = file
