@@ -1,21 +1,8 @@
 """Which files a config may make the tool read or write: a config from a pull request must not reach beyond its folder.
 
-The rule (documented in docs/security.md, "What a config can reach"):
-- A path a config names (URDF, xacro and what it includes, meshes, package_paths, sources, sidecar edge files) is
-  read only if it resolves, symlinks followed, under an allowed root: the config's own folder (or, when the config
-  is in a git work tree, that work tree: a repository keeps configs/ beside robots/ and data/, and everything in a
-  checkout is the pull request's own content already), or a root the
-  environment of whoever runs the tool declares (ROS_PACKAGE_PATH, AMENT_PREFIX_PATH, ROBOT_DESCRIPTIONS_CACHE, this
-  Python's site-packages where description packages install, the `share` folder of this Python's prefix where
-  packages built with ament, cmeel or data-files put robots and meshes, and URDF_PIPELINE_ALLOW_PATHS). A config
-  cannot widen this: only the environment can.
-- Outputs are written only under the config's folder or URDF_PIPELINE_ALLOW_PATHS.
-- Nothing inside a `.git` folder is read or written (a CI checkout keeps its token in `.git/config`).
-
-A path the operating system cannot follow (a symlink loop, a name too long, a folder in it that is a file, no
-permission, a FIFO or device where a file is expected) is the config's problem, never a crash: `check_read` and
-`check_write` raise a `UserError` naming the file and the cause, and `file_state` tells the callers that test
-existence what is there without raising anything but a `UserError`.
+The rule is docs/security.md's "What a config can reach"; only the environment can widen it, never a config. A path
+the operating system cannot follow is the config's problem, never a crash: `check_read`, `check_write` and
+`file_state` raise a `UserError` naming the file and the cause.
 """
 
 from __future__ import annotations
@@ -162,10 +149,6 @@ def _environment_roots() -> tuple[Path, ...]:
     return _roots(entries)
 
 
-def _allowed_by_user() -> tuple[Path, ...]:
-    return _roots(os.environ.get(ALLOW_ENV, "").split(os.pathsep))
-
-
 def _roots(entries: list[str]) -> tuple[Path, ...]:
     """The entries resolved, in order, once each; an entry the OS cannot follow allows nothing."""
     roots: list[Path] = []
@@ -290,4 +273,4 @@ def _confinement(config_dir: Path, environment: tuple[Path, ...], allowed: tuple
 def confinement_for(config_file: Path) -> Confinement:
     """The roots of the config at `config_file` under the current environment."""
     folder = resolved_or_written(config_file).parent  # the config was read: as named only if a link changed meanwhile
-    return _confinement(folder, _environment_roots(), _allowed_by_user())
+    return _confinement(folder, _environment_roots(), _roots(os.environ.get(ALLOW_ENV, "").split(os.pathsep)))

@@ -1,10 +1,7 @@
 """Generate the example inputs that `configs/` refers to: robot descriptions from the installed
-`example-robot-data` package and joint trajectories within each robot's limits.
+`example-robot-data` package and joint trajectories within each robot's limits (`make demo`, the tests).
 
-Run by `make demo` and by the test suite (`python -m urdf_pipeline.examples DIR`), so a fresh clone needs no hand step.
-Installed from a wheel, the same command also writes the example configs into DIR (a wheel carries them as
-`urdf_pipeline/example_configs`; a checkout, installed editable, reads its own `configs/`). Either way it writes
-exactly `EXAMPLE_CONFIGS`: not a config of the user's own that sits in a checkout's `configs/`, nor anything a run wrote.
+Installed from a wheel, the same command also writes the example configs into DIR: exactly `EXAMPLE_CONFIGS`.
 """
 
 from __future__ import annotations

@@ -1,10 +1,7 @@
-"""What the tool tells a person while it works, through `logging`, and progress for long runs (throttled, so a
-million-row run prints a line every few seconds, not per batch).
+"""What the tool tells a person while it works, through the `urdf_pipeline` logger (INFO for progress and notes,
+WARNING for a config's warnings, DEBUG for what `--verbose` adds), and throttled progress for long runs.
 
-Every such line goes to the `urdf_pipeline` logger: INFO for progress and notes, WARNING for a config's warnings,
-DEBUG for what `--verbose` adds. A program that embeds the package silences or redirects it as any logger
-(`logging.getLogger("urdf_pipeline").setLevel(logging.ERROR)`); with no logging configured, Python shows its
-warnings only. The command line sends it to stderr, line by line as before, at the level of `--quiet`/`--verbose`
+A program that embeds the package silences or redirects it as any logger; the command line sends it to stderr
 (`command_logging`). Errors are not logged: they are raised, and the command line's one exit point prints them.
 """
 

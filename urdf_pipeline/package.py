@@ -44,11 +44,9 @@ def surface_imports(source: str) -> dict[str, str]:
 
 
 class PandasLeftOut:
-    """A finder that says pandas is absent. pyarrow imports pandas, when it is installed (rerun-sdk[catalog], LeRobot),
-    at its first array only to ask whether the input is a pandas object: 0.2-0.4 s of a 1.4 s demo run, for nothing
-    the pipeline uses. `cli.main` installs it for the commands that never need pandas (not `run --catalog`, whose
-    client may, nor `--executor ray`) and removes it when the command returns; a local worker process installs it
-    when the run's own process left pandas out."""
+    """A finder that says pandas is absent: pyarrow imports pandas at its first array only to ask whether the input is
+    a pandas object. `cli.main` installs it for the commands that never need pandas, and a local worker process when
+    the run's own process left pandas out."""
 
     @staticmethod
     def find_spec(name: str, path: object = None, target: object = None) -> None:

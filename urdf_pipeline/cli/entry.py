@@ -41,7 +41,8 @@ def _handle(handler: Callable[[argparse.Namespace], int], args: argparse.Namespa
     # `diff --exit-code` says 1 for "they differ", so its errors (a user error, a bug) say 2, as diff(1) does
     trouble = ExitCode.DIFF_TROUBLE if getattr(args, "exit_code", False) else None
 
-    left_out = PandasLeftOut() if _pandas_unused(args) and "pandas" not in sys.modules else None
+    pandas_unused = args.command != "run" or (not args.catalog and args.executor == "local")  # a catalog client, Ray: pandas
+    left_out = PandasLeftOut() if pandas_unused and "pandas" not in sys.modules else None
     if left_out is not None:
         sys.meta_path.insert(0, left_out)
     try:
@@ -64,9 +65,3 @@ def _handle(handler: Callable[[argparse.Namespace], int], args: argparse.Namespa
     finally:
         if left_out is not None:
             sys.meta_path.remove(left_out)
-
-
-def _pandas_unused(args: argparse.Namespace) -> bool:
-    if args.command == "run":
-        return not args.catalog and args.executor == "local"
-    return True

@@ -75,10 +75,8 @@ def _verbosity(parser: argparse.ArgumentParser, default: object) -> None:
 
 
 class _Commands:
-    """Subparsers that all take -q / -v (their defaults suppressed, so the main parser's value stays when not given) and
-    name their handler, so `main` finds the function and the parser (for `parser.error`) of the command it was given.
-    Each has one summary (the command list's line and its --help's description), the CONFIG argument when it reads
-    one (`configs`: one or more), and ends its --help with one example that runs as typed (tests/cli/test_help.py)."""
+    """Subparsers that all take -q / -v (defaults suppressed, so the main parser's value stays) and name their handler
+    and parser for `main`; each has one summary, the CONFIG argument when it reads one, and one example that runs as typed."""
 
     def __init__(self, parser: argparse.ArgumentParser) -> None:
         self.actions = parser.add_subparsers(dest="command", required=True)
@@ -256,8 +254,11 @@ def _add_plan(commands: _Commands) -> None:
     )
     plan.add_argument("--sample", action="store_true", help="read a sample of each source and add the observed range per value")
     plan.add_argument("--rows", type=_positive, help="with --sample: rows read from the start of each source (default 100000)")
-    _render_options(plan, "draw each robot at its rest pose into DIR (PNGs, by the Rerun viewer) and link them")
-    _html_option(plan, "the report as a static site in DIR too, with the rest pose in Rerun's web viewer (and the pictures of --render)")
+    _picture_options(
+        plan,
+        "draw each robot at its rest pose into DIR (PNGs, by the Rerun viewer) and link them",
+        "the report as a static site in DIR too, with the rest pose in Rerun's web viewer (and the pictures of --render)",
+    )
 
 
 def _add_snapshot(commands: _Commands) -> None:
@@ -328,20 +329,17 @@ def _add_diff(commands: _Commands) -> None:
     diff.add_argument(
         "--exit-code", action="store_true", help="exit 0 when the plans are equal, 1 when they differ, 2 on any error (as diff(1) does)"
     )
-    _render_options(
-        diff, "draw the old and the new plan at the same joint values from one camera into DIR (PNGs, and the two side by side)"
+    _picture_options(
+        diff,
+        "draw the old and the new plan at the same joint values from one camera into DIR (PNGs, and the two side by side)",
+        "the report as a static site in DIR too, with old and new in Rerun's web viewer (and the pictures of --render)",
     )
-    _html_option(diff, "the report as a static site in DIR too, with old and new in Rerun's web viewer (and the pictures of --render)")
 
 
-def _render_options(parser: argparse.ArgumentParser, render_help: str) -> None:
-    """--render DIR and its --size, the same pair for plan and diff (both draw through render/, at one default size)."""
+def _picture_options(parser: argparse.ArgumentParser, render_help: str, html_help: str) -> None:
+    """--render DIR with its --size, and --html DIR (a site besides the report on stdout): the same for plan and diff."""
     parser.add_argument("--render", metavar="DIR", help=render_help)
     parser.add_argument("--size", type=_size, metavar="WxH", help="with --render: the pictures' size in pixels (default 1024x768)")
-
-
-def _html_option(parser: argparse.ArgumentParser, html_help: str) -> None:
-    """--html DIR of plan and diff: a site written besides the report on stdout (any --format)."""
     parser.add_argument("--html", metavar="DIR", help=html_help + "; stdout keeps the --format report; look at it with `serve DIR`")
 
 

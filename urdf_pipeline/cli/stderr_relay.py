@@ -1,20 +1,10 @@
 """Everything a command prints on stderr goes through the `urdf_pipeline` logger, at the level of `-q`/`-v`.
 
-Two things write there around the logger. Python's warnings (numpy's `RuntimeWarning: invalid value encountered`
-on NaN data, an overflowing cast): `progress.warnings_logged` sends them to the logger at DEBUG, so only `-v` shows
-them. Rerun's Rust side (and any other native code, and the pool's worker processes) writes to file descriptor 2
-itself, past `sys.stderr`: `stderr_through_logger` points fd 2 at a pipe whose lines a thread relays to the logger
-while Python's own stderr (`sys.stderr`: tracebacks of bugs, error lines) keeps the original stream.
-
-A relayed line in Rerun's log format (`2026-01-01T00:00:00Z WARN re_sdk::...: message`, colours or not) is logged
-as `rerun: WARN re_sdk::...: message`: its ERROR lines at INFO (shown unless `-q`: what Rerun says it dropped may
-reach us as no exception), the others at DEBUG (`-v`, which also sets RUST_LOG=warn). Any other line (a worker's own
-log line, already filtered at the run's level; a native library's message; a panic) is logged as it is, at WARNING.
-
-The pipe and its thread are made once per process and kept: worker processes (the fork server is started during a
-run) inherit the pipe as their fd 2, and a command run later in the same process (tests, programs calling `cli.main`)
-finds it still read. At the end of a command everything written so far is relayed before fd 2 is given back: a
-marker line is written through the pipe and waited for (a bounded wait).
+Rerun's Rust side (and other native code, and the pool's workers) writes to file descriptor 2 itself, past
+`sys.stderr`: `stderr_through_logger` points fd 2 at a pipe whose lines a thread relays to the logger (`relayed` says
+at which level), while `sys.stderr` keeps the original stream. The pipe and its thread are made once per process and
+kept, so worker processes inherit it as their fd 2; at the end of a command a marker line is written through the pipe
+and waited for (bounded), so everything written so far is relayed before fd 2 is given back.
 """
 
 from __future__ import annotations

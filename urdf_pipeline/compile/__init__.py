@@ -1,8 +1,5 @@
 """Located config -> frozen Plan: robots, joint mapping and units, edges and the frame graph, sources and
-segments. Everything that needs the URDF is checked here, before anything is written.
-
-The names below are the package's public surface; other packages import them from here, never from its modules.
-"""
+segments. Everything that needs the URDF is checked here, before anything is written."""
 
 from __future__ import annotations
 

@@ -1,16 +1,14 @@
-"""Static edges a ROS 2 bag carries on /tf_static: `{parent: base_link, child: camera_link, tf_static: run.mcap}`.
-
-The bag's transform for `child` becomes an ordinary static `EdgePlan`, read here (metadata-sized, in a child process:
-`sources.static_transforms`), so it joins the frame graph like any edge and `validate` refuses what `run` would. Each
-bag and topic is read once per config, however many edges name it.
-"""
+"""Edges a ROS 2 bag carries (`tf_static:` as a static `EdgePlan`, `tf:` as a temporal one), read here (metadata-
+sized, in a child process) so they join the frame graph like any edge and `validate` refuses what `run` would. Each
+bag and topic is read once per config, however many edges name it."""
 
 from __future__ import annotations
 
 import math
 import os
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
+from typing import TypeVar
 
 from ..config import EdgeSpec
 from ..confine import refuse_url
@@ -20,6 +18,8 @@ from ..sources import GLOB, BagTransform, static_transforms, tf_pairs
 from ..urdf import normalized_quaternion
 from .context import CompileContext, SourceNames
 from .temporal_edges import TemporalEntities
+
+T = TypeVar("T")
 
 
 class BagReads:
@@ -72,14 +72,20 @@ def _transforms(ctx: CompileContext, edge: EdgeSpec, topic: str, reads: BagReads
     path = ctx.confinement.check_read(Path(os.path.abspath(ctx.config_dir / name)), "MCAP file", where)
     if not path.is_file():
         raise UserError(f"MCAP file not found: {path} (paths are relative to the config file)", where)
-    key = (path, topic)
-    if key not in reads.read:
+    return _read_once(
+        reads.read, (path, topic), lambda: static_transforms(path, topic, edge.where("topic") if "topic" in edge.spec else where)
+    )
+
+
+def _read_once(cache: dict[tuple[Path, str], T | UserError], key: tuple[Path, str], read: Callable[[], T]) -> T | None:
+    """`read()` once per bag and topic: its error raised the first time, None after (said once, at the first edge)."""
+    if key not in cache:
         try:
-            reads.read[key] = static_transforms(path, topic, edge.where("topic") if "topic" in edge.spec else where)
+            cache[key] = read()
         except UserError as exc:
-            reads.read[key] = exc
+            cache[key] = exc
             raise
-    known = reads.read[key]
+    known = cache[key]
     return None if isinstance(known, UserError) else known
 
 
@@ -125,17 +131,15 @@ def _frames_match(ctx: CompileContext, edge: EdgeSpec, file: str, topic: str, re
     if GLOB.search(file) or "{" in file or "://" in file or not ctx.opens_sources:
         return True
     path = Path(os.path.abspath(ctx.config_dir / file))
-    key = (path, topic)
-    if key not in reads.pairs:
-        try:
-            reads.pairs[key] = tf_pairs(path, topic, edge.where("topic") if "topic" in edge.spec else edge.where("tf"))
-        except UserError as exc:
-            reads.pairs[key] = exc
-            ctx.problems.extend(exc)
-            return False
-    known = reads.pairs[key]
-    if isinstance(known, UserError):
-        return False  # said at the first edge of this bag and topic
+    try:
+        known = _read_once(
+            reads.pairs, (path, topic), lambda: tf_pairs(path, topic, edge.where("topic") if "topic" in edge.spec else edge.where("tf"))
+        )
+    except UserError as exc:
+        ctx.problems.extend(exc)
+        return False
+    if known is None:
+        return False
     pairs, complete = known
     child, parent = edge.spec["child"], edge.spec["parent"]
     if child not in pairs:

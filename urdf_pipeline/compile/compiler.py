@@ -8,11 +8,12 @@ and its datasets elsewhere: no plan), a live stream (`live --from`, `validate --
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Generic, Literal, TypeVar, cast
 
 from ..config import Document, EdgeSpec, expand_edge_specs, load_document, require_schema_valid
+from ..confine import confinement_for
 from ..errors import Problems, UserError, UserErrors, Where, warn
 from ..plan import DEFAULT_TIMELINE, EdgePlan, LivePlan, LiveSourceSpec, Plan, RobotPlan, ScenePlan, TemporalEdgePlan
 from ..sources import KINDS, MCAP_TIMELINES, kind_of
@@ -93,7 +94,7 @@ def check_document(document: Document, names: NameSource[P]) -> Compiled[P]:
     """The one compile: each source's names (`names`), the robots, edges and frame graph (`_compile_model`), then a
     run's segments and trails or a live view's sources. Without the data (FROM_CONFIG) no source file is opened and
     no data path is globbed or even looked at; the segments and trails are checked from the config alone."""
-    ctx = replace(CompileContext.for_document(document), opens_sources=names.origin != "config")
+    ctx = CompileContext(document, Problems(), document.file.parent, confinement_for(document.file), opens_sources=names.origin != "config")
     data = ctx.data
     compiled = compile_sources(ctx) if names.origin == "data" else None
     needed = list(data["sources"])  # the sources whose names are needed, in config order: a live view reads only some
@@ -109,7 +110,11 @@ def check_document(document: Document, names: NameSource[P]) -> Compiled[P]:
     else:
         all_compiled = compiled is None or len(compiled.plans) == len(data["sources"])
         dataset = expand_segments(ctx, compiled, names.episodes) if all_compiled else None
-        timelines = _timelines(ctx, compiled)
+        timelines = (  # each source's (timeline, kind), for the trails' windows: from its plan, else its config entry
+            {name: source_timelines(source) for name, source in compiled.plans.items()}
+            if compiled is not None
+            else {name: spec_timelines(spec) for name, spec in data["sources"].items()}
+        )
         trails = compile_trails(ctx, model.robots, model.edges, model.temporal, model.root, timelines) if model.root is not None else ()
     plan: ScenePlan | None = None
     if not ctx.problems.errors and not notes and names.origin != "config":
@@ -140,13 +145,6 @@ def _source_names(
         elif found[name] is None:
             notes.append(DataNote(_names_unknown(names, name, kind_of(ctx.data["sources"][name])), ctx.where("sources", name)))
     return found, notes
-
-
-def _timelines(ctx: CompileContext, compiled: CompiledSources | None) -> dict[str, tuple[tuple[str, str], ...]]:
-    """Each source's (timeline, kind), for the trails' windows: from its plan, or without data from its config entry."""
-    if compiled is not None:
-        return {name: source_timelines(source) for name, source in compiled.plans.items()}
-    return {name: spec_timelines(spec) for name, spec in ctx.data["sources"].items()}
 
 
 NAMES_HELD_BY = {  # where a source without `names:` gets them

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from ..config import Document
-from ..confine import Confinement, confinement_for
+from ..confine import Confinement
 from ..errors import Problems, Where
 from ..urdf import XacroBudget
 
@@ -28,10 +28,6 @@ class CompileContext:
     confinement: Confinement
     xacro_budget: XacroBudget = field(default_factory=XacroBudget)  # the seconds every xacro expansion of this config shares
     opens_sources: bool = True  # False for `validate --no-data`: no source file is opened (a bag's /tf frames wait for the data)
-
-    @classmethod
-    def for_document(cls, document: Document) -> CompileContext:
-        return cls(document, Problems(), document.file.parent, confinement_for(document.file))
 
     @property
     def data(self) -> dict[str, Any]:

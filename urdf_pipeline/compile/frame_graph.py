@@ -1,9 +1,5 @@
-"""The frame graph every stream will log, checked before writing: one root, every frame reaches it.
-
-Without this check a frame with no edge to the root silently collapses onto the origin in the viewer. The check is
-linear in frames and edges (each frame is walked once, its answer remembered), so a 20,000-link chain costs no more
-than its sort; "did you mean" hints, which compare a name with every frame, are given for the first few frames only.
-"""
+"""The frame graph every stream will log, checked before writing: one root, every frame reaches it (else a frame
+silently collapses onto the origin in the viewer). Linear in frames and edges; "did you mean" only for the first few."""
 
 from __future__ import annotations
 
@@ -85,7 +81,7 @@ def check_frame_graph(ctx: CompileContext, edges: list[FrameEdge], urdf_frames: 
                 culprit = next((e for e in in_cycle if e.configured), in_cycle[0])
                 problems.add(f"frames form a cycle: {chain}; remove one of these edges", culprit.where)
         elif end == frame and frame != root:  # report only the top of each disconnected tree
-            problems.add(hints.disconnected_message(frame, root), urdf_frames.get(frame) or hints.where_for(frame, root_where))
+            problems.add(hints.disconnected_message(frame, root), urdf_frames.get(frame) or hints.parent_where.get(frame) or root_where)
 
 
 class _Hints:
@@ -95,10 +91,10 @@ class _Hints:
     def __init__(self, urdf_frames: dict[str, Where], edges: list[FrameEdge]) -> None:
         self.urdf_frames = urdf_frames
         self.strays = [e.child for e in edges if e.child not in urdf_frames and e.configured]
-        self.parent_edge: dict[str, FrameEdge] = {}
+        self.parent_where: dict[str, Where] = {}  # a frame's first configured edge as a parent: the line to point at
         for edge in edges:
             if edge.configured:
-                self.parent_edge.setdefault(edge.parent, edge)
+                self.parent_where.setdefault(edge.parent, edge.where)
         self.hints = Hints()
         self.sorted_frames: list[str] | None = None
 
@@ -118,19 +114,13 @@ class _Hints:
                 message += did_you_mean(frame, self.sorted_frames)
         return message
 
-    def where_for(self, frame: str, fallback: Where) -> Where:
-        edge = self.parent_edge.get(frame)
-        return edge.where if edge is not None else fallback
-
 
 def check_assume_identity(
     ctx: CompileContext, frames: list[tuple[str, Where]], edges: list[FrameEdge], urdf_frames: dict[str, Where], root: str
 ) -> list[str]:
-    """The frames of `frames.assume_identity` that may get an identity edge from the root; problems for the others.
-
-    A listed frame must be named by a URDF or an edge, must not be the root and must have no parent yet: a frame
-    that already reaches the root needs no assumption, and one hanging from a disconnected tree needs its tree's top listed.
-    """
+    """The frames of `frames.assume_identity` that may get an identity edge from the root: named by a URDF or an edge,
+    not the root, without a parent yet (one hanging from a disconnected tree needs its tree's top listed); problems for
+    the others."""
     problems = ctx.problems
     parent_of: dict[str, FrameEdge] = {}
     for edge in edges:

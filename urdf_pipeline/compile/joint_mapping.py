@@ -1,11 +1,6 @@
-"""Decide, before reading any value, which source value drives which URDF joint and how.
-
-Every moving URDF joint is covered exactly once (map, hold or <mimic>); every source name is mapped or ignored.
-Names None (`validate --no-data`, a source whose names only its data holds): the map's keys and `ignore` are not
-checked against the source, everything about the URDF side is.
-Conversion order: unit conversion, then sign, then offset: urdf = (raw * factor) * sign + offset. The unit of a
-value is its entry's `unit`, else the robot's `joints.unit` for the joint's kind (units.robot_units).
-"""
+"""Decide, before reading any value, which source value drives which URDF joint and how (`JointChannel` says the
+order of the corrections). Every moving URDF joint is covered exactly once (map, hold or <mimic>); every source name
+is mapped or ignored, unless only the data knows the names (`validate --no-data`)."""
 
 from __future__ import annotations
 
@@ -78,25 +73,19 @@ def compile_joints(
     robot = _RobotJoints(model, robot_units(joints_spec.get("unit")))
     positions = {name: i for i, name in enumerate(names)} if names is not None else None  # linear in a wide source
     section = _Section(ctx, here, joints_spec, robot, names, positions)
-    channels = _map_channels(section)
+    channels = [c for name, written in joints_spec["map"].items() for c in _entry_channels(section, name, written)]  # in map order
     holds = _holds(section)
     ignored = _ignored(section)
     if robot.units.given is not None:
         _check_unit_applies(ctx, robot, joints_spec, section.where("unit"))
     _check_names_used(section, ignored)
     channels = _with_slack(ctx, (*here, "limits", "slack"), model, limit_spec, channels)
-    mimics = _order_mimics(model)
+    mimics = tuple(
+        MimicJoint(j.name, j.mimic.joint, j.mimic.multiplier, j.mimic.offset) for j in model.mimic_order() if j.mimic is not None
+    )
     _check_joints_driven(section)
     on_violation: OnViolation = limit_spec.get("on_violation", "error")
     return JointMapping(tuple(channels), tuple(holds), mimics, on_violation)
-
-
-def _map_channels(section: _Section) -> list[JointChannel]:
-    """A channel per (map entry, joint it names) that can be one, in the map's order."""
-    channels: list[JointChannel] = []
-    for source_name, written in section.spec["map"].items():
-        channels.extend(_entry_channels(section, source_name, written))
-    return channels
 
 
 def _entry_channels(section: _Section, source_name: str, written: str | dict[str, Any]) -> list[JointChannel]:
@@ -314,8 +303,3 @@ def _check_unit_applies(ctx: CompileContext, robot: _RobotJoints, joints_spec: d
         f"(or {{angle: ..., length: ...}}), or omit it for the URDF's units",
         where,
     )
-
-
-def _order_mimics(model: UrdfModel) -> tuple[MimicJoint, ...]:
-    """Mimic joints in dependency order (a mimic may follow another mimic), linear in the joints (model.mimic_order)."""
-    return tuple(MimicJoint(j.name, j.mimic.joint, j.mimic.multiplier, j.mimic.offset) for j in model.mimic_order() if j.mimic is not None)

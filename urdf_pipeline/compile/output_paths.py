@@ -1,11 +1,6 @@
 """Where a run writes: each segment's recording (`output.path`), the split layout's model, the manifest and the
-blueprint beside it, each checked against the write rule (confine.py) or, for `s3://` outputs, the allow rule for URLs.
-
-Outputs in S3 (`output.path: s3://BUCKET/PREFIX/{segment}.rrd`): the model and the manifest must be in the same
-bucket (the manifest by default beside the recordings, as locally). The plan's paths are then this machine's staging
-folder mirroring the bucket (`remote.staged_path`): a recording is written there as locally, uploaded to its URL and
-removed; the manifest is uploaded last (`DatasetPlan.remote` maps a staged path to its URL).
-"""
+blueprint beside it, each checked against the write rule (confine.py) or, for `s3://` outputs (docs/remote.md: one
+bucket, staged here then uploaded), the allow rule for URLs."""
 
 from __future__ import annotations
 
@@ -33,13 +28,11 @@ def output_paths(ctx: CompileContext, template: str, ids: list[str]) -> list[Pat
     if len(ids) > 1 and "segment" not in checked.fields:
         problems.add(f"{len(ids)} segments would all be written to {quoted(template)}; put {{segment}} in output.path", where)
         return None
-    if is_remote(template):
-        try:
-            return [staged_path(remote_location(checked.format(segment=i), where, "output.path")) for i in ids]
-        except UserError as error:
-            problems.extend(error)
-            return None
-    return [resolved_or_written(ctx.config_dir / checked.format(segment=i)) for i in ids]
+    try:
+        return [_place(ctx, checked.format(segment=i), "path") for i in ids]
+    except UserError as error:
+        problems.extend(error)
+        return None
 
 
 def dataset_plan(ctx: CompileContext, segments: tuple[Segment, ...]) -> DatasetPlan | None:

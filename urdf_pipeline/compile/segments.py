@@ -21,11 +21,10 @@ from ..confine import Unresolvable, file_state, resolved
 from ..errors import UserError, Where, listing, quoted, shown
 from ..plan import DatasetPlan, LeRobotSourcePlan, Segment, SourcePlan
 from ..remote import is_remote, remote_glob
-from ..sources import KINDS, kind_of, refuse_control_characters
+from ..sources import GLOB, KINDS, kind_of, refuse_control_characters
 from .context import CompileContext
 from .output_paths import dataset_plan, output_paths
 
-GLOB_CHARACTERS = re.compile(r"[*?\[]")
 REMOTE_METADATA_THREADS = 16  # objects of an s3:// glob whose metadata is read at once
 EPISODES_RANGE = re.compile(r"^(\d*):(\d*)$")
 
@@ -44,7 +43,7 @@ def compile_sources(ctx: CompileContext) -> CompiledSources:
     for name, spec in ctx.data["sources"].items():
         kind = kind_of(spec)
         try:
-            if kind != "lerobot" and GLOB_CHARACTERS.search(spec[kind]):
+            if kind != "lerobot" and GLOB.search(spec[kind]):
                 files[name] = _compile_glob(ctx, name, kind, spec)
                 if files[name]:
                     plans[name] = next(iter(files[name].values()))
@@ -62,7 +61,7 @@ def _compile_glob(ctx: CompileContext, name: str, kind: str, spec: dict[str, Any
         return _compile_remote_glob(ctx, name, kind, spec, where)
     pattern = spec[kind] if Path(spec[kind]).is_absolute() else str(ctx.config_dir / spec[kind])
     # The folder the glob walks from must be readable; each match is checked again, as a file, by compile_source.
-    fixed = itertools.takewhile(lambda part: not GLOB_CHARACTERS.search(part), Path(pattern).parts)
+    fixed = itertools.takewhile(lambda part: not GLOB.search(part), Path(pattern).parts)
     ctx.confinement.check_read(Path(*fixed), f"{kind} glob folder", where)
     paths = _glob_files(ctx, pattern, kind, where)
     if not paths:
@@ -184,14 +183,12 @@ def _span(indices: list[int]) -> str:
 
 def expand_segments(ctx: CompileContext, sources: CompiledSources | None, episodes_override: str | None) -> DatasetPlan | None:
     """The run's segments, each with its sources, id and output path; None (with problems added) when they cannot be
-    named. Without the data (`sources` None: `validate --no-data`) which episodes or files there are is unknown, so
-    one stand-in segment is named (episode 0, file stem `stem`): the templates, the layout and where the outputs go
-    are checked; what depends on the segments' number or names (ids that collide, output.path without {segment} for
-    several segments, the episodes selected) is left to the checks that read the data."""
+    named. Without the data (`sources` None: `validate --no-data`) one stand-in segment (episode 0, file stem `stem`)
+    checks the templates, the layout and where the outputs go; what depends on the segments' number or names waits."""
     problems, output, specs = ctx.problems, ctx.data["output"], ctx.data["sources"]
     where_segment = ctx.where("output", "segment")
     episodic = [name for name, spec in specs.items() if kind_of(spec) == "lerobot" and "episode" not in spec]
-    globbed = [name for name, spec in specs.items() if kind_of(spec) != "lerobot" and GLOB_CHARACTERS.search(spec[kind_of(spec)])]
+    globbed = [name for name, spec in specs.items() if kind_of(spec) != "lerobot" and GLOB.search(spec[kind_of(spec)])]
     if episodes_override is not None:
         text, where_selection = episodes_override, Where(Path("--episodes"), 0)
     else:
@@ -202,7 +199,11 @@ def expand_segments(ctx: CompileContext, sources: CompiledSources | None, episod
         problems.extend(error)
         return None
     if episodic and globbed:
-        problems.add(_both_kinds_of_segments(episodic, globbed), ctx.where("sources"))
+        problems.add(
+            f"segments come either from LeRobot episodes ({listing(sorted(episodic))}) or from globbed files "
+            f"({listing(sorted(globbed))}), not both; pin the LeRobot episode with `episode:` or list one file",
+            ctx.where("sources"),
+        )
         return None
 
     keys: list[tuple[int | None, str | None]]  # (episode, stem) per segment
@@ -261,13 +262,6 @@ def _chosen(
 
 
 NOTHING_TO_SELECT = "episodes selects LeRobot episodes (a lerobot source without `episode:`) or globbed files; this config has neither"
-
-
-def _both_kinds_of_segments(episodic: list[str], globbed: list[str]) -> str:
-    return (
-        f"segments come either from LeRobot episodes ({listing(sorted(episodic))}) or from globbed files "
-        f"({listing(sorted(globbed))}), not both; pin the LeRobot episode with `episode:` or list one file"
-    )
 
 
 def _common_stems(ctx: CompileContext, files: dict[str, dict[str, SourcePlan]]) -> list[str] | None:

@@ -1,9 +1,5 @@
-"""Temporal edges: a pose read from a source row by row (a mobile base, a floating pelvis).
-
-`{parent: world, child: base_link, source: base_pose, translation: [x, y, z], quaternion_xyzw: [qx, qy, qz, qw]}`
-names values of the source. Here the edge is compiled (its values found by name, its entity chosen); the lazy stream
-that places it, row by row, is `execute/temporal_stream.py`.
-"""
+"""Temporal edges (a pose read from a source row by row: a mobile base, a floating pelvis) compiled: their values
+found by name, their entity chosen; `execute/temporal_stream.py` places them row by row."""
 
 from __future__ import annotations
 
@@ -20,9 +16,6 @@ TEMPORAL_ENTITY = "/calibration/temporal"
 def describe_temporal_edge(edge: TemporalEdgePlan) -> str:
     topic = f", {edge.tf_topic} of its bag" if edge.tf_topic is not None else ""
     return f"temporal edge {edge.parent} -> {edge.child} ({edge.label}, source '{edge.source}'{topic})"
-
-
-# --- compile ---------------------------------------------------------------------------------------------------
 
 
 class TemporalEntities:
@@ -97,6 +90,3 @@ def compile_temporal_edge(ctx: CompileContext, edge: EdgeSpec, sources: SourceNa
         label=edge.label,
         where=edge.where(),
     )
-
-
-# --- data pass -------------------------------------------------------------------------------------------------

@@ -1,9 +1,6 @@
-"""`trails:` -> `TrailPlan`s: each trail's robot, link, frame and window checked before anything is written.
-
-A trail's positions are composed, at run, from the frame down to the link: static calibration edges to the robot's
-root link, then the URDF's joints. So the frame must be above the link in the frame graph, and the path between them
-must hold no temporal edge (its pose comes from another source's rows, which the robot's FK pass does not read).
-"""
+"""`trails:` -> `TrailPlan`s: each trail's robot, link, frame and window checked before anything is written. A trail
+is composed at run from the frame down to the link (static edges, then the URDF's joints), so the frame must be above
+the link with no temporal edge between (its pose comes from rows the robot's FK pass does not read)."""
 
 from __future__ import annotations
 

@@ -1,9 +1,5 @@
-"""Source units and their factor to URDF units (rad for angular joints, m for prismatic ones).
-
-A robot's `joints.unit` says the unit by joint kind: an angular unit (rad, deg) applies to revolute and continuous
-joints only, a length unit (m, cm, mm) to prismatic joints only, `{angle: deg, length: mm}` gives both; a kind the
-config does not name keeps the URDF's own unit. A map entry's own `unit` must fit its joint.
-"""
+"""Source units and their factor to URDF units (rad for angular joints, m for prismatic ones), `joints.unit` and
+`limits.slack` as docs/config-reference.md describes them, and the one unit advisor."""
 
 from __future__ import annotations
 
@@ -173,7 +169,7 @@ def _no_unit(written: Any, value: float, angular: bool | None, meant: dict[bool,
     units = {k: meant.get(k, urdf_unit(k)) for k in kinds}
     text = number_text(value)
     if angular is not None:
-        fix, how = f"{path_key(angular)}: {text} {units[angular]}", f"unit {units[angular]}"
+        fix, how = f"{'angle' if angular else 'length'}: {text} {units[angular]}", f"unit {units[angular]}"
     elif len(kinds) == 2:
         fix = f"slack: {{angle: {text} {units[True]}, length: {text} {units[False]}}}"
         how = f"angles in {units[True]} and lengths in {units[False]}"
@@ -183,10 +179,6 @@ def _no_unit(written: Any, value: float, angular: bool | None, meant: dict[bool,
         f"{_show(written)} has no unit; slack now carries its own so that changing joints.unit cannot change it: "
         f"write {fix} (what {_show(written)} meant with {how})"
     )
-
-
-def path_key(angular: bool) -> str:
-    return "angle" if angular else "length"
 
 
 UNIT_NAMES = {"rad": "radians", "deg": "degrees", "m": "metres", "cm": "centimetres", "mm": "millimetres"}

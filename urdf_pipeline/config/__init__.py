@@ -1,8 +1,5 @@
 """The config as written: YAML with a location for every key, the JSON Schema, sidecar edge files, the format
-templates a config or a dataset's metadata supplies, and the generated reference.
-
-The names below are the package's public surface; other packages import them from here, never from its modules.
-"""
+templates a config or a dataset's metadata supplies, and the generated reference."""
 
 from __future__ import annotations
 

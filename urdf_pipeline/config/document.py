@@ -1,9 +1,8 @@
 """Parse YAML while keeping the line and column of every key, so every later error can point at them.
 
-Configs and edges files come from pull requests, so reading them is bounded before anything is built: at most
-MAX_BYTES of UTF-8 text without NUL or control characters; safe loading only, no tag beyond YAML's plain-data ones;
-at most MAX_NODES nodes and MAX_DEPTH levels once aliases are expanded, counted while composing, so an alias bomb is
-refused after a few thousand nodes instead of being expanded. Each refusal is a UserError at a line and column."""
+Configs and edges files come from pull requests, so reading them is bounded before anything is built (docs/security.md:
+size, characters, plain-data tags only, nodes and depth counted with aliases expanded while composing, so an alias bomb
+is refused before it is expanded). Each refusal is a UserError at a line and column."""
 
 from __future__ import annotations
 
@@ -33,7 +32,7 @@ def format_path(path: PathKey) -> str:
 
 
 class Lines(dict[PathKey, int]):
-    """The 1-based line of every YAML path (a plain dict of lines, as before) with, in `columns`, its 1-based column.
+    """The 1-based line of every YAML path with, in `columns`, its 1-based column.
 
     Both are where the path's entry starts: its key for a mapping entry (so a problem with the key or with its value
     points at the key), the item itself for a sequence item (after `- `), the root node for `()`. Columns ride along
@@ -65,15 +64,6 @@ class Document:
         column = self.lines.columns.get(probe, 0) if isinstance(self.lines, Lines) else 0
         return Where(self.file, self.lines.get(probe, 1), format_path(tuple(path)), column)
 
-    def get(self, *path: str | int, default: Any = None) -> Any:
-        node = self.data
-        for part in path:
-            try:
-                node = node[part]
-            except (KeyError, IndexError, TypeError):
-                return default
-        return node
-
 
 _STANDARD = "tag:yaml.org,2002:"
 _MERGE, _VALUE = _STANDARD + "merge", _STANDARD + "value"  # `<<` and `=`, as PyYAML resolves them
@@ -94,9 +84,8 @@ class _Flow:
 
 
 class _Loader(yaml.SafeLoader):
-    """YAML 1.1 as PyYAML reads it (safely), except that 1e-3 is a number (as in YAML 1.2 and JSON), not the string
-    '1e-3'; and bounded while composing, before anything is expanded: at most MAX_NODES nodes counting every alias as
-    the nodes it stands for, at most MAX_DEPTH levels (an alias adds its anchor's), no tag but YAML's plain-data ones."""
+    """YAML 1.1 as PyYAML reads it (safely), except that 1e-3 is a number (as in YAML 1.2 and JSON), bounded while
+    composing (the module's docstring): an alias counts as the nodes and levels of its anchor, never expanded."""
 
     def __init__(self, text: str, file: Path) -> None:
         self.file = file

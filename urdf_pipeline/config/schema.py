@@ -14,7 +14,7 @@ import jsonschema
 from jsonschema.exceptions import ValidationError, best_match
 
 from ..errors import Problems, UserError, shown
-from .document import Document, PathKey, format_path
+from .document import Document, PathKey
 
 SCHEMA_RESOURCE = "urdf-pipeline.schema.json"
 
@@ -39,10 +39,8 @@ INT64 = 2**63  # a whole number in a config is below it in size: every count, in
 
 
 def unusable_numbers(data: Any, path: PathKey = ()) -> Iterator[tuple[PathKey, str]]:
-    """(path, why) of every number no key can use, wherever it is: NaN and infinities (YAML's .nan, .inf and -.inf, a
-    literal beyond a float's range such as 1e999, JSON's NaN and Infinity), a whole number beyond 64 bits. One rule for
-    every number key, present and future: a NaN offset or colour would make no pose and no picture, and JSON Schema's
-    `type: number`, `minimum` and `maximum` all let NaN through."""
+    """(path, why) of every number no key can use, wherever it is: NaN, infinities (1e999 too), a whole number beyond
+    64 bits. One rule for every number key, present and future: JSON Schema's `type: number` and bounds let NaN through."""
     if isinstance(data, dict):
         for key, value in data.items():  # one iteration per key; nodes and depth are bounded by document.py
             yield from unusable_numbers(value, (*path, key))
@@ -156,6 +154,3 @@ def require_schema_valid(document: Document) -> None:
     if not isinstance(document.data, dict):
         raise UserError("the config must be a YAML mapping", document.where())
     validate_document(document)
-
-
-__all__ = ["schema", "schema_text", "validate_document", "require_schema_valid", "format_path"]

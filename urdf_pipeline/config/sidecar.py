@@ -1,9 +1,5 @@
-"""`edges: - file: calib/extrinsics.yaml`: a sidecar list of edges, spliced in at the entry's position.
-
-A sidecar holds a YAML (or JSON) list of edges in the same form as inline ones and is validated against the same
-schema (`#/$defs/edges_file`); every error points at the sidecar's own file and line. Its path is relative to the
-config file. A sidecar cannot include another sidecar, so there is no recursion to guard against.
-"""
+"""`edges: - file: calib/extrinsics.yaml`: a sidecar list of edges (docs/config-reference.md), spliced in at the
+entry's position, each error at the sidecar's own file and line. A sidecar includes no other, so nothing recurses."""
 
 from __future__ import annotations
 

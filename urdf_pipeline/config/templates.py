@@ -1,12 +1,8 @@
 """Format templates that come from input: the config's `output.path` and `output.segment`, a LeRobot dataset's
 `data_path` and `video_path`. One parser and checker for all of them, because `str.format` on a stranger's template
-is a door: `{x.__class__}` reads attributes, `{x[0]}` items, `{x!r}` calls repr, `{x:999999999d}` allocates a
-gigabyte, and a spec wrong for the value's type raises where nobody catches it.
-
-A template is accepted when every placeholder is one its caller names (by keyword: no `{}` or `{0}`), with no
-attribute or item access, no conversion, no nested field in its spec, and a spec of the placeholder's kind whose width
-and precision are at most MAX_WIDTH (or, for a reader that only substitutes the exact text LeRobot writes, that exact
-spec). It is then formatted with values of the declared kinds only, so formatting it cannot fail."""
+is a door (docs/security.md): a template is accepted only with placeholders its caller names, no attribute or item
+access, no conversion, no nested field, and a spec of the placeholder's kind at most MAX_WIDTH wide (or the exact spec
+a reader substitutes), so formatting it cannot fail."""
 
 from __future__ import annotations
 
@@ -77,12 +73,8 @@ def checked_template(text: str, placeholders: Mapping[str, Placeholder], what: s
         raise UserError(f"{what} {quoted(text)} {exc}", where) from None
 
 
-def known_fields(placeholders: Mapping[str, Placeholder]) -> str:
-    return ", ".join(placeholder.written(name) for name, placeholder in placeholders.items())
-
-
 def _checked_field(name: str, spec: str, conversion: str | None, placeholders: Mapping[str, Placeholder]) -> str:
-    known = known_fields(placeholders)
+    known = ", ".join(placeholder.written(name) for name, placeholder in placeholders.items())
     if name == "" or name.isdigit():
         raise TemplateError(f"has a positional placeholder {quoted('{' + name + '}')}; name it: {known}")
     if any(mark in name for mark in ".["):

@@ -1,12 +1,5 @@
-"""The frozen, typed plan: everything decided before any joint value is read.
-
-Two levels: `Plan` is the whole config (what `compile_config` and `urdf_pipeline.load` return, what `plan`, `diff`
-and `run` read); `RecordingPlan` is one recording of it (a segment, or the split layout's model: what `execute`
-writes), made by `Plan.for_segment` / `for_model`. Only the latter has sources and an output.
-
-Its parts, one module each: the sources (`source_plans.py`), the robots and the edges between their frames
-(`robot_plans.py`), the outputs, segments and the plans themselves (`scene_plans.py`), a live view's plan
-(`live_plans.py`). Every stage imports them from here, the package's surface.
+"""The frozen, typed plan: everything decided before any joint value is read (its two levels, `Plan` and
+`RecordingPlan`, are ARCHITECTURE.md's seam), one module per part: sources, robots and edges, scenes, live views, trails.
 """
 
 from __future__ import annotations
