@@ -22,6 +22,7 @@ from .comparisons import with_comparisons
 from .context import CompileContext, SourceNames
 from .edges import assumed_identity_edges, compile_edges, frame_edges, urdf_frames
 from .frame_graph import check_frame_graph
+from .qa import compile_qa
 from .robots import compile_robot
 from .segments import CompiledSources, compile_sources, expand_segments
 from .trails import compile_trails, source_timelines, spec_timelines
@@ -103,6 +104,7 @@ def check_document(document: Document, names: NameSource[P]) -> Compiled[P]:
         needed = [name for name in needed if name in read]
     found, notes = _source_names(ctx, names, compiled, needed)
     model = _compile_model(ctx, found)
+    qa = compile_qa(ctx)
     specs: dict[str, LiveSourceSpec] = {}
     if names.live:
         specs = {name: _live_spec(ctx, name) for name in sorted(needed)}
@@ -125,7 +127,7 @@ def check_document(document: Document, names: NameSource[P]) -> Compiled[P]:
             plan = LivePlan(*scene, application_id, tuple(specs[name].with_names(found[name] or ()) for name in needed))
         else:
             assert dataset is not None
-            plan = Plan(*scene, dataset, application_id, ctx.where("output"), trails)
+            plan = Plan(*scene, dataset, application_id, ctx.where("output"), trails, qa)
     compiled_plan = Compiled(tuple(ctx.problems.errors), tuple(notes), plan, tuple(specs.values()))
     return cast(Compiled[P], compiled_plan)  # the plan's type is the one `names` says
 

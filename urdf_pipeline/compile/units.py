@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -50,7 +51,6 @@ def robot_units(spec: Any) -> RobotUnits:
 
 # limits.slack carries its own unit, so that changing joints.unit cannot change it (2 deg stays 2 deg when the data
 # switches to rad). A string "NUMBER UNIT" applies to the joints of its unit's kind; {angle: ..., length: ...} to both.
-_SLACK_TEXT = re.compile(r"^\s*([+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?)\s*([A-Za-z]*)\s*$")
 
 
 @dataclass(frozen=True)
@@ -120,47 +120,94 @@ def _slack_part(
     written: Any, path: tuple[str, ...], angular: bool | None, meant: dict[bool, str], problems: list[SlackProblem]
 ) -> tuple[float, str] | None:
     """One slack value: (URDF units, its unit), or None after adding why not. angular None: either kind (slack itself)."""
+    return quantity_part(SLACK, written, path, angular, problems, lambda value: _no_unit(written, value, angular, meant))
+
+
+@dataclass(frozen=True)
+class Quantity:
+    """A threshold the config writes as NUMBER UNIT (`limits.slack`, the `qa:` thresholds): its units by joint kind
+    (True: angular; factor to URDF/SI units) and the words of its messages, so every such value reads and fails alike."""
+
+    name: str  # in messages: "slack", "static_velocity"
+    noun: str  # "a slack", "a velocity"
+    units: dict[bool, dict[str, float]]
+    kinds: dict[bool, str]  # what each kind's values are: "an angle", "a length"
+    example: dict[bool, str]  # a value of each kind: "2 deg", "5 mm"
+    negative: str  # why a negative value is refused
+
+    def unit_list(self) -> str:
+        return "; ".join(", ".join(self.units[k]) for k in (True, False))
+
+    def factors(self) -> dict[str, float]:
+        return {**self.units[True], **self.units[False]}
+
+
+_NUMBER_UNIT = re.compile(r"^\s*([+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?)\s*([A-Za-z]+(?:/[A-Za-z]+(?:\^\d)?)?)?\s*$")
+
+
+def quantity_part(
+    kind: Quantity, written: Any, path: tuple[str, ...], angular: bool | None, problems: list[SlackProblem], no_unit: Callable[[float], str]
+) -> tuple[float, str] | None:
+    """One NUMBER UNIT value of `kind`: (URDF/SI units, its unit), or None after adding why not to `problems`. angular
+    None: either kind; `no_unit(value)` says how to fix a bare number other than 0."""
+    examples = f"{kind.example[True]} or {kind.example[False]}"
     if isinstance(written, bool) or not isinstance(written, int | float | str):
-        problems.append(SlackProblem(path, f"wrong type: expected a number with its unit such as 2 deg or 5 mm, got {_show(written)}"))
+        problems.append(SlackProblem(path, f"wrong type: expected a number with its unit such as {examples}, got {_show(written)}"))
         return None
-    match = _SLACK_TEXT.match(written) if isinstance(written, str) else None
+    match = _NUMBER_UNIT.match(written) if isinstance(written, str) else None
     if isinstance(written, str) and match is None:
-        problems.append(SlackProblem(path, f"{_show(written)} is not a slack: write NUMBER UNIT, e.g. 2 deg or 5 mm (units {_UNIT_LIST})"))
+        problems.append(
+            SlackProblem(path, f"{_show(written)} is not {kind.noun}: write NUMBER UNIT, e.g. {examples} (units {_unit_list(kind)})")
+        )
         return None
     try:
         value = float(match.group(1)) if match else float(written)
     except OverflowError:  # an integer too big for a float
         value = math.inf
-    unit = match.group(2) if match else ""
+    unit = (match.group(2) or "") if match else ""
     if not math.isfinite(value):
-        problems.append(SlackProblem(path, f"slack {_show(written)} is not a finite number"))
+        problems.append(SlackProblem(path, f"{kind.name} {_show(written)} is not a finite number"))
         return None
     if value < 0:
-        problems.append(
-            SlackProblem(path, f"slack {_show(written)} is negative; the slack is the overshoot tolerated beyond each limit, 0 or more")
-        )
+        problems.append(SlackProblem(path, f"{kind.name} {_show(written)} is negative; {kind.negative}"))
         return None
+    factors = kind.factors()
     if value == 0 and not unit:
-        return (0.0, urdf_unit(angular is not False))
+        return (0.0, next(iter(kind.units[angular is not False])))
     if not unit:
-        problems.append(SlackProblem(path, _no_unit(written, value, angular, meant)))
+        problems.append(SlackProblem(path, no_unit(value)))
         return None
-    if unit not in FACTORS:
-        problems.append(SlackProblem(path, f"unknown unit {quoted(unit)} in slack {_show(written)}; units are {_UNIT_LIST}"))
+    if unit not in factors:
+        problems.append(SlackProblem(path, f"unknown unit {quoted(unit)} in {kind.name} {_show(written)}; units are {_unit_list(kind)}"))
         return None
-    if angular is not None and fits(unit, angular) is False:
-        kind, units, other = ("an angle", "rad or deg", "a length") if angular else ("a length", "m, cm or mm", "an angle")
+    if angular is not None and unit not in kind.units[angular]:
+        names = list(kind.units[angular])
+        units = f"{', '.join(names[:-1])} or {names[-1]}"
+        example_unit = kind.example[angular].split()[-1]
         problems.append(
             SlackProblem(
                 path,
-                f"slack {_show(written)} is {other}, but {path[-1]} takes {kind}: write it in {units} (e.g. {number_text(value)} {'deg' if angular else 'mm'})",
+                f"{kind.name} {_show(written)} is {kind.kinds[not angular]}, but {path[-1]} takes {kind.kinds[angular]}: write it in "
+                f"{units} (e.g. {number_text(value)} {example_unit})",
             )
         )
         return None
-    return (value * FACTORS[unit], unit)
+    return (value * factors[unit], unit)
+
+
+def _unit_list(kind: Quantity) -> str:
+    return _UNIT_LIST if kind is SLACK else kind.unit_list()
 
 
 _UNIT_LIST = "rad, deg for revolute and continuous joints; m, cm, mm for prismatic joints"
+SLACK = Quantity(
+    "slack",
+    "a slack",
+    {True: {"rad": FACTORS["rad"], "deg": FACTORS["deg"]}, False: {u: FACTORS[u] for u in LINEAR_UNITS}},
+    {True: "an angle", False: "a length"},
+    {True: "2 deg", False: "5 mm"},
+    "the slack is the overshoot tolerated beyond each limit, 0 or more",
+)
 
 
 def _no_unit(written: Any, value: float, angular: bool | None, meant: dict[bool, str]) -> str:

@@ -10,6 +10,7 @@ from ..package import lazy_surface
 
 if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface reads it)
     from .live_plans import DEFAULT_TIMELINE, LivePlan, LiveSource, LiveSourceSpec
+    from .qa_plans import QA_FLAGS, ByKind, QaFlag, QaPlan
     from .robot_plans import Comparison, EdgeKind, EdgePlan, FixedChain, HeldJoint, JointChannel, MimicJoint, RobotPlan, TemporalEdgePlan
     from .scene_plans import DatasetPlan, Layout, OutputPlan, Plan, RecordingPlan, RemoteOutputs, ScenePlan, Segment
     from .source_plans import (

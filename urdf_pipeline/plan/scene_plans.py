@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Literal
 
 from ..errors import UserError, Where, did_you_mean, listing
+from .qa_plans import QaPlan
 from .robot_plans import EdgePlan, RobotPlan, TemporalEdgePlan
 from .source_plans import SourcePlan
 from .trail_plans import TrailPlan
@@ -88,6 +89,7 @@ class Plan(ScenePlan):
     application_id: str  # every recording's (output.application_id)
     output_where: Where  # the config's `output`, for errors about what a run writes
     trails: tuple[TrailPlan, ...] = ()  # `trails:`, drawn by every segment's recording
+    qa: QaPlan = QaPlan()  # `qa:`, the thresholds of the dataset's checks
 
     @property
     def segments(self) -> tuple[Segment, ...]:
