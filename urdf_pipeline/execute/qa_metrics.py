@@ -157,19 +157,15 @@ class SegmentQa:
             forward = steps[np.isfinite(steps) & (steps > 0)]
         if self.gap_seconds is not None:
             self.gaps += int((forward > self.gap_seconds).sum())
-        elif self.nominal is not None:
-            self.gaps += int((forward > self.gap_steps * self.nominal).sum())
-        else:
-            self.early_steps.append(forward[: NOMINAL_STEPS - self.early_count])
-            self.early_count += self.early_steps[-1].size
-            later = forward[self.early_steps[-1].size :]
+        if self.nominal is None:  # the first positive steps wait for the nominal step they are judged by
+            early = forward[: NOMINAL_STEPS - self.early_count]
+            self.early_steps.append(early)
+            self.early_count += early.size
+            forward = forward[early.size :]
             if self.early_count >= NOMINAL_STEPS:
                 self._settle_nominal()
-                self.gaps += int((later > self.gap_steps * self._nominal()).sum())
-
-    def _nominal(self) -> float:
-        assert self.nominal is not None
-        return self.nominal
+        if self.nominal is not None and self.gap_seconds is None:
+            self.gaps += int((forward > self.gap_steps * self.nominal).sum())
 
     def _settle_nominal(self) -> None:
         """The nominal step from the first positive steps, and the gaps among them."""
@@ -177,7 +173,8 @@ class SegmentQa:
         self.early_steps = []
         if early.size:
             self.nominal = float(np.median(early))
-            self.gaps += int((early > self.gap_steps * self.nominal).sum())
+            if self.gap_seconds is None:
+                self.gaps += int((early > self.gap_steps * self.nominal).sum())
 
     def _velocity(self, velocity: np.ndarray) -> None:
         speed = np.abs(velocity)

@@ -44,7 +44,7 @@ class QaPlan:
     spike_factor: float = 20.0  # `spike`: max |jerk| above this times the dataset's median p95 |jerk| of the joint
     spike_jerk: ByKind | None = None  # `spike` also above this absolute |jerk| (rad/s^3, m/s^3); None: no bound
     gap_seconds: float | None = None  # `timestamp_gap`: a step above this (s); None: gap_steps times the nominal step
-    gap_steps: float = 1.5  # a step above this many nominal steps (1/fps, else the median of the first steps)
+    gap_steps: float = 2.5  # a step above this many nominal steps (1/fps, else the median of the first steps)
     length_iqr: float = 3.0  # `length_outlier`: rows beyond the quartiles by this many IQRs
     bias: ByKind = ByKind(math.radians(2.0), 0.002, "{angle: 2 deg, length: 2 mm}")  # `calibration_bias`: |mean| beyond
     fail_on: tuple[QaFlag, ...] = ()  # the flags that fail `qa` (exit 1)
