@@ -225,6 +225,7 @@ def test_each_planted_fault_gets_exactly_its_flag_on_exactly_its_segment() -> No
         ("timestamp_order",),
     )
     assert flags_of(episodes) == expected
+    assert feed(episodes[1], 7).joints["j3"].max_jerk_row == 301  # the jump at row 300: its largest jerk ends at 301
 
 
 def test_limits_nan_and_the_absolute_jerk_bound_are_flagged() -> None:

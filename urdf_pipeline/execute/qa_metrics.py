@@ -33,7 +33,7 @@ class JointMetrics:
     max_abs_velocity: float | None
     p95_abs_jerk: float | None
     max_abs_jerk: float | None
-    max_jerk_row: int | None  # the row (from 0) where |jerk| is largest: where a spike is
+    max_jerk_row: int | None  # the row (from 0) the largest |jerk| ends at: a one-frame jump at k gives k + 1
     static_fraction: float | None  # of the steps with a velocity, the share below the static threshold
     nan: int  # non-finite values
     limits: int  # finite values beyond the limits and slack
