@@ -11,12 +11,12 @@ from typing import Any, cast
 from ..errors import did_you_mean, listing, quoted, shown
 from ..plan import QA_FLAGS, ByKind, QaFlag, QaPlan
 from .context import CompileContext
-from .units import FACTORS, Quantity, SlackProblem, number_text, quantity_part
+from .units import ANGULAR_UNITS, FACTORS, LINEAR_UNITS, SLACK, Quantity, SlackProblem, number_text, quantity_part
 
 
 def _per_second(power: str) -> dict[bool, dict[str, float]]:
     """The units of a rate (`/s`, `/s^3`) of angles and lengths."""
-    return {True: {f"{u}/s{power}": FACTORS[u] for u in ("rad", "deg")}, False: {f"{u}/s{power}": FACTORS[u] for u in ("m", "cm", "mm")}}
+    return {True: {f"{u}/s{power}": FACTORS[u] for u in ANGULAR_UNITS}, False: {f"{u}/s{power}": FACTORS[u] for u in LINEAR_UNITS}}
 
 
 VELOCITY = Quantity(
@@ -38,7 +38,7 @@ JERK = Quantity(
 BIAS = Quantity(
     "bias",
     "a bias",
-    {True: {"rad": FACTORS["rad"], "deg": FACTORS["deg"]}, False: {u: FACTORS[u] for u in ("m", "cm", "mm")}},
+    SLACK.units,  # an angle or a length, as limits.slack
     {True: "an angle", False: "a length"},
     {True: "2 deg", False: "2 mm"},
     "it is the |mean difference| tolerated between a copy and its measured robot, 0 or more",

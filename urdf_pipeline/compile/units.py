@@ -134,9 +134,10 @@ class Quantity:
     kinds: dict[bool, str]  # what each kind's values are: "an angle", "a length"
     example: dict[bool, str]  # a value of each kind: "2 deg", "5 mm"
     negative: str  # why a negative value is refused
+    unit_text: str = ""  # the units as messages list them; "": each kind's, "; " between
 
     def unit_list(self) -> str:
-        return "; ".join(", ".join(self.units[k]) for k in (True, False))
+        return self.unit_text or "; ".join(", ".join(self.units[k]) for k in (True, False))
 
     def factors(self) -> dict[str, float]:
         return {**self.units[True], **self.units[False]}
@@ -157,7 +158,7 @@ def quantity_part(
     match = _NUMBER_UNIT.match(written) if isinstance(written, str) else None
     if isinstance(written, str) and match is None:
         problems.append(
-            SlackProblem(path, f"{_show(written)} is not {kind.noun}: write NUMBER UNIT, e.g. {examples} (units {_unit_list(kind)})")
+            SlackProblem(path, f"{_show(written)} is not {kind.noun}: write NUMBER UNIT, e.g. {examples} (units {kind.unit_list()})")
         )
         return None
     try:
@@ -178,7 +179,7 @@ def quantity_part(
         problems.append(SlackProblem(path, no_unit(value)))
         return None
     if unit not in factors:
-        problems.append(SlackProblem(path, f"unknown unit {quoted(unit)} in {kind.name} {_show(written)}; units are {_unit_list(kind)}"))
+        problems.append(SlackProblem(path, f"unknown unit {quoted(unit)} in {kind.name} {_show(written)}; units are {kind.unit_list()}"))
         return None
     if angular is not None and unit not in kind.units[angular]:
         names = list(kind.units[angular])
@@ -195,18 +196,15 @@ def quantity_part(
     return (value * factors[unit], unit)
 
 
-def _unit_list(kind: Quantity) -> str:
-    return _UNIT_LIST if kind is SLACK else kind.unit_list()
-
-
 _UNIT_LIST = "rad, deg for revolute and continuous joints; m, cm, mm for prismatic joints"
 SLACK = Quantity(
     "slack",
     "a slack",
-    {True: {"rad": FACTORS["rad"], "deg": FACTORS["deg"]}, False: {u: FACTORS[u] for u in LINEAR_UNITS}},
+    {True: {u: FACTORS[u] for u in ANGULAR_UNITS}, False: {u: FACTORS[u] for u in LINEAR_UNITS}},
     {True: "an angle", False: "a length"},
     {True: "2 deg", False: "5 mm"},
     "the slack is the overshoot tolerated beyond each limit, 0 or more",
+    _UNIT_LIST,
 )
 
 
