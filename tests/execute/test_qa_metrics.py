@@ -126,15 +126,15 @@ def assert_matches(found: SegmentMetrics, expected: dict[str, object]) -> None:
         assert got.p95_abs_jerk == pytest.approx(want["p95_abs_jerk"], rel=JERK_PRECISION), name
 
 
-def rough_episode(rng: np.random.Generator, timeline: str) -> Episode:
+def rough_episode(rng: np.random.Generator, timeline: str, fps: float = 30.0) -> Episode:
     """Noisy motion with every kind of trouble inside: NaNs, values beyond the limits, a repeated and a backwards
     timestamp, a gap, and uneven steps."""
-    rows, fps = 2500, 30.0
+    rows = 2500
     x = teleoperation(rng, rows, fps)
     x[100:103, 1] = np.nan
     x[400, 0] = 3.5
     x[900:905, 5] = 0.06
-    seconds = np.arange(rows) / fps + rng.uniform(-0.002, 0.002, rows)
+    seconds = np.arange(rows) / fps + rng.uniform(-0.06, 0.06, rows) / fps
     seconds[1500:] += 0.2  # a gap
     seconds[1700] = seconds[1699]  # a repeated timestamp
     seconds[2000] = seconds[1999] - 0.01  # a backwards one
@@ -145,10 +145,24 @@ def rough_episode(rng: np.random.Generator, timeline: str) -> Episode:
     return Episode(x, seconds, None)
 
 
+@pytest.mark.parametrize("fps", [30.0, 1000.0])
 @pytest.mark.parametrize("timeline", ["seconds", "ns", "fps"])
-def test_every_number_equals_the_numpy_reference(timeline: str) -> None:
-    episode = rough_episode(np.random.default_rng(7), timeline)
+def test_every_number_equals_the_numpy_reference(timeline: str, fps: float) -> None:
+    episode = rough_episode(np.random.default_rng(7), timeline, fps)
     assert_matches(feed(episode, 1000), reference(episode))
+
+
+def test_memory_is_bounded_by_one_block_not_the_episode() -> None:
+    """The accumulators' state is the same size after 10 blocks as after 100 (the rows carried, the histograms)."""
+
+    def state_bytes(rows: int) -> int:
+        episode = Episode(teleoperation(np.random.default_rng(6), rows, 30.0), np.arange(rows) / 30.0, None)
+        metrics = SegmentQa("s", NAMES, np.full(6, 0.1), LOWER, UPPER)
+        for start in range(0, rows, 1000):
+            metrics.add(episode.values[start : start + 1000], episode.times[start : start + 1000] if episode.times is not None else None)
+        return sum(value.nbytes for value in vars(metrics).values() if isinstance(value, np.ndarray)) + 8 * metrics.early_count
+
+    assert state_bytes(10_000) == state_bytes(100_000)
 
 
 @pytest.mark.parametrize("timeline", ["seconds", "ns", "fps"])
