@@ -256,6 +256,8 @@ def episode_times(plan: LeRobotSourcePlan) -> tuple[np.ndarray, np.ndarray] | No
             raise UserError(problem, plan.where)
         frames.append(np.asarray(table.column("frame_index").to_numpy(), dtype=np.int64))
         nanos.append(np.round(np.asarray(seconds.to_numpy(), dtype=np.float64) * NANOSECONDS["s"]).astype(np.int64))
+    if not frames:
+        return None
     every_frame, every_time = np.concatenate(frames), np.concatenate(nanos)
     order = np.argsort(every_frame, kind="stable")  # a repeated frame_index: its last row's time (as keep_last keeps)
     return every_frame[order], every_time[order]
