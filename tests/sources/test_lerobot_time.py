@@ -134,3 +134,13 @@ def test_a_declared_timestamp_missing_from_the_data_is_refused(tmp_path: Path) -
     pq.write_table(pq.read_table(file).drop_columns(["timestamp"]), file)
     with pytest.raises(UserError, match=r"episode_000000\.parquet has no timestamp column, which meta/info\.json's features declare"):
         _time_column(_plan(tmp_path, timed=True))
+
+
+@pytest.mark.parametrize(("window", "timelines"), [("0.5 s", ("time",)), ("20 rows", ("frame_index",))])
+def test_a_trail_window_applies_to_the_timeline_of_its_unit(window: str, timelines: tuple[str, ...], examples_dir: Path) -> None:
+    dataset = examples_dir / "data" / "lerobot_time_trails"
+    write_lerobot_dataset(dataset, [random_panda_q(examples_dir, 8, seed=5)], PANDA_JOINTS)
+    config = lerobot_panda_config(examples_dir, "lerobot_time_trails", {"lerobot": str(dataset)})
+    config.write_text(config.read_text() + f"trails:\n- {{link: panda_hand, window: {window}}}\n")
+    (trail,) = compile_config(config).trails
+    assert trail.timelines == timelines
