@@ -43,6 +43,12 @@ def _episode(config: Path, episode: int) -> tuple[np.ndarray, np.ndarray]:
     return table.column("frame_index").to_numpy(), np.radians(state.reshape(len(table), len(SO101_JOINTS)))
 
 
+def _timestamps(config: Path, episode: int) -> np.ndarray:
+    """The episode's timestamp column (seconds since its start), as float64, read with pyarrow."""
+    table = pq.read_table(config.parent / "data" / "so101_lerobot" / "data" / "chunk-000" / f"episode_{episode:06d}.parquet")
+    return table.column("timestamp").to_numpy().astype(np.float64)
+
+
 def test_each_segment_lists_its_time_range_robots_and_preview(so101_written: Path) -> None:
     entries = segment_summaries(compile_config(so101_written))
     assert [e.segment for e in entries] == [f"episode_{e:06d}" for e in range(EPISODES)]
@@ -51,9 +57,12 @@ def test_each_segment_lists_its_time_range_robots_and_preview(so101_written: Pat
         frame_index, values = _episode(so101_written, episode)
         assert entry.frames == len(frame_index) and entry.episode == episode and entry.path.is_file()
         assert entry.summary is not None and entry.summary.robots == ("so101",)
-        (timeline,) = entry.summary.timelines
+        timeline, time = entry.summary.timelines  # a LeRobot source's two: frame_index and its timestamps' `time`
         assert (timeline.timeline, timeline.kind) == ("frame_index", "sequence")
         assert (timeline.first, timeline.last) == (int(frame_index[0]), int(frame_index[-1]))
+        seconds = _timestamps(so101_written, episode)
+        assert (time.timeline, time.kind) == ("time", "duration")
+        assert (time.first, time.last) == (round(seconds[0] * 1e9), round(seconds[-1] * 1e9))
         (preview,) = entry.summary.previews
         assert preview.robot == "so101" and preview.joints == tuple(SO101_JOINTS) and preview.rows == len(values)
         assert list(zip(preview.low, preview.high, strict=True)) == limits

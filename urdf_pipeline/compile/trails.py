@@ -53,18 +53,18 @@ def source_timelines(source: SourcePlan) -> tuple[tuple[str, str], ...]:
     kind = type(source).__name__
     if kind == "Hdf5SourcePlan":
         return (("row_index", "sequence"),)
-    if kind == "LeRobotSourcePlan":
-        return (("frame_index", "sequence"),)
+    if kind == "LeRobotSourcePlan":  # and, from its `timestamp` column, the duration timeline `time` (sources/lerobot.py)
+        return (("frame_index", "sequence"), *((("time", "duration"),) if getattr(source, "timed", False) else ()))
     timeline = getattr(source, "timeline", None)
     return ((timeline, "timestamp"),) if isinstance(timeline, str) else ()
 
 
 def spec_timelines(spec: Mapping[str, Any]) -> tuple[tuple[str, str], ...]:
     """The same from a source's config entry, for `validate --no-data`: a file's `index:` (a name: a sequence; or
-    `{sequence|timestamp|duration: column}`), a LeRobot dataset's frame_index; () for the kinds whose timeline only
-    the compiled source knows."""
+    `{sequence|timestamp|duration: column}`), a LeRobot dataset's frame_index and time (as LeRobot writes every
+    dataset); () for the kinds whose timeline only the compiled source knows."""
     if "lerobot" in spec:
-        return (("frame_index", "sequence"),)
+        return (("frame_index", "sequence"), ("time", "duration"))
     index = spec.get("index") if ("parquet" in spec or "csv" in spec) else None
     if isinstance(index, str):
         return ((index, "sequence"),)

@@ -73,6 +73,8 @@ class LeRobotSourcePlan:
     per_segment: bool = False  # no `episode` in the config: each segment reads its own episode
     duplicates: str = "error"  # two rows at one index value: "error" or "keep_last" (the later row wins)
     remote: RemoteDataset | None = None  # `lerobot: s3://...` or `hf://...`: `run` reads a local view of its files
+    fps: float | None = None  # meta/info.json's frames per second (checked: above 0, bounded); None when it says none
+    timed: bool = False  # meta/info.json declares the `timestamp` feature: rows get the `time` timeline too
 
 
 @dataclass(frozen=True)

@@ -11,6 +11,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
 import pyarrow as pa
 
 from ..config import Document
@@ -35,6 +36,7 @@ from .lerobot_meta import (
 )
 from .ordering import in_time_order
 from .stream import SourceStream, component_field, per_row
+from .time_range import NANOSECONDS, index_problem
 
 if TYPE_CHECKING:
     from rerun.chunk import Chunk
@@ -45,6 +47,13 @@ SPEC_FORM = "lerobot:DIR[#FEATURE]"
 SUFFIXES: tuple[str, ...] = ()  # a folder: `is_dataset` says it
 VECTOR_COMPONENT = "urdf_pipeline:joint_values"
 FRAME_INDEX = IndexPlan("frame_index", "sequence", None)  # the timeline of every LeRobot source
+# LeRobot's `timestamp` column: float seconds since the episode's start (frame_index / fps as recorded). It becomes a
+# *duration* timeline, not a timestamp one: it is no wall-clock instant (a timestamp timeline would show 1970-01-01),
+# and durations let episodes be compared side by side from 0 s. Named `time`, so that no one reads it as Rerun's
+# timestamp kind; it is kept alongside frame_index on every row (a trail's `window` in s applies to it, in rows to
+# frame_index).
+TIME = "time"
+TIMESTAMP = IndexPlan("timestamp", "duration", "s")  # the column, as time_range.py checks it
 
 
 def compile_source(name: str, spec: dict[str, Any], document: Document, config_dir: Path) -> LeRobotSourcePlan:
@@ -216,14 +225,64 @@ def _reader(root: Path, metadata: tuple[FileStamp, ...]) -> tuple[LeRobotReader,
     return reader, frozenset(reader.episodes())
 
 
-def _one_vector_per_row(chunk: Chunk) -> list[Chunk]:
-    """Scalars:scalars holds a row's values as instances; repack them as one list instance per row (per-row FK)."""
+def episode_times(plan: LeRobotSourcePlan) -> tuple[np.ndarray, np.ndarray] | None:
+    """The episode's frame_index values, sorted, and the `time` (int64 nanoseconds) of each, from the `timestamp`
+    column of its data files, checked on whole columns (finite, within a timeline: time_range.py); None when
+    meta/info.json declares no timestamp. One episode's two columns are held (16 bytes a frame), not its values."""
+    import pyarrow.compute as pc
+    import pyarrow.parquet as pq
+
+    if not plan.timed:
+        return None
+    frames: list[np.ndarray] = []
+    nanos: list[np.ndarray] = []
+    for file in episode_inputs(plan)[1:]:  # one iteration per data file
+        named = _shown_file(plan, file)
+        try:
+            present = set(pq.read_schema(file).names)
+            missing = [c for c in (TIMESTAMP.column, "frame_index") if c not in present]
+            if missing:
+                raise UserError(f"{named} has no {' or '.join(missing)} column, which meta/info.json's features declare", plan.where)
+            table = pq.read_table(file, columns=[c for c in (TIMESTAMP.column, "frame_index", "episode_index") if c in present])
+        except (pa.ArrowException, OSError) as exc:
+            raise UserError(f"episode {plan.episode}: cannot read parquet file {named}: {exc}", plan.where) from None
+        if "episode_index" in present:  # v3: episodes share a file
+            table = table.filter(pc.equal(table.column("episode_index"), plan.episode))
+        seconds = table.column(TIMESTAMP.column)
+        if not (pa.types.is_floating(seconds.type) or pa.types.is_integer(seconds.type)):
+            raise UserError(f"column 'timestamp' of {named} holds {seconds.type}, not seconds", plan.where)
+        problem = index_problem(seconds, TIMESTAMP, 0, f"episode {plan.episode}: column 'timestamp' of {named}")
+        if problem is not None:
+            raise UserError(problem, plan.where)
+        frames.append(np.asarray(table.column("frame_index").to_numpy(), dtype=np.int64))
+        nanos.append(np.round(np.asarray(seconds.to_numpy(), dtype=np.float64) * NANOSECONDS["s"]).astype(np.int64))
+    if not frames:
+        return None
+    every_frame, every_time = np.concatenate(frames), np.concatenate(nanos)
+    order = np.argsort(every_frame, kind="stable")  # a repeated frame_index: its last row's time (as keep_last keeps)
+    return every_frame[order], every_time[order]
+
+
+def _one_vector_per_row(plan: LeRobotSourcePlan, times: tuple[np.ndarray, np.ndarray] | None, chunk: Chunk) -> list[Chunk]:
+    """Scalars:scalars holds a row's values as instances; repack them as one list instance per row (per-row FK). With
+    `times` (episode_times), each row also gets its `time`, looked up by its frame_index over the whole chunk."""
     from rerun.chunk import Chunk
 
     batch = chunk.to_record_batch()
     index = batch.schema.get_field_index("Scalars:scalars")
     wrapped = per_row(batch.column(index))
-    return Chunk.from_record_batch(batch.set_column(index, component_field(VECTOR_COMPONENT, wrapped.type), wrapped))
+    batch = batch.set_column(index, component_field(VECTOR_COMPONENT, wrapped.type), wrapped)
+    if times is not None:
+        known, nanos = times
+        wanted = np.asarray(batch.column(batch.schema.get_field_index(FRAME_INDEX.column)).to_numpy(), dtype=np.int64)
+        at = np.searchsorted(known, wanted, side="right") - 1
+        found = (at >= 0) & (known[np.maximum(at, 0)] == wanted)
+        if not found.all():
+            lost = int(wanted[int(np.argmin(found))])
+            raise UserError(f"episode {plan.episode}: frame_index {lost} has no timestamp in its data files", plan.where)
+        field = pa.field(TIME, pa.duration("ns"), metadata={b"rerun:kind": b"index", b"rerun:index_name": TIME.encode()})
+        batch = batch.add_column(index, field, pa.array(nanos[at], pa.int64()).cast(pa.duration("ns")))  # indices first
+    return Chunk.from_record_batch(batch)
 
 
 def open_stream(plan: LeRobotSourcePlan) -> SourceStream:
@@ -241,7 +300,7 @@ def open_stream(plan: LeRobotSourcePlan) -> SourceStream:
     stream = (
         reader.stream(plan.episode, video_mode="skip")
         .filter(content=entity, is_static=False, components="Scalars:scalars")
-        .flat_map(_one_vector_per_row)
+        .flat_map(functools.partial(_one_vector_per_row, plan, episode_times(plan)))
     )
     stream = in_time_order(stream, "frame_index", plan, plan.root)
     return SourceStream(stream, entity, VECTOR_COMPONENT, len(plan.names))

@@ -103,8 +103,9 @@ def metadata(shown: str, where: Where | None, read: Callable[[], T]) -> T:
 
 
 def checked_plan(name: str, spec: dict[str, Any], document: Document, root: Path, shown: str) -> LeRobotSourcePlan:
-    """The source's plan from meta/info.json alone (the codebase version, the feature and its names, data_path), the
-    episode pinned by `episode:` checked against total_episodes; its data is checked by the caller."""
+    """The source's plan from meta/info.json alone (the codebase version, the feature and its names, data_path, fps and
+    whether rows carry a `timestamp`), the episode pinned by `episode:` checked against total_episodes; its data is
+    checked by the caller."""
     here = ("sources", name)
     where = document.where(*here, "lerobot")
     info_path = f"{shown}/meta/info.json"
@@ -133,15 +134,18 @@ def checked_plan(name: str, spec: dict[str, Any], document: Document, root: Path
             f"feature '{feature_key}' holds {width} values per row but {len(names)} names are given",
             document.where(*here, "names" if "names" in spec else "feature"),
         )
+    fps, timed = (float(info["fps"]) if "fps" in info else None), "timestamp" in features  # fps: checked by read_info
     if "episode" not in spec:  # one segment per episode; segments.py picks them and fills in `episode`
-        return with_duplicates(LeRobotSourcePlan(name, root, feature_key, -1, names, document.where(*here), per_segment=True), spec)
+        return with_duplicates(
+            LeRobotSourcePlan(name, root, feature_key, -1, names, document.where(*here), per_segment=True, fps=fps, timed=timed), spec
+        )
     episode = int(spec["episode"])
     total = info.get("total_episodes")
     if isinstance(total, int) and episode >= total:
         raise UserError(
             f"episode {episode} does not exist: the dataset has {total} episodes (0..{total - 1})", document.where(*here, "episode")
         )
-    return with_duplicates(LeRobotSourcePlan(name, root, feature_key, episode, names, document.where(*here)), spec)
+    return with_duplicates(LeRobotSourcePlan(name, root, feature_key, episode, names, document.where(*here), fps=fps, timed=timed), spec)
 
 
 # A metadata file as last seen: (path, size, mtime_ns). What is read of it is kept per process while it is unchanged:

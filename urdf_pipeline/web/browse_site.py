@@ -269,8 +269,7 @@ def _row(row: BrowseSegment, href: str | None, names: NameTable) -> dict[str, An
 
 def time_text(timelines: Sequence[TimeRange], frames: int | None) -> tuple[float | None, str]:
     """The segment's duration in seconds (None without a time timeline) and its time range as text: ISO dates for a
-    timestamp timeline, seconds for a duration one, the index range for a sequence (LeRobot's `frame_index`: the
-    plan knows no frame rate, so frames it is)."""
+    timestamp timeline, seconds for a duration one (LeRobot's `time`), the index range for a sequence alone."""
     timed = [t for t in timelines if t.kind != "sequence"]
     if timed:
         first = next((t for t in timed if t.kind == "timestamp"), timed[0])

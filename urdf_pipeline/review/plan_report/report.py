@@ -166,7 +166,7 @@ def _source(source: SourcePlan, paths: _Paths) -> SourceEntry:
     settings: dict[str, SettingValue] = {}
     for item in sorted(fields(source), key=lambda item: item.name):
         value = getattr(source, item.name)
-        if item.name in ("name", "where", "names", file_key, "remote"):
+        if item.name in ("name", "where", "names", file_key, "remote", "fps", "timed"):  # fps, timed: the dataset's, not settings
             continue
         assert value is None or isinstance(value, str | int | bool | IndexPlan), f"{item.name}: {value!r}"
         settings[item.name] = value
