@@ -198,7 +198,7 @@ def cmd_live(args: argparse.Namespace) -> int:
 def cmd_check(args: argparse.Namespace) -> int:
     from ..review import check_config, check_exit_code, render_check
 
-    reports = check_config(Path(args.config), args.rows)
+    reports = check_config(Path(args.config), args.rows, args.episode, args.spread)
     text = render_check(reports, args.format)
     sys.stdout.write(neutral_text(text) if args.format == "text" else text)
     return check_exit_code(reports)

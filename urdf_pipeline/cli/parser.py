@@ -235,6 +235,17 @@ def _add_check(commands: _Commands) -> None:
     )
     check.add_argument("--format", choices=("text", "json"), default="text")
     check.add_argument("--rows", type=_positive, default=100_000, help="rows to sample from the start of each source (default 100000)")
+    check.add_argument(
+        "--episode",
+        metavar="SPEC",
+        help="sample this episode's segment instead of the first (run's --episodes syntax: 3; with --spread, any SPEC)",
+    )
+    check.add_argument(
+        "--spread",
+        type=_positive,
+        metavar="N",
+        help="sample N segments spread evenly over the dataset (first, last, between), not the first only",
+    )
 
 
 def _add_plan(commands: _Commands) -> None:

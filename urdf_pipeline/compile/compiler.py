@@ -37,6 +37,7 @@ class NameSource(Generic[P]):
     origin: Literal["data", "config", "stream", "live data"]
     stream: Mapping[str, tuple[str, ...]] = field(default_factory=dict)  # a live stream's first messages, by source
     episodes: str | None = None  # `run --episodes`, over output.episodes
+    episodes_option: str = "--episodes"  # how the user wrote it (`check --episode`), for the errors that locate it
 
     @property
     def live(self) -> bool:
@@ -75,9 +76,9 @@ class Compiled(Generic[P]):
         return self.plan
 
 
-def compile_config(config_path: Path, episodes: str | None = None) -> Plan:
-    """`episodes` (from `run --episodes`) overrides output.episodes."""
-    return check_config(config_path, NameSource[Plan]("data", episodes=episodes)).checked()
+def compile_config(config_path: Path, episodes: str | None = None, option: str = "--episodes") -> Plan:
+    """`episodes` (from `run --episodes`, or `check --episode`: `option`) overrides output.episodes."""
+    return check_config(config_path, NameSource[Plan]("data", episodes=episodes, episodes_option=option)).checked()
 
 
 def compile_document(document: Document, episodes: str | None = None) -> Plan:
@@ -111,7 +112,7 @@ def check_document(document: Document, names: NameSource[P]) -> Compiled[P]:
         _refuse_what_live_cannot_read(ctx, names, model.temporal, specs)
     else:
         all_compiled = compiled is None or len(compiled.plans) == len(data["sources"])
-        dataset = expand_segments(ctx, compiled, names.episodes) if all_compiled else None
+        dataset = expand_segments(ctx, compiled, names.episodes, names.episodes_option) if all_compiled else None
         timelines = (  # each source's (timeline, kind), for the trails' windows: from its plan, else its config entry
             {name: source_timelines(source) for name, source in compiled.plans.items()}
             if compiled is not None

@@ -181,7 +181,9 @@ def _span(indices: list[int]) -> str:
     return f"{indices[0]}..{indices[-1]}" if indices == list(range(indices[0], indices[-1] + 1)) else listing([str(i) for i in indices])
 
 
-def expand_segments(ctx: CompileContext, sources: CompiledSources | None, episodes_override: str | None) -> DatasetPlan | None:
+def expand_segments(
+    ctx: CompileContext, sources: CompiledSources | None, episodes_override: str | None, option: str = "--episodes"
+) -> DatasetPlan | None:
     """The run's segments, each with its sources, id and output path; None (with problems added) when they cannot be
     named. Without the data (`sources` None: `validate --no-data`) one stand-in segment (episode 0, file stem `stem`)
     checks the templates, the layout and where the outputs go; what depends on the segments' number or names waits."""
@@ -190,7 +192,7 @@ def expand_segments(ctx: CompileContext, sources: CompiledSources | None, episod
     episodic = [name for name, spec in specs.items() if kind_of(spec) == "lerobot" and "episode" not in spec]
     globbed = [name for name, spec in specs.items() if kind_of(spec) != "lerobot" and GLOB.search(spec[kind_of(spec)])]
     if episodes_override is not None:
-        text, where_selection = episodes_override, Where(Path("--episodes"), 0)
+        text, where_selection = episodes_override, Where(Path(option), 0)
     else:
         text, where_selection = output.get("episodes", "all"), ctx.where("output", "episodes") if "episodes" in output else where_segment
     try:

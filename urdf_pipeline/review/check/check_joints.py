@@ -11,12 +11,13 @@ from pathlib import Path
 import numpy as np
 
 from ...compile import ANGULAR_UNITS, UNIT_NAMES, bigger_unit, compile_config, unit_fits, within
-from ...errors import ExitCode, shown
-from ...plan import JointChannel, LeRobotSourcePlan, Plan, RobotPlan, SourcePlan
+from ...errors import ExitCode, UserError, Where, listing, quoted, shown
+from ...plan import JointChannel, LeRobotSourcePlan, Plan, RobotPlan, Segment, SourcePlan
 from ...sources import wrapped
 from .check_candidates import angular, fitting
 
 SAMPLE_ROWS = 100_000
+EPISODE_OPTION = Where(Path("--episode"), 0)  # `check --episode`, where its errors point
 
 
 @dataclass(frozen=True)
@@ -41,6 +42,7 @@ class JointReport:
     unit_fits: str | None = None  # the simplest advice changes the unit only, to this one
     bigger_unit: str | None = None  # fits as configured, but its values look like this bigger unit (deg -> rad)
     robot_advice: str | None = None  # every joint of this kind fits in another unit: the robot's joints.unit to paste
+    segments: tuple[str, ...] = ()  # the ids of the segments whose first rows were sampled (`check` sets them)
 
     def limits_text(self) -> str:
         """`-166 .. 166`, the limits in source units as check and init show them, or `none`."""
@@ -179,9 +181,42 @@ def check_plan(plan: Plan, sample: dict[str, np.ndarray]) -> list[JointReport]:
 
 
 def plan_sample(plan: Plan, rows: int = SAMPLE_ROWS) -> dict[str, np.ndarray]:
-    """`read_sample` of every source that drives a robot, in the segment review shows (`Plan.review_segment`): the one
-    sample `check`, `plan --sample` and `init` judge."""
-    return {source.name: read_sample(source, rows) for source in plan.review_segment.sources if plan.robots_for(source.name)}
+    """`read_sample` of every source that drives a robot, in the segment review shows (`Plan.review_segment`, the
+    first): the sample `plan --sample` and `init` judge, and `check` without --episode or --spread."""
+    return segments_sample(plan, plan.segments[:1], rows)
+
+
+def segments_sample(plan: Plan, segments: Sequence[Segment], rows: int = SAMPLE_ROWS) -> dict[str, np.ndarray]:
+    """The first `rows` rows of every robot-driving source of each segment, concatenated per source in segment order:
+    one segment's values judged against the limits as several segments' are."""
+    read: dict[str, list[np.ndarray]] = {}
+    for segment in segments:
+        for source in segment.sources:
+            if plan.robots_for(source.name):
+                read.setdefault(source.name, []).append(read_sample(source, rows))
+    return {name: np.concatenate(matrices) for name, matrices in read.items()}
+
+
+def spread_segments(segments: Sequence[Segment], count: int) -> tuple[Segment, ...]:
+    """`count` segments spread evenly over `segments`: the first, the last and evenly between (all when fewer)."""
+    if count >= len(segments):
+        return tuple(segments)
+    if count == 1:
+        return (segments[0],)
+    picked = dict.fromkeys(round(i * (len(segments) - 1) / (count - 1)) for i in range(count))
+    return tuple(segments[i] for i in picked)
+
+
+def sampled_segments(plan: Plan, episode: str | None, spread: int | None) -> tuple[Segment, ...]:
+    """The segments `check` samples: `spread` of them spread over the (selected) segments, else the one `--episode`
+    selects (an error when it selects several), else the first."""
+    if spread is not None:
+        return spread_segments(plan.segments, spread)
+    if episode is not None and len(plan.segments) > 1:
+        ids = [segment.id for segment in plan.segments]
+        message = f"{quoted(episode)} selects {len(ids)} segments ({listing(ids)}): name one episode, or add --spread N to sample several"
+        raise UserError(message, EPISODE_OPTION)
+    return plan.segments[:1]
 
 
 def read_sample(source: SourcePlan, rows: int = SAMPLE_ROWS) -> np.ndarray:
@@ -212,10 +247,14 @@ def check_exit_code(reports: Sequence[JointReport]) -> int:
     return ExitCode.OK if all(r.current_fits for r in reports) else ExitCode.DOES_NOT_FIT
 
 
-def check_config(config: Path, rows: int = SAMPLE_ROWS) -> list[JointReport]:
-    """`check CONFIG`: the first `rows` rows of every source that drives a robot, checked joint by joint."""
-    plan = compile_config(config)
-    return check_plan(plan, plan_sample(plan, rows))
+def check_config(config: Path, rows: int = SAMPLE_ROWS, episode: str | None = None, spread: int | None = None) -> list[JointReport]:
+    """`check CONFIG`: the first `rows` rows of every source that drives a robot, checked joint by joint, in the first
+    segment, the one `episode` selects (run's --episodes syntax and errors), or `spread` segments over the dataset;
+    each report names the segments sampled."""
+    plan = compile_config(config, episode, EPISODE_OPTION.file.as_posix())
+    segments = sampled_segments(plan, episode, spread)
+    ids = tuple(segment.id for segment in segments)
+    return [replace(report, segments=ids) for report in check_plan(plan, segments_sample(plan, segments, rows))]
 
 
 def render_check(reports: Sequence[JointReport], format: str) -> str:
@@ -224,7 +263,9 @@ def render_check(reports: Sequence[JointReport], format: str) -> str:
         import json
 
         return json.dumps([asdict(r) for r in reports], indent=2) + "\n"
-    return as_text(reports) + "\n"
+    ids = dict.fromkeys(i for r in reports for i in r.segments)
+    sampled = f"sampled segment{'s' if len(ids) > 1 else ''}: {listing(list(ids), limit=100)}\n" if ids else ""
+    return sampled + as_text(reports) + "\n"
 
 
 def as_text(reports: Sequence[JointReport]) -> str:
