@@ -239,3 +239,51 @@ def test_the_real_g1_recording_configured_in_degrees_hears_radians_for_the_robot
     )
     assert "write `unit: rad` under robots.g1.joints; settle against a known pose" in as_deg.out
     assert as_deg.out.count("ambiguous: fits as configured, but the values also fit if they are radians") >= 1
+
+
+def _panda_dataset_with_episode_3_in_degrees(examples_dir: Path) -> Path:
+    """Five episodes of a Panda in radians, but episode 3 logged in degrees: a unit judged on the first episode only
+    looks right."""
+    from ...lerobot_layouts import lerobot_panda_config, write_dataset
+
+    rest = np.array([0.0, 0.0, 0.0, -1.5, 0.0, 1.5, 0.0, 0.02])
+    noise = np.random.default_rng(3)
+    episodes = [rest + noise.normal(0, 0.002, (40, 8)) for _ in range(5)]
+    episodes[3][:, :7] = np.degrees(episodes[3][:, :7])
+    write_dataset(examples_dir / "data" / "check_episodes", episodes, "v2.1")
+    return lerobot_panda_config(examples_dir, "check_episodes", {"lerobot": "data/check_episodes"})
+
+
+def test_episode_and_spread_judge_other_segments_than_the_first(examples_dir: Path, run_cli) -> None:
+    """`check` samples the first segment and says so; `--episode 3` finds episode 3's other unit and names its
+    segment; `--spread` reads segments spread over the dataset (first, last, between) and names them."""
+    config = str(_panda_dataset_with_episode_3_in_degrees(examples_dir))
+    default = run_cli("check", config)
+    assert default.code == 0 and default.out.startswith("sampled segment: episode_000000\nrobot arm: 40 sampled rows\n")
+    third = run_cli("check", config, "--episode", "3")
+    assert third.code == 3 and third.out.startswith("sampled segment: episode_000003\n") and "DOES NOT FIT" in third.out
+    reports = json.loads(run_cli("check", config, "--episode", "3", "--format", "json").out)
+    assert {tuple(r["segments"]) for r in reports} == {("episode_000003",)}
+    spread = run_cli("check", config, "--spread", "3")
+    assert spread.code == 0 and spread.out.startswith(
+        "sampled segments: episode_000000, episode_000002, episode_000004\n"
+    )  # 3 misses episode 3
+    assert "robot arm: 120 sampled rows" in spread.out  # each segment's first rows, concatenated
+    assert run_cli("check", config, "--spread", "9").out.startswith("sampled segments: " + ", ".join(f"episode_{i:06d}" for i in range(5)))
+    spread4 = run_cli("check", config, "--spread", "4", "--format", "json")
+    assert json.loads(spread4.out)[0]["segments"] == ["episode_000000", "episode_000001", "episode_000003", "episode_000004"]
+    assert spread4.code == 3
+
+
+@pytest.mark.parametrize(
+    ("spec", "message"),
+    [
+        ("9", "error: --episode: episode(s) 9 do not exist (the dataset's episodes: 0..4)"),
+        ("x", "error: --episode: episodes 'x' is not all, a list of indices (0,3,7) or a range A:B (10:20)"),
+        ("1:3", "error: --episode: '1:3' selects 2 segments (episode_000001, episode_000002): name one episode, or add --spread N"),
+    ],
+)
+def test_a_bad_episode_is_one_located_error_line(examples_dir: Path, run_cli, spec: str, message: str) -> None:
+    result = run_cli("check", str(_panda_dataset_with_episode_3_in_degrees(examples_dir)), "--episode", spec)
+    assert result.code != 0 and result.out == ""
+    assert len(result.err.strip().splitlines()) == 1 and result.err.startswith(message), result.err
