@@ -273,6 +273,8 @@ def test_episode_and_spread_judge_other_segments_than_the_first(examples_dir: Pa
     spread4 = run_cli("check", config, "--spread", "4", "--format", "json")
     assert json.loads(spread4.out)[0]["segments"] == ["episode_000000", "episode_000001", "episode_000003", "episode_000004"]
     assert spread4.code == 3
+    within = run_cli("check", config, "--episode", "2:5", "--spread", "2")  # spread over the episodes SPEC selects
+    assert within.code == 0 and within.out.startswith("sampled segments: episode_000002, episode_000004\n")
 
 
 @pytest.mark.parametrize(
