@@ -92,7 +92,7 @@ def test_hook_skips_what_is_not_a_config_and_reads_no_data(fixture_repo: Path) -
     assert hook.stderr.splitlines() == [
         "skipped: configs/calib/extrinsics.yaml: not a urdf-pipeline config (a top-level list, like a sidecar file of calibration edges)",
         "skipped: configs/controllers.yaml: not a urdf-pipeline config "
-        "(a mapping with none of a config's top-level keys (version, sources, robots, frames, edges, trails, output))",
+        "(a mapping with none of a config's top-level keys (version, sources, robots, frames, edges, trails, output, qa))",
     ]
 
 

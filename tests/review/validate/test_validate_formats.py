@@ -278,7 +278,7 @@ def test_skip_non_configs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, run_c
         Path(name).write_text(text, encoding="utf-8")
     skipped = {
         "calib_edges.yaml": "a top-level list, like a sidecar file of calibration edges",
-        "controllers.yaml": "a mapping with none of a config's top-level keys (version, sources, robots, frames, edges, trails, output)",
+        "controllers.yaml": "a mapping with none of a config's top-level keys (version, sources, robots, frames, edges, trails, output, qa)",
     }
     lines = [f"skipped: {name}: not a urdf-pipeline config ({why})" for name, why in skipped.items()]
 
