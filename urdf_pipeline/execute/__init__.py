@@ -20,6 +20,7 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
     from .model_stream import cached_tree, robot_model_stream
     from .provenance import provenance_stream, stored_content_hash
     from .qa_metrics import JointMetrics, SegmentMetrics, SegmentQa, TimingMetrics, by_joint, segment_flags
+    from .qa_pass import QaReport, dataset_qa, qa_timeline
     from .segment import Parts, RunResult, execute, log_segment
     from .segment_run import CONTENT_METADATA, SegmentJob, SegmentResult, install_run_plan, run_segment
     from .temporal_stream import TemporalEdgeStats, TemporalEdgeValues, check_temporal_edges
