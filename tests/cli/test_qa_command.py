@@ -99,6 +99,10 @@ def test_json_numbers_equal_the_numpy_reference_and_each_fault_is_flagged_on_its
         assert segment["timing"]["gaps"] == 0 and segment["timing"]["order_violations"] == 0
     assert data["segments"][7]["timing"]["max_gap_s"] == pytest.approx(5 / FPS, rel=1e-5)
     assert data["segments"][9]["timing"]["order_violations"] == 1
+    code, out, _ = _qa(capsys, str(config), "--format", "github")
+    config_file = config.as_posix().replace(":", "%3A").replace(",", "%2C")
+    expected = [f"::warning file={config_file}::segment 'episode_{i:06d}': {FAULTS[i][0]}" for i in sorted(FAULTS)]
+    assert code == 0 and out.splitlines() == expected
 
 
 def test_fail_on_exits_1_naming_the_segments_and_exclusions_list_the_episodes(

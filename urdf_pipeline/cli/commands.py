@@ -259,7 +259,7 @@ def cmd_qa(args: argparse.Namespace) -> int:
     if args.output:
         write_file_atomically(Path(args.output), lambda partial: partial.write_text(text, encoding="utf-8"), None)
     else:
-        sys.stdout.write(text if args.format == "json" else neutral_text(text))
+        sys.stdout.write(neutral_text(text) if args.format == "text" else text)  # the other forms escape their own data
     if args.exclusions:
         listed = json.dumps(report.exclusions()) + "\n"
         write_file_atomically(Path(args.exclusions), lambda partial: partial.write_text(listed, encoding="utf-8"), None)
