@@ -161,3 +161,19 @@ def test_hostile_names_stay_inert_in_markdown_and_github() -> None:
     assert markdown.splitlines()[-1] == f"| {inert} | 10 | 0.300 s | spike | {inert} 2 |"
     github = render_qa(data, "github", "c.yaml")
     assert github == "::warning file=c.yaml::segment 'ep\\n::error::forged|`<b>*x*</b>%250A': spike\n"
+
+
+def test_a_source_without_time_or_fps_has_no_duration_and_is_excluded_by_its_segment_id(
+    examples_dir: Path, capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """configs/demo.yaml: a parquet file on a sequence index. Each row is a step of 1 s; an absolute jerk bound of
+    1e-9 rad/s^3 flags its one segment, listed in the exclusions by its id (it is no LeRobot episode)."""
+    data = yaml.safe_load((examples_dir / "demo.yaml").read_text())
+    data["qa"] = {"spike": {"factor": 20, "jerk": "0.000000001 rad/s^3"}}
+    config = examples_dir / "qa_demo.yaml"
+    config.write_text(yaml.safe_dump(data, sort_keys=False))
+    exclusions = tmp_path / "excluded.json"
+    code, out, _ = _qa(capsys, str(config), "--format", "json", "--exclusions", str(exclusions))
+    segment = json.loads(out)["segments"][0]
+    assert code == 0 and segment["duration_s"] is None and segment["timing"]["max_gap_s"] is None
+    assert segment["flags"] == ["spike"] and json.loads(exclusions.read_text()) == [segment["id"]]
