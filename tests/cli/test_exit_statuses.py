@@ -71,6 +71,7 @@ def _with_stdout_closed(examples_dir: Path, arguments: list[str]) -> subprocess.
         ["plan", "{demo}"],
         ["diff", "{demo}", "{dataset}"],
         ["check", "{demo}"],
+        ["qa", "{dataset}"],
         ["schema"],
         ["init", "--urdf", "{urdf}"],
         ["run", "{dataset}", "--jobs", "1"],

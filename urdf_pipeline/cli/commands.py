@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import json
 import logging
 import os
 import sys
@@ -241,6 +242,31 @@ def _say_site(folder: str | None) -> None:
         from ..logs import say
 
         say(f"site written to {folder}; look at it with: urdf-pipeline serve {folder}")
+
+
+def cmd_qa(args: argparse.Namespace) -> int:
+    """Every selected segment's joint data read as `run` reads it (no recording written), measured and flagged; the
+    report on stdout or -o FILE, the flagged episodes in --exclusions FILE; exit 1 when a --fail-on flag is raised."""
+    from ..compile import compile_config
+    from ..execute import dataset_qa, write_file_atomically
+    from ..review import fail_on_flags, failure, render_qa
+
+    fail_on_flags(args.fail_on, ())  # a bad --fail-on is refused before any data is read
+    plan = compile_config(Path(args.config), args.episodes)
+    report = dataset_qa(plan)
+    data = report.as_data()
+    text = render_qa(data, args.format, args.config)
+    if args.output:
+        write_file_atomically(Path(args.output), lambda partial: partial.write_text(text, encoding="utf-8"), None)
+    else:
+        sys.stdout.write(neutral_text(text) if args.format == "text" else text)  # the other forms escape their own data
+    if args.exclusions:
+        listed = json.dumps(report.exclusions()) + "\n"
+        write_file_atomically(Path(args.exclusions), lambda partial: partial.write_text(listed, encoding="utf-8"), None)
+    problem = failure(data, fail_on_flags(args.fail_on, plan.qa.fail_on))
+    if problem is not None:
+        raise problem
+    return ExitCode.OK
 
 
 def cmd_snapshot(args: argparse.Namespace) -> int:

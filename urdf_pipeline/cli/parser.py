@@ -14,6 +14,7 @@ from .commands import (
     cmd_init,
     cmd_live,
     cmd_plan,
+    cmd_qa,
     cmd_run,
     cmd_schema,
     cmd_serve,
@@ -120,6 +121,7 @@ def build_parser() -> argparse.ArgumentParser:
         _add_validate,
         _add_check,
         _add_plan,
+        _add_qa,
         _add_snapshot,
         _add_schema,
         _add_init,
@@ -270,6 +272,22 @@ def _add_plan(commands: _Commands) -> None:
         "draw each robot at its rest pose into DIR (PNGs, by the Rerun viewer) and link them",
         "the report as a static site in DIR too, with the rest pose in Rerun's web viewer (and the pictures of --render)",
     )
+
+
+def _add_qa(commands: _Commands) -> None:
+    """qa: the segments, the report's form and file, the failing flags and the exclusions file."""
+    qa = commands.add_parser(
+        "qa",
+        cmd_qa,
+        "read every segment of CONFIG and report its QA metrics and flags (spikes, still episodes, timing) without writing a recording",
+        "urdf-pipeline qa configs/so101_lerobot.yaml --format markdown",
+        config="config",
+    )
+    qa.add_argument("--episodes", metavar="SPEC", help="override output.episodes: all, 0,3,7 or 10:20")
+    qa.add_argument("--format", choices=("text", "json", "github", "markdown"), default="text", help="the report's form (default text)")
+    qa.add_argument("-o", "--output", metavar="FILE", help="write the report here (atomically) instead of stdout")
+    qa.add_argument("--fail-on", metavar="FLAGS", help="exit 1 when a segment raises one of these flags (comma list; default: qa.fail_on)")
+    qa.add_argument("--exclusions", metavar="FILE", help="write the flagged segments' LeRobot episode indices here, as a JSON list")
 
 
 def _add_snapshot(commands: _Commands) -> None:

@@ -14,12 +14,13 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
     from .blueprint import blueprint_key, blueprint_path, write_blueprint
     from .edges_stream import calibration_stream
     from .joint_fk import ClosedFormJointTransforms, Pose, compose, rotation_matrices
-    from .kinematics import RobotKinematics, segment_kinematics
+    from .kinematics import RobotKinematics, ValueBlock, segment_kinematics, segment_value_blocks, value_blocks
     from .limits_report import check_joint_statistics
     from .manifest_entry import JointPreview, SegmentSummary, TimeRange
     from .model_stream import cached_tree, robot_model_stream
     from .provenance import provenance_stream, stored_content_hash
     from .qa_metrics import JointMetrics, SegmentMetrics, SegmentQa, TimingMetrics, by_joint, segment_flags
+    from .qa_pass import QaReport, dataset_qa, qa_timeline
     from .segment import Parts, RunResult, execute, log_segment
     from .segment_run import CONTENT_METADATA, SegmentJob, SegmentResult, install_run_plan, run_segment
     from .temporal_stream import TemporalEdgeStats, TemporalEdgeValues, check_temporal_edges

@@ -9,8 +9,10 @@ row, so it grows with the segment (unlike a run).
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from functools import partial
+from typing import TypeVar
 
 import numpy as np
 
@@ -21,6 +23,9 @@ from .joint_fk import ClosedFormJointTransforms, Pose, rotation_matrices
 from .limits_report import check_joint_statistics
 from .model_stream import cached_tree
 from .remote_inputs import local_inputs
+
+T = TypeVar("T")
+ValueBlock = tuple[np.ndarray, dict[str, np.ndarray]]  # (rows x joints URDF values, NaN where left out; timeline -> int64)
 
 
 @dataclass(frozen=True)
@@ -58,32 +63,56 @@ class RobotKinematics:
 
 def segment_kinematics(plan: RecordingPlan) -> dict[str, RobotKinematics]:
     """Every robot of one segment's plan (`Plan.for_segment`), by robot key."""
+    return segment_value_blocks(plan, _robot)
+
+
+def segment_value_blocks(
+    plan: RecordingPlan, consume: Callable[[RobotPlan, SourcePlan, JointValueMapper, Iterator[ValueBlock]], T]
+) -> dict[str, T]:
+    """`consume(robot, source, mapper, blocks)` for every robot of one segment's plan, by robot key: its source read as
+    a run reads it, block by block (`value_blocks`), run again from the start when a source turns out unsorted."""
     from ..errors import UserError
 
-    result: dict[str, RobotKinematics] = {}
+    result: dict[str, T] = {}
     with local_inputs(plan) as local:  # remote sources fetched into this machine's cache, held while read
         for robot in local.robots:
             sources = [s for s in local.sources if robot.key in {r.key for r in local.robots_for(s.name)}]
             if not sources:
                 raise UserError(f"robot '{robot.key}' is driven by no source of this segment")
-            result[robot.key] = with_sorting_retry(partial(_robot, robot, sources[0]))
+            result[robot.key] = with_sorting_retry(partial(_consumed, consume, robot, sources[0]))
     return result
 
 
-def _robot(robot: RobotPlan, source: SourcePlan) -> RobotKinematics:
+def _consumed(
+    consume: Callable[[RobotPlan, SourcePlan, JointValueMapper, Iterator[ValueBlock]], T], robot: RobotPlan, source: SourcePlan
+) -> T:
     mapper = JointValueMapper(robot, source)
+    return consume(robot, source, mapper, value_blocks(mapper, source))
+
+
+def value_blocks(mapper: JointValueMapper, source: SourcePlan) -> Iterator[ValueBlock]:
+    """The robot's values after every correction of the config, one block per chunk of its source, with each of the
+    source's timelines at every row; no recording is written, and nothing is checked beyond what the mapper records."""
     stream = module_for(source).open_stream(source)
-    values: list[np.ndarray] = []
-    times: dict[str, list[np.ndarray]] = {}
     for chunk in stream.stream:
         batch = chunk.to_record_batch()
+        times: dict[str, np.ndarray] = {}
         for field, column in zip(batch.schema, batch.columns, strict=True):
             if (field.metadata or {}).get(b"rerun:kind") == b"index":
-                times.setdefault(field.name, []).append(np.asarray(column.cast("int64")))
+                times[field.name] = np.asarray(column.cast("int64"))
         vectors = batch.column(batch.schema.get_field_index(stream.component)).flatten()  # one instance per row, as the lens sees it
-        raw = raw_matrix(source, vectors, mapper.columns, f"robot '{robot.key}'")
+        raw = raw_matrix(source, vectors, mapper.columns, f"robot '{mapper.robot.key}'")
         block, left_out = mapper.urdf_values(raw)
-        values.append(block if left_out is None else np.where(left_out[:, None], np.nan, block))
+        yield (block if left_out is None else np.where(left_out[:, None], np.nan, block)), times
+
+
+def _robot(robot: RobotPlan, source: SourcePlan, mapper: JointValueMapper, blocks: Iterator[ValueBlock]) -> RobotKinematics:
+    values: list[np.ndarray] = []
+    times: dict[str, list[np.ndarray]] = {}
+    for block, block_times in blocks:
+        values.append(block)
+        for name, column in block_times.items():
+            times.setdefault(name, []).append(column)
     problems = Problems()
     check_joint_statistics(mapper, problems)
     problems.raise_if_any()

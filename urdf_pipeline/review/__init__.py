@@ -13,6 +13,7 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
     from .diff.diff_inputs import diff_files, diff_git
     from .diff.diff_render import render_diff
     from .plan_report.report import plan_command
+    from .qa_report.qa_render import QaFormat, fail_on_flags, failure, render_qa
     from .validate.annotations import render_annotations, render_text_errors, render_text_progress, validate_config
 
 if not TYPE_CHECKING:  # the names above, imported when first used
