@@ -399,3 +399,17 @@ def test_the_joint_series_option_turned_on(run_cli, workspace: Path) -> None:
     assert json.loads(run_cli("diff", str(series), str(workspace / "demo.yaml"), "--format", "json").out)["changes"][0]["old"] is True
     assert run_cli("diff", str(workspace / "demo.yaml"), str(workspace / "series_off.yaml"), "--exit-code").code == 0  # the default
     assert "joint_series" not in text
+
+
+def test_the_qa_section_is_in_plans_json_and_diff_says_its_changes(run_cli, workspace: Path) -> None:
+    """A plan field added in the report's two places (CONTRIBUTING.md): `plan` prints it, `diff` compares it, with no
+    code of diff's own; a config at the defaults shows no `qa` at all (the golden files keep their bytes)."""
+    strict = _variant(workspace, "strict.yaml", "version: 1\n", 'version: 1\nqa: {spike: {factor: 10}, gap: "50 ms", fail_on: [spike]}\n')
+    stricter = _variant(
+        workspace, "stricter.yaml", "version: 1\n", 'version: 1\nqa: {spike: {factor: 15}, gap: "3 steps", fail_on: [spike]}\n'
+    )
+    shown = json.loads(run_cli("plan", str(strict), "--format", "json").out)["qa"]
+    assert (shown["spike_factor"], shown["gap"], shown["fail_on"]) == (10.0, "50 ms", ["spike"])
+    assert "qa" not in json.loads(run_cli("plan", str(workspace / "demo.yaml"), "--format", "json").out)
+    result = run_cli("diff", str(strict), str(stricter))
+    assert (result.code, result.out) == (0, "plan: qa spike_factor 10 -> 15\nplan: qa gap 50 ms -> 3 steps\n")

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
 from ...errors import ConfigWarning, collect_warnings, show_warning, shown
-from ...plan import IndexPlan, Plan, RobotPlan, SourcePlan, TrailPlan
+from ...plan import IndexPlan, Plan, QaPlan, RobotPlan, SourcePlan, TrailPlan
 from ...urdf import Joint, UrdfModel, parse_urdf_text
 from ..picture_entries import plan_pictures
 from .report_markdown import render_markdown
@@ -29,6 +29,7 @@ from .report_model import (
     OriginKind,
     OutputEntry,
     PlanReport,
+    QaEntry,
     RobotEntry,
     SampleEntry,
     SegmentEntry,
@@ -158,7 +159,14 @@ def build_report(plan: Plan, warnings: Sequence[ConfigWarning] = (), sample: Sam
         output=_output(plan, paths),
         warnings=_warnings(warnings, paths),
         sample=sample,
+        qa=_qa(plan.qa) if plan.qa != QaPlan() else None,
     )
+
+
+def _qa(qa: QaPlan) -> QaEntry:
+    gap = f"{qa.gap_seconds * 1000:g} ms" if qa.gap_seconds is not None else f"{qa.gap_steps:g} steps"
+    jerk = qa.spike_jerk.text if qa.spike_jerk is not None else None
+    return QaEntry(qa.static_velocity.text, qa.spike_factor, jerk, gap, qa.length_iqr, qa.bias.text, qa.fail_on)
 
 
 def _source(source: SourcePlan, paths: _Paths) -> SourceEntry:

@@ -297,6 +297,19 @@ class OutputEntry:
 
 
 @dataclass(frozen=True)
+class QaEntry:
+    """The config's `qa:` thresholds as written (each with its unit), shown only when they differ from the defaults."""
+
+    static_velocity: str
+    spike_factor: float
+    spike_jerk: str | None
+    gap: str  # "50 ms" or "2.5 steps"
+    length_outlier: float
+    bias: str
+    fail_on: tuple[str, ...]
+
+
+@dataclass(frozen=True)
 class WarningEntry:
     file: str | None  # relative to the config's folder
     line: int  # 0: unknown
@@ -338,6 +351,7 @@ class PlanReport:
         "sources": lambda r: {"sources": r.sources_by_name},
         "configured_edges": None,
         "pictures": when_set("pictures"),
+        "qa": when_set("qa"),
     }
 
     config: ShownPath
@@ -351,6 +365,7 @@ class PlanReport:
     warnings: tuple[WarningEntry, ...]  # sorted, each once
     sample: SampleEntry | None
     pictures: tuple[PictureEntry, ...] = ()  # with --render only
+    qa: QaEntry | None = None  # `qa:`, when it changes a default
     report_version: int = REPORT_VERSION
 
     @property
