@@ -18,7 +18,7 @@ from urdf_pipeline.dataset.fingerprint import model_hash, segment_hashes
 from urdf_pipeline.examples import write_lerobot_dataset
 from urdf_pipeline.execute.differences import PairDifferences
 from urdf_pipeline.execute.manifest_entry import JointDifferences
-from urdf_pipeline.plan import Comparison, JointChannel, RobotPlan
+from urdf_pipeline.plan import Comparison, JointChannel, QaPlan, RobotPlan
 
 from ..reference_fk import PinocchioRobot
 from ..rrd_frames import read_frames
@@ -147,7 +147,7 @@ def test_commanded_copy_is_drawn_apart_and_its_differences_are_listed(examples_d
     assert rows["episode_000001"]["diff"] == [{"copy": "cmd", "measured": "arm", "rows": FRAMES, "beyond": 1, "joints": ["gripper"]}]
 
 
-def _pair() -> PairDifferences:
+def _pair(qa: QaPlan | None = None) -> PairDifferences:
     """A copy `cmd` of `arm` over three revolute joints and one prismatic one, the measured robot's map in another order."""
     channel = dict(source_index=0, source_unit="rad", factor=1.0, sign=1.0, offset=0.0, lower=None, upper=None, slack=0.0, where=None)
     joints = ["a", "b", "c", "slide"]
@@ -160,7 +160,7 @@ def _pair() -> PairDifferences:
     arm = RobotPlan(key="arm", channels=tuple(JointChannel(joint=j, source_name=j, **channel) for j in reversed(joints)), **plan)
     thresholds = (np.radians(2.0),) * 3 + (0.005,)
     comparison = Comparison("arm", np.radians(2.0), 0.005, "{angle: 2 deg, length: 5 mm}", thresholds, ("deg",) * 3 + ("mm",))
-    return PairDifferences(copy, arm, comparison)
+    return PairDifferences(copy, arm, comparison, qa)
 
 
 def test_differences_match_rows_across_uneven_batches_and_skip_rows_left_out() -> None:
@@ -233,3 +233,110 @@ def test_plan_shows_the_copy_and_diff_its_changes(examples_dir: Path, erd_share:
     diff = run_cli("diff", str(old), str(new))
     assert "robot cmd: appearance [1, 0.5, 0, 0.4] -> [1, 0.5, 0, 1]" in diff.out
     assert "robot cmd: compare arm {angle: 2 deg, length: 5 mm} -> arm {angle: 1 deg, length: 1 mm}" in diff.out  # the defaults
+
+
+def _still_and_moving(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """1000 rows: still in 0..399 and 700..999 (sensor noise only), moving fast in between; the copy is offset by 3 deg
+    on `a` (beyond qa.bias's 2 deg), 1 deg on `b` (within), and 3 mm on `slide` (beyond 2 mm)."""
+    measured = np.zeros((1000, 4))
+    measured[400:700] = np.linspace(0.0, 30.0, 300)[:, None]  # 0.1 per row: far above any still step
+    measured += rng.normal(0, 1e-4, size=measured.shape)
+    commanded = measured + np.array([np.radians(3.0), np.radians(1.0), 0.0, 0.003]) + rng.normal(0, 1e-4, size=measured.shape)
+    return measured, commanded
+
+
+def test_calibration_bias_equals_numpy_over_the_rows_both_robots_are_still() -> None:
+    measured, commanded = _still_and_moving(np.random.default_rng(8))
+    left_out = np.zeros(1000, dtype=bool)
+    left_out[[100, 900]] = True
+    pair = _pair()
+    for start, stop in ((0, 333), (333, 1000)):
+        pair.add("cmd", commanded[start:stop], left_out[start:stop])
+    for start, stop in ((0, 1), (1, 650), (650, 1000)):
+        pair.add("arm", measured[start:stop, ::-1], None)
+    result = pair.result()
+    # numpy reference: a row is still at a joint when both sides' step from the row before is below the static velocity
+    # (5 deg/s, 5 mm/s) times 1 s, neither row left out
+    copy = np.where(left_out[:, None], np.nan, commanded)
+    limit = np.array([np.radians(5.0)] * 3 + [0.005])
+    with np.errstate(invalid="ignore"):
+        still = (np.abs(np.diff(copy, axis=0)) < limit) & (np.abs(np.diff(measured, axis=0)) < limit)
+    still = np.vstack([np.zeros((1, 4), dtype=bool), still])
+    difference = commanded - measured
+    assert result.bias_rows == tuple(still.sum(axis=0).tolist())
+    assert 0 < result.bias_rows[0] < 700
+    for joint in range(4):
+        values = difference[still[:, joint], joint]
+        np.testing.assert_allclose(result.bias_mean[joint], values.mean(), rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(result.bias_std[joint], values.std(), rtol=1e-6, atol=1e-12)
+    assert result.biased == (True, False, False, True) and result.joints_biased == ("a", "slide")
+    assert JointDifferences.from_json(json.loads(json.dumps(result.as_json()))) == result
+    # a higher threshold flags nothing; an older manifest's entry (no bias) still reads back
+    relaxed = _pair(replace(QaPlan(), bias=replace(QaPlan().bias, angle=np.radians(4.0), length=0.004)))
+    relaxed.add("cmd", commanded, None)
+    relaxed.add("arm", measured[:, ::-1], None)
+    assert not any(relaxed.result().biased)
+    old = {k: v for k, v in result.as_json().items() if not k.startswith("bias")}
+    assert JointDifferences.from_json(old) == replace(result, bias_rows=(), bias_mean=(), bias_std=(), biased=())
+
+
+def test_no_still_rows_give_no_bias_and_no_flag() -> None:
+    pair = _pair()
+    moving = np.arange(400.0).reshape(100, 4)  # every step 4: never still
+    pair.add("cmd", moving + 1.0, None)
+    pair.add("arm", moving[:, ::-1], None)
+    result = pair.result()
+    assert result.bias_rows == (0, 0, 0, 0) and result.bias_mean == (0.0,) * 4 and not any(result.biased)
+
+
+def biased_episodes(reference: PinocchioRobot) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Two 60-row episodes (30 fps) at the middle of the limits, still (0.01 deg of noise) but for rows 20..39 where
+    every joint moves 1.15 deg a row out and back; the copy is off by 3 deg on elbow_flex in episode 0 (beyond qa.bias's
+    2 deg), by 1 deg on it in episode 1 (within)."""
+    rng = np.random.default_rng(3)
+    middle = np.array([reference.limits(j) for j in SO101_JOINTS]).mean(axis=1)
+    ramp = np.concatenate([np.zeros(20), np.arange(1, 11) * 0.02, np.arange(9, -1, -1) * 0.02, np.zeros(20)])
+    measured, commanded = [], []
+    for offset in (3.0, 1.0):
+        q = middle + ramp[:, None] + rng.normal(0, np.radians(0.01), size=(60, 6))
+        measured.append(q)
+        commanded.append(q + np.radians(offset) * (np.arange(6) == 2) + rng.normal(0, np.radians(0.01), size=q.shape))
+    return measured, commanded
+
+
+def still_reference(q_arm: np.ndarray, q_cmd: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """numpy's bias on the written (float32, degrees) values: per joint the rows, mean and std of (copy - measured)
+    where both robots' step from the row before is below 5 deg/s at 30 fps."""
+    written = [np.radians(np.degrees(q).astype(np.float32).astype(np.float64)) for q in (q_arm, q_cmd)]
+    still = np.vstack([np.zeros((1, 6), dtype=bool), np.all([np.abs(np.diff(w, axis=0)) < np.radians(5.0) / 30 for w in written], axis=0)])
+    difference = written[1] - written[0]
+    rows = still.sum(axis=0)
+    return (
+        rows,
+        np.array([difference[still[:, j], j].mean() for j in range(6)]),
+        np.array([difference[still[:, j], j].std() for j in range(6)]),
+    )
+
+
+def test_calibration_bias_in_run_line_and_manifest(examples_dir: Path, run_cli, erd_share: Path) -> None:
+    reference = PinocchioRobot(erd_share / "robots" / "so_arm_description" / "urdf" / "so101.urdf")
+    measured, commanded = biased_episodes(reference)
+    write_commanded_dataset(examples_dir / "data" / "cmd_bias", [np.degrees(q) for q in measured], [np.degrees(q) for q in commanded])
+    config = commanded_config(
+        examples_dir, "cmd_bias", "data/cmd_bias", {"compare": {"robot": "arm", "threshold": {"angle": "5 deg", "length": "5 mm"}}}
+    )
+    result = run_cli("run", str(config))
+    assert result.code == 0, result.err
+    lines = [line for line in result.err.splitlines() if "'cmd' against 'arm'" in line]
+    assert len(lines) == 2, result.err
+    assert "within {angle: 5 deg, length: 5 mm}; calibration bias elbow_flex 3 deg (std 0.0" in lines[0], lines[0]
+    assert "calibration bias" not in lines[1]
+    manifest = json.loads((examples_dir / "out" / "cmd_bias" / "cmd_bias.manifest.json").read_text())
+    summaries = {entry["segment"]: entry["summary"] for entry in manifest["segments"]}
+    for episode, (q_arm, q_cmd) in enumerate(zip(measured, commanded, strict=True)):
+        stored = summaries[f"episode_{episode:06d}"]["differences"][0]
+        rows, mean, std = still_reference(q_arm, q_cmd)
+        assert stored["bias_rows"] == rows.tolist() and 35 <= rows.min() and rows.max() <= 40
+        np.testing.assert_allclose(stored["bias_mean"], mean, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(stored["bias_std"], std, rtol=1e-6, atol=1e-12)
+        assert stored["biased"] == [episode == 0 and j == 2 for j in range(6)]

@@ -44,12 +44,19 @@ def summary_table(results: tuple[SegmentResult, ...]) -> str:
 
 def differences_lines(results: tuple[SegmentResult, ...]) -> list[str]:
     """`compare:`: one line per segment and compared pair, naming the joints beyond the threshold (largest difference
-    in the threshold's unit, and the rows beyond), or saying the copy kept within it."""
+    in the threshold's unit, and the rows beyond), or saying the copy kept within it; then each joint whose calibration
+    bias (mean of copy - measured while both are still) is beyond `qa.bias`."""
     lines = []
     for result in results:
         for d in result.summary.differences if result.summary is not None else ():
             head = f"{shown(result.label)}: '{d.copy}' against '{d.measured}' over {d.rows:,} rows"
             unmatched = f"; {d.unmatched:,} rows of one robot had no row of the other" if d.unmatched else ""
+            unmatched += "".join(
+                f"; calibration bias {shown(d.joints[i])} {d.unit_text(i, d.bias_mean[i])}"
+                f" (std {d.unit_text(i, d.bias_std[i])}, {d.bias_rows[i]:,} still rows)"
+                for i, flagged in enumerate(d.biased)
+                if flagged
+            )
             if not d.rows_beyond:
                 lines.append(neutral_line(f"{head}: within {d.threshold}{unmatched}"))
                 continue

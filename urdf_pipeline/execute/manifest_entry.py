@@ -92,6 +92,22 @@ class JointDifferences:
     largest: tuple[float, ...]  # per joint: the largest absolute difference
     beyond: tuple[int, ...]  # per joint: rows beyond its threshold
     units: tuple[str, ...] = ()  # per joint: its threshold's unit as written ("deg", "mm"); () shows URDF units
+    # calibration bias, per joint over the rows where both robots were still (qa.static_velocity); () in older manifests
+    bias_rows: tuple[int, ...] = ()  # the still rows (0: no bias measured, mean and std 0)
+    bias_mean: tuple[float, ...] = ()  # mean of (copy - measured), URDF units
+    bias_std: tuple[float, ...] = ()  # its standard deviation (population, ddof 0)
+    biased: tuple[bool, ...] = ()  # |mean| beyond qa.bias: `calibration_bias`
+
+    @property
+    def joints_biased(self) -> tuple[str, ...]:
+        return tuple(joint for joint, flagged in zip(self.joints, self.biased, strict=False) if flagged)
+
+    def unit_text(self, joint: int, value: float) -> str:
+        """A value of the joint in its threshold's unit: "3.5 deg" (URDF units, bare, for an entry without)."""
+        from ..compile import FACTORS
+
+        unit = self.units[joint] if len(self.units) == len(self.joints) else ""
+        return f"{value / FACTORS[unit]:.3g} {unit}" if unit in FACTORS else f"{value:.4g}"
 
     @property
     def joints_beyond(self) -> tuple[str, ...]:
@@ -99,11 +115,7 @@ class JointDifferences:
 
     def largest_text(self, joint: int) -> str:
         """A joint's largest difference in its threshold's unit: "3.5 deg" (URDF units, bare, for an entry without)."""
-        from ..compile import FACTORS
-
-        value = self.largest[joint]
-        unit = self.units[joint] if len(self.units) == len(self.joints) else ""
-        return f"{value / FACTORS[unit]:.3g} {unit}" if unit in FACTORS else f"{value:.4g}"
+        return self.unit_text(joint, self.largest[joint])
 
     def as_json(self) -> dict[str, Any]:
         return _plain(self)
@@ -136,7 +148,21 @@ class JointDifferences:
             tuple(largest),
             tuple(beyond),
             tuple(_items(data.get("units"), str, len(joints)) or ()),  # a unit not in FACTORS is shown as no unit
+            *_bias(data, len(joints)),
         )
+
+
+def _bias(data: dict[str, Any], count: int) -> tuple[tuple[int, ...], tuple[float, ...], tuple[float, ...], tuple[bool, ...]]:
+    """The bias fields read back: all four of the right form, else none (an older manifest, or a hand edit)."""
+    rows, mean, std, biased = (
+        _items(data.get("bias_rows"), int, count),
+        _finite(data.get("bias_mean"), count),
+        _finite(data.get("bias_std"), count),
+        _items(data.get("biased"), bool, count),
+    )
+    if rows is None or mean is None or std is None or biased is None or any(r < 0 for r in rows):
+        return (), (), (), ()
+    return tuple(rows), tuple(mean), tuple(std), tuple(biased)
 
 
 @dataclass(frozen=True)

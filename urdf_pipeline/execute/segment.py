@@ -114,7 +114,7 @@ def _open(plan: RecordingPlan, parts: Parts, provenance: dict[str, str] | None, 
     meters: list[RowMeter] = []
     times = TimeRanges()
     previews: list[ValuePreview] = []
-    pairs = tuple(pair_differences(plan.robots)) if parts != "model" else ()
+    pairs = tuple(pair_differences(plan)) if parts != "model" else ()
     streams = []
     trees = {robot.key: cached_tree(robot) for robot in plan.robots}
     if parts != "layer":

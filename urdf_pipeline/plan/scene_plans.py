@@ -126,7 +126,7 @@ class Plan(ScenePlan):
         series = self.dataset.joint_series and bool(sources)  # the split layout's model holds no values
         trails = self.trails if sources else ()
         output = OutputPlan(path, self.application_id, recording_id, self.output_where, series, trails)
-        return RecordingPlan(self.config_path, self.robots, self.edges, self.root_frame, self.temporal_edges, sources, output)
+        return RecordingPlan(self.config_path, self.robots, self.edges, self.root_frame, self.temporal_edges, sources, output, self.qa)
 
 
 @dataclass(frozen=True)
@@ -136,6 +136,7 @@ class RecordingPlan(ScenePlan):
 
     sources: tuple[SourcePlan, ...]  # this recording's own inputs (its episode, its file); none for the model
     output: OutputPlan
+    qa: QaPlan = QaPlan()  # the config's `qa:` thresholds (compare's calibration bias is measured in the run's pass)
 
     def source(self, name: str) -> SourcePlan:
         return next(s for s in self.sources if s.name == name)
