@@ -318,13 +318,17 @@ def still_reference(q_arm: np.ndarray, q_cmd: np.ndarray) -> tuple[np.ndarray, n
     )
 
 
-def test_calibration_bias_in_run_line_and_manifest(examples_dir: Path, run_cli, erd_share: Path) -> None:
+def biased_config(examples_dir: Path, erd_share: Path, name: str) -> tuple[Path, list[np.ndarray], list[np.ndarray]]:
+    """`biased_episodes` written as a LeRobot dataset and its config (a difference threshold of 5 deg: none beyond)."""
     reference = PinocchioRobot(erd_share / "robots" / "so_arm_description" / "urdf" / "so101.urdf")
     measured, commanded = biased_episodes(reference)
-    write_commanded_dataset(examples_dir / "data" / "cmd_bias", [np.degrees(q) for q in measured], [np.degrees(q) for q in commanded])
-    config = commanded_config(
-        examples_dir, "cmd_bias", "data/cmd_bias", {"compare": {"robot": "arm", "threshold": {"angle": "5 deg", "length": "5 mm"}}}
-    )
+    write_commanded_dataset(examples_dir / "data" / name, [np.degrees(q) for q in measured], [np.degrees(q) for q in commanded])
+    threshold = {"compare": {"robot": "arm", "threshold": {"angle": "5 deg", "length": "5 mm"}}}
+    return commanded_config(examples_dir, name, f"data/{name}", threshold), measured, commanded
+
+
+def test_calibration_bias_in_run_line_and_manifest(examples_dir: Path, run_cli, erd_share: Path) -> None:
+    config, measured, commanded = biased_config(examples_dir, erd_share, "cmd_bias")
     result = run_cli("run", str(config))
     assert result.code == 0, result.err
     lines = [line for line in result.err.splitlines() if "'cmd' against 'arm'" in line]
@@ -340,3 +344,21 @@ def test_calibration_bias_in_run_line_and_manifest(examples_dir: Path, run_cli, 
         np.testing.assert_allclose(stored["bias_mean"], mean, rtol=1e-9, atol=1e-12)
         np.testing.assert_allclose(stored["bias_std"], std, rtol=1e-6, atol=1e-12)
         assert stored["biased"] == [episode == 0 and j == 2 for j in range(6)]
+
+
+def test_qa_reports_calibration_bias_and_flags_it(examples_dir: Path, run_cli, erd_share: Path) -> None:
+    config, measured, commanded = biased_config(examples_dir, erd_share, "cmd_bias_qa")
+    report = examples_dir / "out" / "cmd_bias_qa.json"
+    result = run_cli("qa", str(config), "--format", "json", "-o", str(report))
+    assert result.code == 0, result.err
+    segments = json.loads(report.read_text())["segments"]
+    for episode, segment in enumerate(segments):
+        rows, mean, std = still_reference(measured[episode], commanded[episode])
+        bias = segment["bias"]
+        assert list(bias) == [f"cmd/{joint}" for joint in SO101_JOINTS]
+        assert [b["rows"] for b in bias.values()] == rows.tolist()
+        np.testing.assert_allclose([b["mean"] for b in bias.values()], mean, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose([b["std"] for b in bias.values()], std, rtol=1e-6, atol=1e-12)
+        assert ("calibration_bias" in segment["flags"]) == (episode == 0), segment["flags"]
+    gated = run_cli("qa", str(config), "--fail-on", "calibration_bias")
+    assert gated.code == 1 and "episode_000000" in gated.err + gated.out and "episode_000001" not in gated.err, gated.err

@@ -71,16 +71,24 @@ def segment_value_blocks(
 ) -> dict[str, T]:
     """`consume(robot, source, mapper, blocks)` for every robot of one segment's plan, by robot key: its source read as
     a run reads it, block by block (`value_blocks`), run again from the start when a source turns out unsorted."""
-    from ..errors import UserError
-
     result: dict[str, T] = {}
     with local_inputs(plan) as local:  # remote sources fetched into this machine's cache, held while read
-        for robot in local.robots:
-            sources = [s for s in local.sources if robot.key in {r.key for r in local.robots_for(s.name)}]
-            if not sources:
-                raise UserError(f"robot '{robot.key}' is driven by no source of this segment")
-            result[robot.key] = with_sorting_retry(partial(_consumed, consume, robot, sources[0]))
+        for robot, source in robot_sources(local):
+            result[robot.key] = with_sorting_retry(partial(_consumed, consume, robot, source))
     return result
+
+
+def robot_sources(plan: RecordingPlan) -> list[tuple[RobotPlan, SourcePlan]]:
+    """Every robot of one segment's plan with the source that drives it (its first)."""
+    from ..errors import UserError
+
+    found = []
+    for robot in plan.robots:
+        sources = [s for s in plan.sources if robot.key in {r.key for r in plan.robots_for(s.name)}]
+        if not sources:
+            raise UserError(f"robot '{robot.key}' is driven by no source of this segment")
+        found.append((robot, sources[0]))
+    return found
 
 
 def _consumed(

@@ -6,15 +6,19 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
+from functools import partial
 from typing import Any
 
 import numpy as np
 
-from ..plan import QA_FLAGS, Plan, QaFlag, RobotPlan, Segment, SourcePlan
-from ..sources import JointValueMapper
-from .kinematics import ValueBlock, segment_value_blocks
+from ..plan import QA_FLAGS, Plan, QaFlag, QaPlan, RecordingPlan, RobotPlan, Segment, SourcePlan
+from ..sources import JointValueMapper, with_sorting_retry
+from .differences import PairDifferences, pair_differences
+from .kinematics import ValueBlock, robot_sources, value_blocks
+from .manifest_entry import JointDifferences
 from .model_stream import cached_tree
 from .qa_metrics import JointMetrics, SegmentMetrics, SegmentQa, by_joint, segment_flags
+from .remote_inputs import local_inputs
 
 QA_VERSION = 1
 TIME_KINDS = ("timestamp", "duration")
@@ -27,13 +31,17 @@ class QaReport:
     segments: tuple[SegmentMetrics, ...]
     flags: tuple[tuple[QaFlag, ...], ...]
     episodes: tuple[int | None, ...]
+    differences: tuple[tuple[JointDifferences, ...], ...] = ()  # per segment: each compared pair's (compare:)
 
     def as_data(self) -> dict[str, Any]:
         """The json form (docs/qa.md), the one record every format renders."""
         by_flag = {flag: sum(flag in found for found in self.flags) for flag in QA_FLAGS}
         return {
             "version": QA_VERSION,
-            "segments": [_segment_data(s, f) for s, f in zip(self.segments, self.flags, strict=True)],
+            "segments": [
+                _segment_data(s, f, d)
+                for s, f, d in zip(self.segments, self.flags, self.differences or ((),) * len(self.segments), strict=True)
+            ],
             "summary": {
                 "segments": len(self.segments),
                 "flagged": sum(bool(found) for found in self.flags),
@@ -51,7 +59,7 @@ class QaReport:
         ]
 
 
-def _segment_data(segment: SegmentMetrics, flags: tuple[QaFlag, ...]) -> dict[str, Any]:
+def _segment_data(segment: SegmentMetrics, flags: tuple[QaFlag, ...], differences: tuple[JointDifferences, ...]) -> dict[str, Any]:
     return {
         "id": segment.id,
         "rows": segment.rows,
@@ -63,7 +71,11 @@ def _segment_data(segment: SegmentMetrics, flags: tuple[QaFlag, ...]) -> dict[st
             "gaps": segment.timing.gaps,
             "order_violations": segment.timing.order_violations,
         },
-        "bias": {},  # compare's calibration bias: not measured by this pass
+        "bias": {
+            f"{d.copy}/{joint}": {"mean": d.bias_mean[i], "std": d.bias_std[i], "rows": d.bias_rows[i]}
+            for d in differences
+            for i, joint in enumerate(d.joints[: len(d.bias_rows)])
+        },  # compare: the copy's calibration bias per joint (URDF units), over the rows both robots are still
     }
 
 
@@ -75,56 +87,98 @@ def dataset_qa(plan: Plan) -> QaReport:
     """Every segment of `plan` (its --episodes selection) measured, then flagged against the dataset's own distribution."""
     metrics: list[SegmentMetrics] = []
     angular: dict[str, bool] = {}
+    compared: list[tuple[JointDifferences, ...]] = []
     for segment in plan.segments:
-        found, kinds = segment_metrics(plan, segment)
+        found, kinds, differences = segment_metrics(plan, segment)
         metrics.append(found)
         angular.update(kinds)
-    flags = segment_flags(metrics, plan.qa, angular)
-    return QaReport(tuple(metrics), tuple(flags), tuple(s.episode for s in plan.segments))
+        compared.append(differences)
+    flags = [
+        tuple(f for f in QA_FLAGS if f in found or (f == "calibration_bias" and any(any(d.biased) for d in differences)))
+        for found, differences in zip(segment_flags(metrics, plan.qa, angular), compared, strict=True)
+    ]
+    return QaReport(tuple(metrics), tuple(flags), tuple(s.episode for s in plan.segments), tuple(compared))
 
 
-def segment_metrics(plan: Plan, segment: Segment) -> tuple[SegmentMetrics, dict[str, bool]]:
+def segment_metrics(plan: Plan, segment: Segment) -> tuple[SegmentMetrics, dict[str, bool], tuple[JointDifferences, ...]]:
     """One segment's metrics (joints named `ROBOT/JOINT` when it has more than one robot; rows and timing are its first
-    robot's), and each joint's kind (True: angular)."""
+    robot's), each joint's kind (True: angular), and each compared pair's differences and calibration bias."""
+    recording = plan.for_segment(segment)
+    with local_inputs(recording) as local:  # remote sources fetched into this machine's cache, held while read
+        return with_sorting_retry(partial(_measured, local, segment.id))
+
+
+def _measured(plan: RecordingPlan, segment_id: str) -> tuple[SegmentMetrics, dict[str, bool], tuple[JointDifferences, ...]]:
+    """Every robot's blocks read side by side, the robot with the fewest rows read next: a compared pair's copy and
+    measured robot then keep at most about one block of lead on each other (memory bounded by a block)."""
     many = len(plan.robots) > 1
-    qa = plan.qa
-
-    def measure(
-        robot: RobotPlan, source: SourcePlan, mapper: JointValueMapper, blocks: Iterator[ValueBlock]
-    ) -> tuple[SegmentMetrics, dict[str, bool]]:
+    pairs = pair_differences(plan)
+    readers = []
+    kinds: dict[str, bool] = {}
+    for robot, source in robot_sources(plan):
+        mapper = JointValueMapper(robot, source)
         names = [f"{robot.key}/{name}" if many else name for name in mapper.joint_names]
-        kinds = _angular(robot, mapper.joint_names)
-        count = len(mapper.columns)  # channels first: held and mimic joints have no limits of their own here
-        lower = np.full(len(names), np.nan)
-        upper = np.full(len(names), np.nan)
-        lower[:count], upper[:count] = mapper.lower - mapper.slack, mapper.upper + mapper.slack
-        timeline, fps = qa_timeline(source)
-        untimed = timeline is None and fps is None  # rows without time: each step counts as 1 s, no duration is said
-        measured = SegmentQa(
-            segment.id,
-            names,
-            by_joint(kinds, qa.static_velocity.angle, qa.static_velocity.length),
-            lower,
-            upper,
-            fps=1.0 if untimed else fps,
-            gap_seconds=qa.gap_seconds,
-            gap_steps=qa.gap_steps,
-        )
-        for values, times in blocks:
-            measured.add(values, times.get(timeline) if timeline else None)
-        result = measured.finish()
-        if untimed:
-            result = replace(result, duration_s=None)
-        return result, dict(zip(names, kinds, strict=True))
+        angular = _angular(robot, mapper.joint_names)
+        kinds.update(zip(names, angular, strict=True))
+        measured, timeline, untimed = _segment_qa(plan.qa, segment_id, source, mapper, names, angular)
+        sides = [pair for pair in pairs if robot.key in (pair.copy, pair.measured)]
+        readers.append(_Reader(robot.key, len(robot.channels), value_blocks(mapper, source), measured, timeline, untimed, sides))
+    active = list(readers)
+    while active:
+        reader = min(active, key=lambda r: r.rows)
+        block = next(reader.blocks, None)
+        if block is None:
+            active.remove(reader)
+            continue
+        values, times = block
+        reader.rows += len(values)
+        reader.qa.add(values, times.get(reader.timeline) if reader.timeline else None)
+        for pair in reader.pairs:
+            pair.add(reader.robot, values[:, : reader.driven], None)  # rows left out are NaN: never compared
+    results = []
+    for reader in readers:
+        result = reader.qa.finish()
+        results.append(replace(result, duration_s=None) if reader.untimed else result)
+    joints = {name: joint for result in results for name, joint in result.joints.items()}
+    first = results[0]
+    return SegmentMetrics(segment_id, first.rows, first.duration_s, joints, first.timing), kinds, tuple(p.result() for p in pairs)
 
-    found = segment_value_blocks(plan.for_segment(segment), measure)
-    results = list(found.values())
-    first, kinds = results[0]
-    joints = dict(first.joints)
-    for other, other_kinds in results[1:]:
-        joints.update(other.joints)
-        kinds.update(other_kinds)
-    return SegmentMetrics(segment.id, first.rows, first.duration_s, joints, first.timing), kinds
+
+@dataclass
+class _Reader:
+    """One robot's blocks and what they feed."""
+
+    robot: str
+    driven: int  # its driven joints: the first columns of a block
+    blocks: Iterator[ValueBlock]
+    qa: SegmentQa
+    timeline: str | None
+    untimed: bool
+    pairs: list[PairDifferences]
+    rows: int = 0
+
+
+def _segment_qa(
+    qa: QaPlan, segment_id: str, source: SourcePlan, mapper: JointValueMapper, names: list[str], kinds: list[bool]
+) -> tuple[SegmentQa, str | None, bool]:
+    """A robot's metrics accumulator, the timeline its rows are timed by, and whether they have no time at all."""
+    count = len(mapper.columns)  # channels first: held and mimic joints have no limits of their own here
+    lower = np.full(len(names), np.nan)
+    upper = np.full(len(names), np.nan)
+    lower[:count], upper[:count] = mapper.lower - mapper.slack, mapper.upper + mapper.slack
+    timeline, fps = qa_timeline(source)
+    untimed = timeline is None and fps is None  # rows without time: each step counts as 1 s, no duration is said
+    measured = SegmentQa(
+        segment_id,
+        names,
+        by_joint(kinds, qa.static_velocity.angle, qa.static_velocity.length),
+        lower,
+        upper,
+        fps=1.0 if untimed else fps,
+        gap_seconds=qa.gap_seconds,
+        gap_steps=qa.gap_steps,
+    )
+    return measured, timeline, untimed
 
 
 def qa_timeline(source: SourcePlan) -> tuple[str | None, float | None]:
