@@ -344,6 +344,15 @@ def test_calibration_bias_in_run_line_and_manifest(examples_dir: Path, run_cli, 
         np.testing.assert_allclose(stored["bias_mean"], mean, rtol=1e-9, atol=1e-12)
         np.testing.assert_allclose(stored["bias_std"], std, rtol=1e-6, atol=1e-12)
         assert stored["biased"] == [episode == 0 and j == 2 for j in range(6)]
+    # browse's segments.json row names the biased joint with its mean in the threshold's unit; none within qa.bias
+    site = examples_dir / "out" / "cmd_bias_site"
+    browsed = run_cli("browse", str(config), "-o", str(site))
+    assert browsed.code == 0, browsed.err
+    rows = {row["id"]: row for row in json.loads((site / "segments.json").read_text())["segments"]}
+    assert rows["episode_000000"]["diff"] == [
+        {"copy": "cmd", "measured": "arm", "rows": 60, "beyond": 0, "joints": [], "bias": ["elbow_flex 3 deg"]}
+    ]
+    assert "bias" not in rows["episode_000001"]["diff"][0]
 
 
 def test_qa_reports_calibration_bias_and_flags_it(examples_dir: Path, run_cli, erd_share: Path) -> None:

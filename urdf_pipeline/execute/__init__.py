@@ -16,7 +16,7 @@ if TYPE_CHECKING:  # the package's public surface, the one list (lazy_surface re
     from .joint_fk import ClosedFormJointTransforms, Pose, compose, rotation_matrices
     from .kinematics import RobotKinematics, ValueBlock, segment_kinematics, segment_value_blocks, value_blocks
     from .limits_report import check_joint_statistics
-    from .manifest_entry import JointPreview, SegmentSummary, TimeRange
+    from .manifest_entry import JointDifferences, JointPreview, SegmentSummary, TimeRange
     from .model_stream import cached_tree, robot_model_stream
     from .provenance import provenance_stream, stored_content_hash
     from .qa_metrics import JointMetrics, SegmentMetrics, SegmentQa, TimingMetrics, by_joint, segment_flags

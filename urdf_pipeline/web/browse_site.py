@@ -25,7 +25,7 @@ import numpy as np
 
 from ..confine import confinement_for
 from ..errors import UserError, shown
-from ..execute import JointPreview, SegmentSummary, TimeRange
+from ..execute import JointDifferences, JointPreview, SegmentSummary, TimeRange
 from .page_html import html_text, viewer_href
 from .site_writer import SiteWriter, write_site
 
@@ -262,9 +262,15 @@ def _row(row: BrowseSegment, href: str | None, names: NameTable) -> dict[str, An
     if summary.differences:  # compare: each copy against its measured robot; the names as read back, bounded
         entry["diff"] = [
             {"copy": d.copy, "measured": d.measured, "rows": d.rows, "beyond": d.rows_beyond, "joints": list(d.joints_beyond)}
+            | ({"bias": bias} if (bias := _bias_texts(d)) else {})
             for d in summary.differences
         ]
     return entry
+
+
+def _bias_texts(d: JointDifferences) -> list[str]:
+    """compare: each joint whose calibration bias is beyond qa.bias, with its mean in the threshold's unit."""
+    return [f"{joint} {d.unit_text(i, d.bias_mean[i])}" for i, joint in enumerate(d.joints) if i < len(d.biased) and d.biased[i]]
 
 
 def time_text(timelines: Sequence[TimeRange], frames: int | None) -> tuple[float | None, str]:

@@ -112,8 +112,9 @@
 
   function diffText(d) {
     // compare: a commanded copy against its measured robot (names as data, shown with textContent)
-    if (!d.beyond) return `${d.copy} vs ${d.measured}: within threshold over ${d.rows} rows`;
-    return `${d.copy} vs ${d.measured}: ${d.beyond} of ${d.rows} rows beyond threshold: ${(d.joints || []).join(", ")}`;
+    const bias = (d.bias || []).length ? `; calibration bias: ${d.bias.join(", ")}` : "";
+    if (!d.beyond) return `${d.copy} vs ${d.measured}: within threshold over ${d.rows} rows${bias}`;
+    return `${d.copy} vs ${d.measured}: ${d.beyond} of ${d.rows} rows beyond threshold: ${(d.joints || []).join(", ")}${bias}`;
   }
 
   function row(segment) {
@@ -148,7 +149,7 @@
     const notes = element("td", null, "small");
     for (const note of segment.notes || []) notes.appendChild(element("div", note));
     if (segment.left) notes.appendChild(element("div", `and ${segment.left} more`, "muted"));
-    for (const d of segment.diff || []) notes.appendChild(element("div", diffText(d), d.beyond ? "bad" : "muted"));
+    for (const d of segment.diff || []) notes.appendChild(element("div", diffText(d), d.beyond || (d.bias || []).length ? "bad" : "muted"));
     tr.appendChild(notes);
     return tr;
   }
