@@ -137,6 +137,10 @@ def test_commanded_copy_is_drawn_apart_and_its_differences_are_listed(examples_d
         assert stored["beyond"] == (difference > np.radians(2.0)).sum(axis=0).tolist()
         assert stored["rows_beyond"] == int((difference > np.radians(2.0)).any(axis=1).sum())
         assert stored["rows"] == FRAMES and stored["unmatched"] == 0
+        still_rows, still_mean, _ = still_reference(q_arm, q_cmd)
+        assert stored["bias_rows"] == still_rows.tolist() and sum(stored["bias_rows"]) <= 2
+        np.testing.assert_allclose(stored["bias_mean"], still_mean, rtol=1e-9, atol=1e-12)
+        assert not any(stored["biased"])  # random rows: hardly ever still, no flag
 
     # browse's segments.json row carries them
     site = examples_dir / "out" / "cmd_site"
@@ -311,10 +315,11 @@ def still_reference(q_arm: np.ndarray, q_cmd: np.ndarray) -> tuple[np.ndarray, n
     still = np.vstack([np.zeros((1, 6), dtype=bool), np.all([np.abs(np.diff(w, axis=0)) < np.radians(5.0) / 30 for w in written], axis=0)])
     difference = written[1] - written[0]
     rows = still.sum(axis=0)
+    picked = [difference[still[:, j], j] for j in range(6)]
     return (
         rows,
-        np.array([difference[still[:, j], j].mean() for j in range(6)]),
-        np.array([difference[still[:, j], j].std() for j in range(6)]),
+        np.array([p.mean() if p.size else 0.0 for p in picked]),
+        np.array([p.std() if p.size else 0.0 for p in picked]),
     )
 
 
