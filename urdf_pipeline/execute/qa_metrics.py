@@ -112,21 +112,27 @@ class SegmentQa:
         if times is None and not self.fps:
             raise ValueError("a segment without timestamps needs its fps")
         finite = np.isfinite(values)
-        self.nan += (~finite).sum(axis=0)
+        nonfinite = rows - finite.sum(axis=0)
+        self.nan += nonfinite
         with np.errstate(invalid="ignore"):
-            self.beyond += (finite & ((values < self.lower) | (values > self.upper))).sum(axis=0)
+            beyond = (values < self.lower) | (values > self.upper)
+            self.beyond += (beyond if not nonfinite.any() else finite & beyond).sum(axis=0)
         carried = self.tail_values.shape[0]
         joined = np.concatenate([self.tail_values, values]) if carried else values
         steps = self._steps(joined.shape[0], times)
         if times is not None:
             self._timing(steps[max(carried - 1, 0) :], times)
+        reduced, source, constant = _moving_columns(joined)
         with np.errstate(invalid="ignore", divide="ignore"):
-            step = np.where(steps > 0, steps, np.nan)[:, None]  # a step not forward gives no derivative
-            velocity = np.diff(joined, axis=0) / step
-            acceleration = np.diff(velocity, axis=0) / step[1:]
-            jerk = np.diff(acceleration, axis=0) / step[2:]
-        self._velocity(velocity[max(carried - 1, 0) :])
-        self._jerk(jerk[max(carried - 3, 0) :], first_row=self.rows + max(3 - carried, 0))
+            step = (steps if (steps > 0).all() else np.where(steps > 0, steps, np.nan))[:, None]  # not forward: no derivative
+            velocity = np.diff(reduced, axis=0)
+            velocity /= step
+            acceleration = np.diff(velocity, axis=0)
+            acceleration /= step[1:]
+            jerk = np.diff(acceleration, axis=0)
+            jerk /= step[2:]
+        self._velocity(velocity[max(carried - 1, 0) :], source, constant)
+        self._jerk(jerk[max(carried - 3, 0) :], source, constant, first_row=self.rows + max(3 - carried, 0))
         self.rows += rows
         self.tail_values = joined[-CARRIED:].copy()
         if times is not None:
@@ -176,34 +182,48 @@ class SegmentQa:
             if self.gap_seconds is None:
                 self.gaps += int((early > self.gap_steps * self.nominal).sum())
 
-    def _velocity(self, velocity: np.ndarray) -> None:
+    def _velocity(self, velocity: np.ndarray, source: np.ndarray, constant: np.ndarray) -> None:
+        """`velocity` of the reduced columns (`_moving_columns`): `source` maps each joint to its column."""
         speed = np.abs(velocity)
         valid = np.isfinite(speed)
-        self.moving_steps += valid.sum(axis=0)
-        self.still += (valid & (speed < self.static)).sum(axis=0)
+        count = valid.sum(axis=0)
+        static = np.full(speed.shape[1], np.inf)
+        static[source[~constant]] = self.static[~constant]
+        still = (speed < static).sum(axis=0)[source]  # NaN and inf are never below
+        still[constant] = np.where(0 < self.static[constant], count[-1], 0)  # a constant joint's speed: 0 where valid
+        self.moving_steps += count[source]
+        self.still += still
         if speed.shape[0]:
-            self.max_velocity = np.fmax(self.max_velocity, np.where(valid, speed, -np.inf).max(axis=0))
+            fastest = (speed if count.min() == speed.shape[0] else np.where(valid, speed, -np.inf)).max(axis=0)
+            self.max_velocity = np.fmax(self.max_velocity, fastest[source])
 
-    def _jerk(self, jerk: np.ndarray, first_row: int) -> None:
-        """|jerk| into the histograms and the maxima; `first_row` is the row the first jerk ends at."""
+    def _jerk(self, jerk: np.ndarray, source: np.ndarray, constant: np.ndarray, first_row: int) -> None:
+        """|jerk| of the reduced columns into the histograms and the maxima; `first_row` is the row the first jerk ends at."""
         if not jerk.shape[0]:
             return
         size = np.abs(jerk)
         valid = np.isfinite(size)
-        masked = np.where(valid, size, -np.inf)
-        block_max, at = masked.max(axis=0), masked.argmax(axis=0)
+        masked = size if valid.all() else np.where(valid, size, -np.inf)
+        block_max = masked.max(axis=0)[source]
         better = block_max > self.max_jerk
-        self.max_jerk = np.where(better, block_max, self.max_jerk)
-        self.max_jerk_row = np.where(better, first_row + at, self.max_jerk_row)
-        zero = valid & (size == 0)
-        self.jerk_zeros += zero.sum(axis=0)
+        if better.any():  # the row of a new maximum, for the columns that have one
+            needed = np.zeros(size.shape[1], dtype=bool)
+            needed[source[better]] = True
+            at = np.zeros(size.shape[1], dtype=np.int64)
+            at[needed] = masked[:, needed].argmax(axis=0)
+            self.max_jerk = np.where(better, block_max, self.max_jerk)
+            self.max_jerk_row = np.where(better, first_row + at[source], self.max_jerk_row)
+        zero = size == 0
+        self.jerk_zeros += zero.sum(axis=0)[source]
         positive = valid & ~zero
-        joint = np.broadcast_to(np.arange(size.shape[1]), size.shape)[positive]
-        with np.errstate(divide="ignore"):
-            index = np.floor((np.log10(size[positive]) - JERK_LOG_MIN) * JERK_BINS_PER_DECADE)
-        index = np.clip(index, 0, JERK_BINS - 1).astype(np.int64)
-        counts = np.bincount(joint * JERK_BINS + index, minlength=size.shape[1] * JERK_BINS)
-        self.jerk_histogram += counts.reshape(size.shape[1], JERK_BINS)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            index = np.floor((np.log10(size) - JERK_LOG_MIN) * JERK_BINS_PER_DECADE)
+        np.clip(index, 0, JERK_BINS - 1, out=index)
+        index = np.where(positive, index, JERK_BINS).astype(np.int64)  # not positive: a bin of its own, dropped
+        index += np.arange(size.shape[1]) * (JERK_BINS + 1)
+        counts = np.bincount(index.ravel(), minlength=size.shape[1] * (JERK_BINS + 1)).reshape(size.shape[1], JERK_BINS + 1)
+        moving = np.flatnonzero(~constant)  # a constant joint's jerk is 0 or NaN: never in the histogram
+        self.jerk_histogram[moving] += counts[source[moving], :JERK_BINS]
 
     def finish(self) -> SegmentMetrics:
         if self.nominal is None and self.tail_times is not None:
@@ -226,6 +246,22 @@ class SegmentQa:
             duration = (self.rows - 1) / self.fps if self.fps and self.rows else None
         timing = TimingMetrics(_or_none(self.max_gap), self.gaps, self.order_violations, self.nominal)
         return SegmentMetrics(self.id, self.rows, duration, joints, timing)
+
+
+def _moving_columns(joined: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The columns a block's derivatives are computed on, each joint's column in them, and which joints are constant:
+    joints whose rows all hold one finite value (a held joint, a still block) share one column of zeros, whose
+    differences are exactly theirs (0, or NaN where the step is not forward), so the work grows with the joints that
+    move only."""
+    constant = (joined == joined[:1]).all(axis=0) & np.isfinite(joined[0])
+    if not constant.any():
+        return joined, np.arange(joined.shape[1]), constant
+    moving = np.flatnonzero(~constant)
+    reduced = np.zeros((joined.shape[0], moving.size + 1), dtype=joined.dtype)
+    reduced[:, : moving.size] = joined[:, moving]
+    source = np.full(joined.shape[1], moving.size)
+    source[moving] = np.arange(moving.size)
+    return reduced, source, constant
 
 
 def _or_none(value: float) -> float | None:
