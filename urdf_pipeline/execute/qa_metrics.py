@@ -92,7 +92,7 @@ class SegmentQa:
         self.max_velocity = np.full(width, -np.inf)
         self.max_jerk = np.full(width, -np.inf)
         self.max_jerk_row = np.full(width, -1, dtype=np.int64)
-        self.jerk_histogram = np.zeros((width, JERK_BINS), dtype=np.int64)
+        self.jerk_histogram = np.zeros((width, JERK_BINS + 1), dtype=np.int64)  # the last bin: the values not counted
         self.jerk_zeros = np.zeros(width, dtype=np.int64)
         self.still = np.zeros(width, dtype=np.int64)
         self.moving_steps = np.zeros(width, dtype=np.int64)  # steps with a finite velocity
@@ -215,15 +215,18 @@ class SegmentQa:
             self.max_jerk_row = np.where(better, first_row + at[source], self.max_jerk_row)
         zero = size == 0
         self.jerk_zeros += zero.sum(axis=0)[source]
-        positive = valid & ~zero
-        with np.errstate(divide="ignore", invalid="ignore"):
-            index = np.floor((np.log10(size) - JERK_LOG_MIN) * JERK_BINS_PER_DECADE)
-        np.clip(index, 0, JERK_BINS - 1, out=index)
-        index = np.where(positive, index, JERK_BINS).astype(np.int64)  # not positive: a bin of its own, dropped
-        index += np.arange(size.shape[1]) * (JERK_BINS + 1)
-        counts = np.bincount(index.ravel(), minlength=size.shape[1] * (JERK_BINS + 1)).reshape(size.shape[1], JERK_BINS + 1)
         moving = np.flatnonzero(~constant)  # a constant joint's jerk is 0 or NaN: never in the histogram
-        self.jerk_histogram[moving] += counts[source[moving], :JERK_BINS]
+        part = source[moving]  # their columns: all but the zero column
+        positive = valid[:, part] & ~zero[:, part]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            index = np.log10(size[:, part])
+        index -= JERK_LOG_MIN
+        index *= JERK_BINS_PER_DECADE
+        np.floor(index, out=index)
+        np.clip(index, 0, JERK_BINS - 1, out=index)
+        bins = (index if positive.all() else np.where(positive, index, JERK_BINS)).astype(np.int64)  # not positive: dropped
+        bins += moving * (JERK_BINS + 1)
+        self.jerk_histogram += np.bincount(bins.ravel(), minlength=self.jerk_histogram.size).reshape(self.jerk_histogram.shape)
 
     def finish(self) -> SegmentMetrics:
         if self.nominal is None and self.tail_times is not None:
@@ -231,7 +234,7 @@ class SegmentQa:
         joints = {
             name: JointMetrics(
                 _or_none(self.max_velocity[j]),
-                _p95(self.jerk_zeros[j], self.jerk_histogram[j]),
+                _p95(self.jerk_zeros[j], self.jerk_histogram[j, :JERK_BINS]),
                 _or_none(self.max_jerk[j]),
                 int(self.max_jerk_row[j]) if self.max_jerk_row[j] >= 0 else None,
                 float(self.still[j] / self.moving_steps[j]) if self.moving_steps[j] else None,
