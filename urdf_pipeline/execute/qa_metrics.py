@@ -216,17 +216,21 @@ class SegmentQa:
         zero = size == 0
         self.jerk_zeros += zero.sum(axis=0)[source]
         moving = np.flatnonzero(~constant)  # a constant joint's jerk is 0 or NaN: never in the histogram
-        part = source[moving]  # their columns: all but the zero column
-        positive = valid[:, part] & ~zero[:, part]
+        if not moving.size:
+            return
+        part = size[:, : moving.size]  # their columns, in order: all but the zero column
+        positive = ~zero[:, : moving.size] if masked is size else valid[:, : moving.size] & ~zero[:, : moving.size]
         with np.errstate(divide="ignore", invalid="ignore"):
-            index = np.log10(size[:, part])
+            index = np.log10(part)
         index -= JERK_LOG_MIN
         index *= JERK_BINS_PER_DECADE
         np.floor(index, out=index)
         np.clip(index, 0, JERK_BINS - 1, out=index)
         bins = (index if positive.all() else np.where(positive, index, JERK_BINS)).astype(np.int64)  # not positive: dropped
-        bins += moving * (JERK_BINS + 1)
-        self.jerk_histogram += np.bincount(bins.ravel(), minlength=self.jerk_histogram.size).reshape(self.jerk_histogram.shape)
+        first, last = moving[0], moving[-1] + 1  # only the rows of the joints that moved are touched
+        bins += (moving - first) * (JERK_BINS + 1)
+        counts = np.bincount(bins.ravel(), minlength=(last - first) * (JERK_BINS + 1))
+        self.jerk_histogram[first:last] += counts.reshape(last - first, JERK_BINS + 1)
 
     def finish(self) -> SegmentMetrics:
         if self.nominal is None and self.tail_times is not None:
