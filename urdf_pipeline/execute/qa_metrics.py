@@ -112,11 +112,15 @@ class SegmentQa:
         if times is None and not self.fps:
             raise ValueError("a segment without timestamps needs its fps")
         finite = np.isfinite(values)
-        nonfinite = rows - finite.sum(axis=0)
-        self.nan += nonfinite
+        all_finite = bool(finite.all())  # a whole-array test is cheap; per-joint counts only when they can be non-zero
+        if not all_finite:
+            self.nan += rows - finite.sum(axis=0)
         with np.errstate(invalid="ignore"):
             beyond = (values < self.lower) | (values > self.upper)
-            self.beyond += (beyond if not nonfinite.any() else finite & beyond).sum(axis=0)
+            if not all_finite:
+                beyond &= finite
+            if beyond.any():
+                self.beyond += beyond.sum(axis=0)
         carried = self.tail_values.shape[0]
         joined = np.concatenate([self.tail_values, values]) if carried else values
         steps = self._steps(joined.shape[0], times)
@@ -186,7 +190,8 @@ class SegmentQa:
         """`velocity` of the reduced columns (`_moving_columns`): `source` maps each joint to its column."""
         speed = np.abs(velocity)
         valid = np.isfinite(speed)
-        count = valid.sum(axis=0)
+        every = bool(valid.all())
+        count = np.full(speed.shape[1], speed.shape[0]) if every else valid.sum(axis=0)
         static = np.full(speed.shape[1], np.inf)
         static[source[~constant]] = self.static[~constant]
         still = (speed < static).sum(axis=0)[source]  # NaN and inf are never below
@@ -194,7 +199,7 @@ class SegmentQa:
         self.moving_steps += count[source]
         self.still += still
         if speed.shape[0]:
-            fastest = (speed if count.min() == speed.shape[0] else np.where(valid, speed, -np.inf)).max(axis=0)
+            fastest = (speed if every else np.where(valid, speed, -np.inf)).max(axis=0)
             self.max_velocity = np.fmax(self.max_velocity, fastest[source])
 
     def _jerk(self, jerk: np.ndarray, source: np.ndarray, constant: np.ndarray, first_row: int) -> None:
