@@ -92,7 +92,7 @@ class SegmentQa:
         self.max_velocity = np.full(width, -np.inf)
         self.max_jerk = np.full(width, -np.inf)
         self.max_jerk_row = np.full(width, -1, dtype=np.int64)
-        self.jerk_histogram = np.zeros((width, JERK_BINS), dtype=np.int64)
+        self.jerk_histogram = np.zeros((width, JERK_BINS + 1), dtype=np.int64)  # the last bin: the values not counted
         self.jerk_zeros = np.zeros(width, dtype=np.int64)
         self.still = np.zeros(width, dtype=np.int64)
         self.moving_steps = np.zeros(width, dtype=np.int64)  # steps with a finite velocity
@@ -112,21 +112,31 @@ class SegmentQa:
         if times is None and not self.fps:
             raise ValueError("a segment without timestamps needs its fps")
         finite = np.isfinite(values)
-        self.nan += (~finite).sum(axis=0)
+        all_finite = bool(finite.all())  # a whole-array test is cheap; per-joint counts only when they can be non-zero
+        if not all_finite:
+            self.nan += rows - finite.sum(axis=0)
         with np.errstate(invalid="ignore"):
-            self.beyond += (finite & ((values < self.lower) | (values > self.upper))).sum(axis=0)
+            beyond = (values < self.lower) | (values > self.upper)
+            if not all_finite:
+                beyond &= finite
+            if beyond.any():
+                self.beyond += beyond.sum(axis=0)
         carried = self.tail_values.shape[0]
         joined = np.concatenate([self.tail_values, values]) if carried else values
         steps = self._steps(joined.shape[0], times)
         if times is not None:
             self._timing(steps[max(carried - 1, 0) :], times)
+        reduced, source, constant = _moving_columns(joined)
         with np.errstate(invalid="ignore", divide="ignore"):
-            step = np.where(steps > 0, steps, np.nan)[:, None]  # a step not forward gives no derivative
-            velocity = np.diff(joined, axis=0) / step
-            acceleration = np.diff(velocity, axis=0) / step[1:]
-            jerk = np.diff(acceleration, axis=0) / step[2:]
-        self._velocity(velocity[max(carried - 1, 0) :])
-        self._jerk(jerk[max(carried - 3, 0) :], first_row=self.rows + max(3 - carried, 0))
+            step = (steps if (steps > 0).all() else np.where(steps > 0, steps, np.nan))[:, None]  # not forward: no derivative
+            velocity = np.diff(reduced, axis=0)
+            velocity /= step
+            acceleration = np.diff(velocity, axis=0)
+            acceleration /= step[1:]
+            jerk = np.diff(acceleration, axis=0)
+            jerk /= step[2:]
+        self._velocity(velocity[max(carried - 1, 0) :], source, constant)
+        self._jerk(jerk[max(carried - 3, 0) :], source, constant, first_row=self.rows + max(3 - carried, 0))
         self.rows += rows
         self.tail_values = joined[-CARRIED:].copy()
         if times is not None:
@@ -176,34 +186,56 @@ class SegmentQa:
             if self.gap_seconds is None:
                 self.gaps += int((early > self.gap_steps * self.nominal).sum())
 
-    def _velocity(self, velocity: np.ndarray) -> None:
+    def _velocity(self, velocity: np.ndarray, source: np.ndarray, constant: np.ndarray) -> None:
+        """`velocity` of the reduced columns (`_moving_columns`): `source` maps each joint to its column."""
         speed = np.abs(velocity)
         valid = np.isfinite(speed)
-        self.moving_steps += valid.sum(axis=0)
-        self.still += (valid & (speed < self.static)).sum(axis=0)
+        every = bool(valid.all())
+        count = np.full(speed.shape[1], speed.shape[0]) if every else valid.sum(axis=0)
+        static = np.full(speed.shape[1], np.inf)
+        static[source[~constant]] = self.static[~constant]
+        still = (speed < static).sum(axis=0)[source]  # NaN and inf are never below
+        still[constant] = np.where(0 < self.static[constant], count[-1], 0)  # a constant joint's speed: 0 where valid
+        self.moving_steps += count[source]
+        self.still += still
         if speed.shape[0]:
-            self.max_velocity = np.fmax(self.max_velocity, np.where(valid, speed, -np.inf).max(axis=0))
+            fastest = (speed if every else np.where(valid, speed, -np.inf)).max(axis=0)
+            self.max_velocity = np.fmax(self.max_velocity, fastest[source])
 
-    def _jerk(self, jerk: np.ndarray, first_row: int) -> None:
-        """|jerk| into the histograms and the maxima; `first_row` is the row the first jerk ends at."""
+    def _jerk(self, jerk: np.ndarray, source: np.ndarray, constant: np.ndarray, first_row: int) -> None:
+        """|jerk| of the reduced columns into the histograms and the maxima; `first_row` is the row the first jerk ends at."""
         if not jerk.shape[0]:
             return
         size = np.abs(jerk)
         valid = np.isfinite(size)
-        masked = np.where(valid, size, -np.inf)
-        block_max, at = masked.max(axis=0), masked.argmax(axis=0)
+        masked = size if valid.all() else np.where(valid, size, -np.inf)
+        block_max = masked.max(axis=0)[source]
         better = block_max > self.max_jerk
-        self.max_jerk = np.where(better, block_max, self.max_jerk)
-        self.max_jerk_row = np.where(better, first_row + at, self.max_jerk_row)
-        zero = valid & (size == 0)
-        self.jerk_zeros += zero.sum(axis=0)
-        positive = valid & ~zero
-        joint = np.broadcast_to(np.arange(size.shape[1]), size.shape)[positive]
-        with np.errstate(divide="ignore"):
-            index = np.floor((np.log10(size[positive]) - JERK_LOG_MIN) * JERK_BINS_PER_DECADE)
-        index = np.clip(index, 0, JERK_BINS - 1).astype(np.int64)
-        counts = np.bincount(joint * JERK_BINS + index, minlength=size.shape[1] * JERK_BINS)
-        self.jerk_histogram += counts.reshape(size.shape[1], JERK_BINS)
+        if better.any():  # the row of a new maximum, for the columns that have one
+            needed = np.zeros(size.shape[1], dtype=bool)
+            needed[source[better]] = True
+            at = np.zeros(size.shape[1], dtype=np.int64)
+            at[needed] = masked[:, needed].argmax(axis=0)
+            self.max_jerk = np.where(better, block_max, self.max_jerk)
+            self.max_jerk_row = np.where(better, first_row + at[source], self.max_jerk_row)
+        zero = size == 0
+        self.jerk_zeros += zero.sum(axis=0)[source]
+        moving = np.flatnonzero(~constant)  # a constant joint's jerk is 0 or NaN: never in the histogram
+        if not moving.size:
+            return
+        part = size[:, : moving.size]  # their columns, in order: all but the zero column
+        positive = ~zero[:, : moving.size] if masked is size else valid[:, : moving.size] & ~zero[:, : moving.size]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            index = np.log10(part)
+        index -= JERK_LOG_MIN
+        index *= JERK_BINS_PER_DECADE
+        np.floor(index, out=index)
+        np.clip(index, 0, JERK_BINS - 1, out=index)
+        bins = (index if positive.all() else np.where(positive, index, JERK_BINS)).astype(np.int64)  # not positive: dropped
+        first, last = moving[0], moving[-1] + 1  # only the rows of the joints that moved are touched
+        bins += (moving - first) * (JERK_BINS + 1)
+        counts = np.bincount(bins.ravel(), minlength=(last - first) * (JERK_BINS + 1))
+        self.jerk_histogram[first:last] += counts.reshape(last - first, JERK_BINS + 1)
 
     def finish(self) -> SegmentMetrics:
         if self.nominal is None and self.tail_times is not None:
@@ -211,7 +243,7 @@ class SegmentQa:
         joints = {
             name: JointMetrics(
                 _or_none(self.max_velocity[j]),
-                _p95(self.jerk_zeros[j], self.jerk_histogram[j]),
+                _p95(self.jerk_zeros[j], self.jerk_histogram[j, :JERK_BINS]),
                 _or_none(self.max_jerk[j]),
                 int(self.max_jerk_row[j]) if self.max_jerk_row[j] >= 0 else None,
                 float(self.still[j] / self.moving_steps[j]) if self.moving_steps[j] else None,
@@ -226,6 +258,22 @@ class SegmentQa:
             duration = (self.rows - 1) / self.fps if self.fps and self.rows else None
         timing = TimingMetrics(_or_none(self.max_gap), self.gaps, self.order_violations, self.nominal)
         return SegmentMetrics(self.id, self.rows, duration, joints, timing)
+
+
+def _moving_columns(joined: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The columns a block's derivatives are computed on, each joint's column in them, and which joints are constant:
+    joints whose rows all hold one finite value (a held joint, a still block) share one column of zeros, whose
+    differences are exactly theirs (0, or NaN where the step is not forward), so the work grows with the joints that
+    move only."""
+    constant = (joined == joined[:1]).all(axis=0) & np.isfinite(joined[0])
+    if not constant.any():
+        return joined, np.arange(joined.shape[1]), constant
+    moving = np.flatnonzero(~constant)
+    reduced = np.zeros((joined.shape[0], moving.size + 1), dtype=joined.dtype)
+    reduced[:, : moving.size] = joined[:, moving]
+    source = np.full(joined.shape[1], moving.size)
+    source[moving] = np.arange(moving.size)
+    return reduced, source, constant
 
 
 def _or_none(value: float) -> float | None:
